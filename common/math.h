@@ -1,0 +1,29 @@
+// Vector types and small numeric helpers shared by the renderer.
+#pragma once
+
+#include <glm/glm.hpp>
+
+namespace locus {
+
+using Vec3 = glm::dvec3;
+using Vec2 = glm::dvec2;
+using Mat4 = glm::dmat4;
+using Color = glm::dvec3;
+
+inline double max_component(const Vec3& v) { return glm::max(v.x, glm::max(v.y, v.z)); }
+inline double min_component(const Vec3& v) { return glm::min(v.x, glm::min(v.y, v.z)); }
+
+inline bool is_finite(double x) { return x - x == 0.0; }
+inline bool is_finite(const Vec3& v) { return is_finite(v.x) && is_finite(v.y) && is_finite(v.z); }
+
+// Apply an affine transform to a point / a direction / a normal.
+inline Vec3 transform_point(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
+inline Vec3 transform_vector(const Mat4& m, const Vec3& v) { return Vec3(m * glm::dvec4(v, 0.0)); }
+
+// An arbitrary unit vector perpendicular to unit vector n.
+inline Vec3 any_perpendicular(const Vec3& n) {
+  const Vec3 a = glm::abs(n.x) < 0.6 ? Vec3(1, 0, 0) : (glm::abs(n.y) < 0.6 ? Vec3(0, 1, 0) : Vec3(0, 0, 1));
+  return glm::normalize(glm::cross(n, a));
+}
+
+}  // namespace locus

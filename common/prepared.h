@@ -1,0 +1,43 @@
+// PreparedScene: everything derived from a scene before its rows are
+// rendered. Built once per frame, shared read-only by threads and bands.
+#pragma once
+
+#include <vector>
+
+#include "common/bvh.h"
+#include "common/geometry.h"
+#include "common/render.h"
+#include "common/scene.h"
+
+namespace locus {
+
+// SHADING.md "Camera and pixels".
+struct CameraFrame {
+  Vec3 from, u, v, w;
+  double tan_half = 0, aspect = 1, hither = 0;
+  int width = 0, height = 0;
+
+  explicit CameraFrame(const Camera& c);
+  // Unit direction of the point sample at image coordinates (x, y).
+  Vec3 direction(double x, double y) const {
+    return glm::normalize(w + (2.0 * x / width - 1.0) * tan_half * aspect * u +
+                          (1.0 - 2.0 * y / height) * tan_half * v);
+  }
+};
+
+class PreparedScene {
+ public:
+  PreparedScene(const Scene& s, const RenderParams& params);
+
+  Scene scene;
+  CameraFrame camera;
+  PrimitiveSet prims;
+  Bvh bvh;
+  bool bvh_for_rays = true;     // eye, reflected and refracted rays
+  bool bvh_for_shadows = true;  // shadow rays
+  std::vector<Color> emission;  // per light, resolved
+  double ambient = 0;
+  double eps = 1e-9;            // offset of secondary ray origins
+};
+
+}  // namespace locus

@@ -1,0 +1,218 @@
+#include "common/raytrace.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "common/optics.h"
+
+namespace locus {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// SHADING.md "Ray tree".
+constexpr int kMaxDepth = 5;
+constexpr double kMinWeight = 1.0 / 512.0;
+
+Color beer(const Color& q, double d) {
+  return Color(std::exp(-q.x * d), std::exp(-q.y * d), std::exp(-q.z * d));
+}
+
+}  // namespace
+
+std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tmax) {
+  SurfaceHit best;
+  best.t = tmax;
+  // Upper bound for further tests: inclusive of best.t, so that a hit at
+  // exactly the same distance (an edge shared by two triangles) is seen and
+  // the tie goes to the lower index whatever the traversal order.
+  double bound = tmax;
+  auto test = [&](int prim) {
+    ++stats_.tests_ray_object;
+    const auto c = intersect_nearest(ps_.prims, prim, ray, tmin, bound);
+    if (c && (c->t < best.t || (c->t == best.t && (best.prim < 0 || prim < best.prim)))) {
+      best.t = c->t;
+      best.prim = prim;
+      best.crossing = *c;
+      bound = std::nextafter(best.t, kInf);
+    }
+    return bound;
+  };
+  if (ps_.bvh_for_rays) {
+    traverse_bvh(ps_.bvh, ray, tmin, tmax, test);
+  } else {
+    for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()); ++i) test(i);
+  }
+  if (best.prim < 0) return std::nullopt;
+  return best;
+}
+
+Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light) {
+  ++stats_.rays_shadow;
+  const Vec3 lp = ps_.scene.lights[light].position;
+  const Vec3 origin = offset(p, ng, lp - p);
+  const Ray seg{origin, lp - origin};  // t in (0, 1) spans the segment
+  thread_local std::vector<Crossing> crossings;
+  crossings.clear();
+  bool opaque = false;
+  auto test = [&](int prim) {
+    ++stats_.tests_ray_object;
+    const size_t before = crossings.size();
+    intersect_all(ps_.prims, prim, seg, 0.0, 1.0, crossings);
+    for (size_t i = before; i < crossings.size(); ++i) {
+      const Material& m = ps_.scene.materials[ps_.scene.objects[crossings[i].leaf].material];
+      if (m.t <= 0.0) {
+        opaque = true;  // eq. (2): an opaque occluder stops everything
+        return -1.0;
+      }
+    }
+    return 1.0;
+  };
+  if (ps_.bvh_for_shadows) {
+    traverse_bvh(ps_.bvh, seg, 0.0, 1.0, test);
+  } else {
+    for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()) && !opaque; ++i) test(i);
+  }
+  if (opaque) return Color(0.0);
+  if (crossings.empty()) return Color(1.0);
+
+  // Sorted so the product is formed in the same order whatever the
+  // traversal (bit-identical images with and without boxes).
+  std::sort(crossings.begin(), crossings.end(), [](const Crossing& a, const Crossing& b) {
+    return a.t != b.t ? a.t < b.t : a.leaf < b.leaf;
+  });
+  const double len = glm::length(seg.dir);
+  Color tp(1.0);
+  // (object, t where the segment entered it) for bodies currently inside.
+  thread_local std::vector<std::pair<int, double>> inside;
+  inside.clear();
+  auto absorb = [&](int obj, double t0, double t1) {
+    const Material& m = ps_.scene.materials[ps_.scene.objects[obj].material];
+    if (m.absorption != Color(0.0)) tp *= beer(m.absorption, (t1 - t0) * len);
+  };
+  for (const Crossing& c : crossings) {
+    const Material& m = ps_.scene.materials[ps_.scene.objects[c.leaf].material];
+    const double cos_i = glm::dot(seg.dir, c.normal) / len;
+    const bool entering = cos_i < 0;
+    // eq. (3): (1 - r_a)(1 - r_b), straight path, refraction ignored.
+    const double r = entering ? fresnel(cos_i, 1.0, m.ior) : fresnel(cos_i, m.ior, 1.0);
+    if (r >= 1.0) return Color(0.0);
+    tp *= (1.0 - r);
+    auto it = std::find_if(inside.begin(), inside.end(),
+                           [&](const auto& e) { return e.first == c.leaf; });
+    if (entering) {
+      if (it == inside.end()) inside.emplace_back(c.leaf, c.t);
+    } else {
+      absorb(c.leaf, it == inside.end() ? 0.0 : it->second, c.t);
+      if (it != inside.end()) inside.erase(it);
+    }
+  }
+  for (const auto& [obj, t0] : inside) absorb(obj, t0, 1.0);
+  return tp;
+}
+
+Color Tracer::trace(const Ray& ray, double tmin, int depth, double weight, const Material* medium) {
+  const auto hit = nearest(ray, tmin, kInf);
+  if (!hit) return ps_.scene.background;
+  return shade(ray, *hit, depth, weight, medium);
+}
+
+Color Tracer::shade(const Ray& ray, const SurfaceHit& hit, int depth, double weight,
+                    const Material* medium) {
+  const Scene& scene = ps_.scene;
+  const Crossing& c = hit.crossing;
+  const Material& m = scene.materials[scene.objects[c.leaf].material];
+  // Lambert-Beer along the ray's own path inside a medium.
+  Color atten(1.0);
+  if (medium && medium->absorption != Color(0.0)) atten = beer(medium->absorption, hit.t);
+  const double w = weight * max_component(atten);
+
+  const Vec3 p = ray.origin + hit.t * ray.dir;
+  const Vec3 ng = c.normal;  // outward, geometric
+  const bool entering = glm::dot(ray.dir, ng) < 0;
+  Vec3 n = shading_normal(ps_.prims, ps_.prims.prims[hit.prim], c);
+  if (glm::dot(n, ray.dir) > 0) n = -n;  // face the incoming ray
+  const Vec3 v = -ray.dir;
+
+  Color result = ps_.ambient * m.kd * m.color;
+  for (int j = 0; j < static_cast<int>(scene.lights.size()); ++j) {
+    const Vec3 l = glm::normalize(scene.lights[j].position - p);
+    const double ndl = glm::dot(n, l);
+    if (ndl <= 0) continue;  // light behind the shaded side
+    if (m.kd == 0 && m.ks == 0) continue;
+    const Color tp = transmittance(p, ng, j);
+    if (tp == Color(0.0)) continue;
+    const Vec3 r = 2.0 * ndl * n - l;
+    const double spec = m.ks > 0 ? m.ks * std::pow(std::max(0.0, glm::dot(r, v)), m.shine) : 0.0;
+    result += ps_.emission[j] * tp * (m.kd * ndl * m.color + Color(spec));
+  }
+
+  if (depth < kMaxDepth) {
+    auto spawn = [&](const Vec3& dir, double coef, const Material* med) {
+      return trace(Ray{offset(p, ng, dir), dir}, 0.0, depth + 1, w * coef, med);
+    };
+    if (m.ks > 0 && w * m.ks >= kMinWeight) {
+      ++stats_.rays_reflected;
+      result += m.ks * spawn(reflect(ray.dir, n), m.ks, medium);
+    }
+    if (m.t > 0 && w * m.t >= kMinWeight) {
+      const double eta = entering ? 1.0 / m.ior : m.ior;
+      if (const auto dir = refract(ray.dir, n, eta)) {
+        ++stats_.rays_refracted;
+        result += m.t * spawn(*dir, m.t, entering ? &m : nullptr);
+      } else {
+        // Total internal reflection: a reflected ray of the same weight T.
+        ++stats_.rays_reflected;
+        result += m.t * spawn(reflect(ray.dir, n), m.t, medium);
+      }
+    }
+  }
+  return atten * result;
+}
+
+namespace {
+
+// Deterministic jitter from the pixel and sample index only, so a pixel's
+// value never depends on the band or thread that renders it.
+uint64_t mix(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+double unit(uint64_t x) { return static_cast<double>(x >> 11) * (1.0 / 9007199254740992.0); }
+
+}  // namespace
+
+void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int y,
+                   Image& out, Stats& stats) {
+  Tracer tracer(ps, stats);
+  const CameraFrame& cam = ps.camera;
+  const int n = std::max(1, params.spp);
+  for (int x = 0; x < cam.width; ++x) {
+    Color sum(0.0);
+    for (int sy = 0; sy < n; ++sy) {
+      for (int sx = 0; sx < n; ++sx) {
+        double fx = 0.5, fy = 0.5;
+        if (n > 1) {
+          const uint64_t h = mix((static_cast<uint64_t>(y) << 32) ^ static_cast<uint64_t>(x) ^
+                                 mix(static_cast<uint64_t>(sy * n + sx)));
+          fx = (sx + unit(h)) / n;
+          fy = (sy + unit(mix(h))) / n;
+        }
+        ++stats.rays_eye;
+        const Ray ray{cam.from, cam.direction(x + fx, y + fy)};
+        sum += tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
+      }
+    }
+    sum /= static_cast<double>(n * n);
+    float* px = out.pixel(x, y - band.y0);
+    px[0] = static_cast<float>(sum.x);
+    px[1] = static_cast<float>(sum.y);
+    px[2] = static_cast<float>(sum.z);
+  }
+  stats.pixels_total += cam.width;
+  stats.pixels_ray_traced += cam.width;
+}
+
+}  // namespace locus

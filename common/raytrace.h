@@ -1,0 +1,53 @@
+// The Whitted ray tracer of SHADING.md: configuration I of the paper when
+// every ray tests every object, the BVH baseline otherwise. The local method
+// (scanline + ray tracing only where needed) calls shade() on spans whose
+// visible surface it already knows.
+#pragma once
+
+#include <optional>
+
+#include "common/prepared.h"
+#include "common/render.h"
+
+namespace locus {
+
+struct SurfaceHit {
+  double t = 0;
+  int prim = -1;
+  Crossing crossing;
+};
+
+class Tracer {
+ public:
+  Tracer(const PreparedScene& ps, Stats& stats) : ps_(ps), stats_(stats) {}
+
+  // Nearest surface along the ray in (tmin, tmax). Ties go to the lower
+  // primitive index, so every traversal order gives the same answer.
+  std::optional<SurfaceHit> nearest(const Ray& ray, double tmin, double tmax);
+
+  // Fraction of light `light` reaching p (paper eqs. (2), (3)), per channel.
+  // `ng` is the outward geometric normal at p, used to offset the origin.
+  Color transmittance(const Vec3& p, const Vec3& ng, int light);
+
+  // Radiance along a ray; depth 1 is the primary ray. `medium` is the
+  // material whose body the ray travels in (nullptr outside).
+  Color trace(const Ray& ray, double tmin, int depth, double weight, const Material* medium);
+
+  // Shading of a known hit (SHADING.md "Materials").
+  Color shade(const Ray& ray, const SurfaceHit& hit, int depth, double weight,
+              const Material* medium);
+
+ private:
+  Vec3 offset(const Vec3& p, const Vec3& ng, const Vec3& dir) const {
+    return p + (glm::dot(dir, ng) >= 0 ? ps_.eps : -ps_.eps) * ng;
+  }
+
+  const PreparedScene& ps_;
+  Stats& stats_;
+};
+
+// The ray-tracing path of render_band (--method raytrace).
+void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Band& band,
+                   int row, Image& out, Stats& stats);
+
+}  // namespace locus

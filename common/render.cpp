@@ -1,0 +1,118 @@
+#include "common/render.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <thread>
+
+#include "common/prepared.h"
+#include "common/raytrace.h"
+
+namespace locus {
+
+CameraFrame::CameraFrame(const Camera& c)
+    : from(c.from),
+      tan_half(std::tan(glm::radians(c.angle) * 0.5)),
+      aspect(static_cast<double>(c.width) / c.height),
+      hither(c.hither),
+      width(c.width),
+      height(c.height) {
+  w = glm::normalize(c.at - c.from);
+  u = glm::normalize(glm::cross(w, c.up));
+  v = glm::cross(u, w);
+}
+
+PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
+    : scene(s), camera(s.camera), prims(build_primitives(s)) {
+  bvh_for_rays = params.boxes != Boxes::kNone;
+  bvh_for_shadows = params.boxes == Boxes::kEyeShadow;
+  if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
+  for (int j = 0; j < static_cast<int>(s.lights.size()); ++j) emission.push_back(light_emission(s, j));
+  ambient = ambient_intensity(s);
+  // Secondary rays start this far off the surface: relative to the scene's
+  // size, far above double rounding, far below any feature of SPD scenes.
+  Aabb world;
+  for (const Aabb& b : prims.bounds) world.extend(b);
+  double scale = 1.0;
+  if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+  eps = 1e-9 * std::min(scale, 1e7) * 100.0;
+}
+
+Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
+                                                           const RenderParams& params) {
+  if (params.method != Method::kRaytrace) {
+    return InvalidArgument("render method 'local' is not available in this build; use --method raytrace");
+  }
+  if (params.spp < 1 || params.spp > 64) {
+    return InvalidArgument("--spp must be between 1 and 64, got " + std::to_string(params.spp));
+  }
+  if (scene.camera.width < 1 || scene.camera.height < 1) {
+    return InvalidArgument("image size must be positive");
+  }
+  return std::shared_ptr<const PreparedScene>(std::make_shared<PreparedScene>(scene, params));
+}
+
+BandResult render_band(const PreparedScene& ps, const Band& band, const RenderParams& params) {
+  const auto start = std::chrono::steady_clock::now();
+  const int y0 = std::clamp(band.y0, 0, ps.camera.height);
+  const int y1 = std::clamp(band.y1, y0, ps.camera.height);
+  BandResult result;
+  result.pixels = Image(ps.camera.width, y1 - y0);
+  int threads = params.threads > 0 ? params.threads
+                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = std::max(1, std::min(threads, y1 - y0));
+  std::vector<Stats> stats(threads);
+  std::atomic<int> next{y0};
+  auto work = [&](int id) {
+    for (int y = next++; y < y1; y = next++) {
+      raytrace_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int i = 1; i < threads; ++i) pool.emplace_back(work, i);
+  work(0);
+  for (auto& t : pool) t.join();
+  for (const Stats& s : stats) result.stats += s;
+  result.stats.seconds_render =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+Result<BandResult> render_image(const Scene& scene, const RenderParams& params) {
+  const auto start = std::chrono::steady_clock::now();
+  auto prepared = prepare_scene(scene, params);
+  if (!prepared.ok()) return prepared.status();
+  const double prep = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  BandResult r = render_band(**prepared, Band{0, scene.camera.height}, params);
+  r.stats.seconds_prepare = prep;
+  return r;
+}
+
+Stats& Stats::operator+=(const Stats& o) {
+  seconds_prepare += o.seconds_prepare;
+  seconds_render += o.seconds_render;
+  rays_eye += o.rays_eye;
+  rays_reflected += o.rays_reflected;
+  rays_refracted += o.rays_refracted;
+  rays_shadow += o.rays_shadow;
+  tests_ray_object += o.tests_ray_object;
+  pixels_total += o.pixels_total;
+  pixels_ray_traced += o.pixels_ray_traced;
+  return *this;
+}
+
+std::string Stats::to_json() const {
+  std::ostringstream o;
+  o.precision(9);
+  o << "{\n  \"seconds\": {\"prepare\": " << seconds_prepare << ", \"render\": " << seconds_render
+    << "},\n  \"rays\": {\"eye\": " << rays_eye << ", \"reflected\": " << rays_reflected
+    << ", \"refracted\": " << rays_refracted << ", \"shadow\": " << rays_shadow
+    << "},\n  \"tests\": {\"ray_object\": " << tests_ray_object
+    << "},\n  \"pixels\": {\"total\": " << pixels_total << ", \"ray_traced\": " << pixels_ray_traced
+    << "}\n}\n";
+  return o.str();
+}
+
+}  // namespace locus

@@ -1,0 +1,71 @@
+// The renderer's entry points. A worker renders a band (a range of pixel rows
+// of one frame) with render_band(); a whole image is one band.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "common/image.h"
+#include "common/scene.h"
+#include "common/status.h"
+
+namespace locus {
+
+// METHOD.md §8 configurations: I = raytrace/none, II = local/none,
+// III = local/eye, IV = local/eye+shadow; raytrace/eye+shadow is the modern
+// BVH baseline.
+enum class Method { kRaytrace, kLocal };
+enum class Boxes { kNone, kEye, kEyeShadow };
+
+struct RenderParams {
+  Method method = Method::kRaytrace;
+  Boxes boxes = Boxes::kEyeShadow;
+  int spp = 1;       // spp x spp stratified samples per pixel; 1 = pixel centre
+  int threads = 0;   // 0 = all cores
+};
+
+// Rows [y0, y1) of the frame.
+struct Band {
+  int y0 = 0;
+  int y1 = 0;
+};
+
+// Counters written by `--stats`. Key names are a contract (issue #2): later
+// work adds keys but never renames them.
+struct Stats {
+  double seconds_prepare = 0;
+  double seconds_render = 0;
+  uint64_t rays_eye = 0;
+  uint64_t rays_reflected = 0;
+  uint64_t rays_refracted = 0;
+  uint64_t rays_shadow = 0;
+  uint64_t tests_ray_object = 0;
+  uint64_t pixels_total = 0;
+  uint64_t pixels_ray_traced = 0;
+
+  Stats& operator+=(const Stats& o);
+  std::string to_json() const;
+};
+
+// Everything derived from a scene before rendering (acceleration structures,
+// resolved lights). Immutable and shareable between threads and bands.
+class PreparedScene;
+
+Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
+                                                           const RenderParams& params);
+
+struct BandResult {
+  Image pixels;  // width x (y1 - y0)
+  Stats stats;
+};
+
+// Renders rows [band.y0, band.y1). Every pixel depends only on the scene,
+// the parameters and its own coordinates, so a band stitched into a frame is
+// bit-identical to the same rows of an unbanded render.
+BandResult render_band(const PreparedScene& prepared, const Band& band, const RenderParams& params);
+
+// prepare_scene + render_band over the whole image; stats include prepare time.
+Result<BandResult> render_image(const Scene& scene, const RenderParams& params);
+
+}  // namespace locus
