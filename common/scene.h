@@ -10,6 +10,7 @@
 #include <variant>
 #include <vector>
 
+#include "common/animation.h"
 #include "common/math.h"
 
 namespace locus {
@@ -120,6 +121,7 @@ struct Scene {
   std::vector<Light> lights;
   std::vector<Material> materials;
   std::vector<Object> objects;
+  Animation animation;  // keyframes (animation.h); empty for a still scene
   std::string source;  // file the scene was read from, for messages
 };
 

@@ -1,0 +1,370 @@
+#include "server/coordinator.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include "common/animation.h"
+#include "common/image.h"
+#include "common/scene_io.h"
+
+namespace locus::farm {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr size_t kChunkBytes = 1 << 20;
+constexpr Millis kWatchInterval{100};  // at most ~10 updates a second per watcher
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// The coordinator writes only under its data directory, so of the client's
+// pattern it keeps the file name alone.
+Result<std::string> output_file_pattern(const std::string& output, int frames) {
+  if (output.empty()) return InvalidArgument("output: a pattern such as out/shot_####.png is required");
+  const std::string name = fs::path(output).filename().string();
+  if (name.empty() || name == "." || name == "..") {
+    return InvalidArgument("output '" + output + "': names no file; expected a pattern such as out/shot_####.png");
+  }
+  const std::string ext = lower(fs::path(name).extension().string());
+  if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
+    return InvalidArgument("output '" + output + "': unsupported image type '" + ext +
+                           "' (expected .png, .exr, .tif)");
+  }
+  if (frames > 1 && !has_frame_field(name)) {
+    return InvalidArgument("output '" + output + "': " + std::to_string(frames) +
+                           " frames need a frame number field in the file name, e.g. shot_####.png");
+  }
+  return name;
+}
+
+}  // namespace
+
+Coordinator::Coordinator(CoordinatorOptions options)
+    : options_(std::move(options)),
+      scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts}, options_.now) {}
+
+Coordinator::~Coordinator() { shutdown(); }
+
+Status Coordinator::start() {
+  std::error_code ec;
+  fs::create_directories(fs::path(options_.data_dir) / "jobs", ec);
+  if (ec) return FailedPrecondition("--data " + options_.data_dir + ": cannot create: " + ec.message());
+  std::lock_guard lk(mu_);
+  if (started_) return Status::Ok();
+  started_ = true;
+  ticker_ = std::thread([this] { tick_loop(); });
+  writer_ = std::thread([this] { write_loop(); });
+  return Status::Ok();
+}
+
+void Coordinator::shutdown() {
+  {
+    std::lock_guard lk(mu_);
+    if (stopping_) return;
+    stopping_ = true;
+  }
+  changed_.notify_all();
+  write_ready_.notify_all();
+  if (ticker_.joinable()) ticker_.join();
+  if (writer_.joinable()) writer_.join();
+}
+
+std::string Coordinator::job_dir(const std::string& job_id) const {
+  return (fs::path(options_.data_dir) / "jobs" / job_id).string();
+}
+
+// ---------------------------------------------------------------- background
+
+void Coordinator::tick_loop() {
+  std::unique_lock lk(mu_);
+  uint64_t seen = scheduler_.version();
+  while (!stopping_) {
+    changed_.wait_for(lk, options_.tick);
+    scheduler_.expire();
+    if (scheduler_.version() != seen) {
+      seen = scheduler_.version();
+      drop_unused_scenes();
+      changed_.notify_all();
+    }
+  }
+}
+
+void Coordinator::drop_unused_scenes() {
+  std::set<std::string> used;
+  for (const JobInfo& j : scheduler_.jobs()) {
+    if (!is_terminal(j.state)) used.insert(j.spec.scene_hash);
+  }
+  for (auto it = scenes_.begin(); it != scenes_.end();) {
+    it = used.count(it->first) ? std::next(it) : scenes_.erase(it);
+  }
+}
+
+void Coordinator::write_loop() {
+  std::unique_lock lk(mu_);
+  for (;;) {
+    write_ready_.wait(lk, [&] { return stopping_ || !to_write_.empty(); });
+    if (to_write_.empty()) return;  // stopping, and nothing left
+    FrameImage f = std::move(to_write_.front());
+    to_write_.pop_front();
+    lk.unlock();
+    // Atomic: a reader (fetch) sees the whole file or none. The temporary
+    // keeps the extension, by which OpenImageIO picks the format.
+    const fs::path dir = job_dir(f.job_id);
+    const fs::path final_path = dir / f.file_name;
+    const fs::path tmp = dir / (".partial-" + f.file_name);
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    Status st = ec ? Internal(dir.string() + ": cannot create: " + ec.message()) : write_image(tmp.string(), f.image);
+    if (st.ok()) {
+      fs::rename(tmp, final_path, ec);
+      if (ec) st = Internal(final_path.string() + ": cannot rename into place: " + ec.message());
+    }
+    if (!st.ok()) fs::remove(tmp, ec);
+    f.image = Image();  // bounded memory: the frame is gone before the next one is taken
+    lk.lock();
+    scheduler_.frame_written(f.job_id, f.frame, st);
+    changed_.notify_all();
+  }
+}
+
+// ---------------------------------------------------------------- clients
+
+Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
+  const std::string name = r.scene_name.empty() ? "scene" : r.scene_name;
+  // A scene from the wire carries its meshes inline; an OBJ path would make
+  // the coordinator read its own files.
+  for (int i = 0; i < r.scene.objects_size(); ++i) {
+    if (r.scene.objects(i).has_mesh() && !r.scene.objects(i).mesh().obj().empty()) {
+      return InvalidArgument(name + ": objects[" + std::to_string(i) +
+                             "].mesh.obj: a submitted scene must carry its meshes inline");
+    }
+  }
+  Result<Scene> scene = scene_from_proto(r.scene, name);
+  if (!scene.ok()) return Status(Code::kInvalidArgument, scene.status().message());
+  if (!scene->has_camera && (r.width == 0 || r.height == 0)) {
+    return InvalidArgument(name + ": the scene has no camera resolution; give the size");
+  }
+
+  JobSpec spec;
+  spec.scene_name = name;
+  spec.width = r.width > 0 ? r.width : scene->camera.width;
+  spec.height = r.height > 0 ? r.height : scene->camera.height;
+  if (r.width < 0 || r.height < 0 || spec.width < 1 || spec.height < 1 || spec.width > kMaxResolution ||
+      spec.height > kMaxResolution) {
+    return InvalidArgument("size " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                           ": each side must be 1.." + std::to_string(kMaxResolution));
+  }
+  spec.frame_first = r.frame_first;
+  spec.frame_last = r.frame_last;
+  if (r.frame_first < 0 || r.frame_last < r.frame_first) {
+    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" + std::to_string(r.frame_last) +
+                           ": expected A-B with 0 <= A <= B");
+  }
+  if (static_cast<int64_t>(r.frame_last) - r.frame_first + 1 > kMaxFramesPerJob) {
+    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" + std::to_string(r.frame_last) +
+                           ": at most " + std::to_string(kMaxFramesPerJob) + " frames per job");
+  }
+  Result<RenderParams> params = to_render_params(r.render, 0);
+  if (!params.ok()) return params.status();
+  spec.render = r.render;
+  if (!std::isfinite(r.orbit_degrees)) return InvalidArgument("orbit: must be a finite number of degrees");
+  spec.orbit_degrees = r.orbit_degrees;
+  Result<std::string> pattern = output_file_pattern(r.output, spec.frames());
+  if (!pattern.ok()) return pattern.status();
+  spec.output = *pattern;
+
+  const int least = min_bands(spec.width, spec.height);
+  if (r.bands < 0 || r.bands > spec.height) {
+    return InvalidArgument("bands " + std::to_string(r.bands) + ": expected 1.." + std::to_string(spec.height) +
+                           " (a band is at least one row of the " + std::to_string(spec.height) + "-row frame)");
+  }
+  if (r.bands > 0 && r.bands < least) {
+    return InvalidArgument("bands " + std::to_string(r.bands) + ": a " + std::to_string(spec.width) + "x" +
+                           std::to_string(spec.height) + " frame needs at least " + std::to_string(least) +
+                           " bands so that each fits in one message");
+  }
+
+  auto stored = std::make_shared<v1::Scene>(r.scene);
+  std::string bytes;
+  stored->SerializeToString(&bytes);
+  spec.scene_hash = content_hash(bytes);
+
+  std::lock_guard lk(mu_);
+  if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");
+  spec.bands = r.bands > 0 ? r.bands
+                           : default_bands(spec.width, spec.height, spec.frames(),
+                                           static_cast<int>(scheduler_.worker_count()));
+  if (spec.bands_total() > kMaxBandsPerJob) {
+    return InvalidArgument(std::to_string(spec.frames()) + " frames x " + std::to_string(spec.bands) +
+                           " bands: at most " + std::to_string(kMaxBandsPerJob) + " bands per job");
+  }
+  scenes_.emplace(spec.scene_hash, std::move(stored));
+  const std::string id = scheduler_.add_job(spec);
+  spdlog::info("job {}: {} {}x{} frames {}-{} x {} bands -> {}", id, name, spec.width, spec.height,
+               spec.frame_first, spec.frame_last, spec.bands, spec.output);
+  changed_.notify_all();
+  return scheduler_.job(id);
+}
+
+Result<JobInfo> Coordinator::job(const std::string& job_id) {
+  std::lock_guard lk(mu_);
+  return scheduler_.job(job_id);
+}
+
+std::vector<JobInfo> Coordinator::jobs() {
+  std::lock_guard lk(mu_);
+  return scheduler_.jobs();
+}
+
+Result<JobInfo> Coordinator::cancel(const std::string& job_id) {
+  std::lock_guard lk(mu_);
+  auto r = scheduler_.cancel(job_id);
+  if (r.ok()) spdlog::info("job {}: cancelled", job_id);
+  changed_.notify_all();
+  return r;
+}
+
+std::vector<WorkerInfo> Coordinator::workers() {
+  std::lock_guard lk(mu_);
+  return scheduler_.workers();
+}
+
+Status Coordinator::watch(const std::string& job_id, Millis max, const CancelledFn& cancelled,
+                          const JobSink& sink) {
+  const auto end = SteadyClock::now() + std::clamp(max, Millis(0), options_.max_watch);
+  std::unique_lock lk(mu_);
+  for (;;) {
+    Result<JobInfo> info = scheduler_.job(job_id);
+    if (!info.ok()) return info.status();
+    const uint64_t seen = scheduler_.version();
+    lk.unlock();
+    if (!sink(*info)) return Status::Ok();
+    if (is_terminal(info->state)) return Status::Ok();
+    const auto next = SteadyClock::now() + kWatchInterval;
+    lk.lock();
+    // Throttle, then wait for a change; wake regularly to notice a client
+    // that went away.
+    changed_.wait_until(lk, std::min(next, end), [&] { return stopping_; });
+    while (!stopping_ && scheduler_.version() == seen && SteadyClock::now() < end) {
+      if (cancelled && cancelled()) return Status::Ok();
+      changed_.wait_for(lk, Millis(200));
+    }
+    if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");
+    if (SteadyClock::now() >= end) {
+      auto last = scheduler_.job(job_id);
+      lk.unlock();
+      if (last.ok()) sink(*last);
+      return Status::Ok();
+    }
+  }
+}
+
+Status Coordinator::fetch(const std::string& job_id, const std::vector<int>& frames, const ChunkSink& sink) {
+  JobInfo info;
+  {
+    std::lock_guard lk(mu_);
+    auto r = scheduler_.job(job_id);
+    if (!r.ok()) return r.status();
+    info = *r;
+  }
+  std::vector<int> want = frames.empty() ? info.frames_written : frames;
+  std::sort(want.begin(), want.end());
+  const std::set<int> written(info.frames_written.begin(), info.frames_written.end());
+  for (int f : want) {
+    if (!written.count(f)) {
+      return NotFound("frame " + std::to_string(f) + " of job " + job_id + " is not written (job " +
+                      job_state_name(info.state) + ", " + std::to_string(info.frames_done) + " of " +
+                      std::to_string(info.spec.frames()) + " frames written)");
+    }
+  }
+  std::vector<char> buf(kChunkBytes);
+  for (int f : want) {
+    const std::string name = frame_path(info.spec.output, f);
+    const fs::path path = fs::path(job_dir(job_id)) / name;
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return Internal(path.string() + ": cannot read the written frame");
+    int64_t offset = 0;
+    for (;;) {
+      in.read(buf.data(), buf.size());
+      const std::streamsize n = in.gcount();
+      FileChunk c;
+      c.frame = f;
+      c.file_name = name;
+      c.offset = offset;
+      c.data.assign(buf.data(), static_cast<size_t>(n));
+      c.last = !in;
+      offset += n;
+      if (!sink(c)) return Status(Code::kCancelled, "the client stopped reading");
+      if (c.last) break;
+    }
+  }
+  return Status::Ok();
+}
+
+// ---------------------------------------------------------------- workers
+
+Registration Coordinator::register_worker(const std::string& name, int threads) {
+  std::lock_guard lk(mu_);
+  Registration r;
+  r.worker_id = scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200), std::max(1, threads));
+  r.heartbeat = options_.heartbeat;
+  r.lease = options_.lease;
+  spdlog::info("worker {} registered: {} ({} threads)", r.worker_id, name, threads);
+  changed_.notify_all();
+  return r;
+}
+
+Result<std::optional<BandTask>> Coordinator::get_task(const std::string& worker_id, Millis wait,
+                                                      const CancelledFn& cancelled) {
+  const auto end = SteadyClock::now() + std::clamp(wait, Millis(0), options_.max_poll);
+  std::unique_lock lk(mu_);
+  for (;;) {
+    // Checked before leasing: a band leased to a poll whose worker has gone
+    // would sit idle until its lease lapsed.
+    if (stopping_ || (cancelled && cancelled())) return std::optional<BandTask>();
+    auto r = scheduler_.next_task(worker_id);
+    if (!r.ok() || r->has_value()) {
+      if (r.ok()) changed_.notify_all();
+      return r;
+    }
+    if (SteadyClock::now() >= end) return r;
+    changed_.wait_until(lk, std::min(end, SteadyClock::now() + Millis(200)));
+  }
+}
+
+Result<std::shared_ptr<const v1::Scene>> Coordinator::get_scene(const std::string& worker_id,
+                                                                const std::string& hash) {
+  std::lock_guard lk(mu_);
+  const Status alive = scheduler_.touch(worker_id);
+  if (!alive.ok()) return alive;
+  auto it = scenes_.find(hash);
+  if (it == scenes_.end()) return NotFound("scene " + hash + " is not held (its jobs are over)");
+  return it->second;
+}
+
+Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {
+  std::lock_guard lk(mu_);
+  auto r = scheduler_.complete_band(std::move(output));
+  if (r.ok() && r->frame) {
+    to_write_.push_back(std::move(*r->frame));
+    r->frame.reset();
+    write_ready_.notify_one();
+  }
+  changed_.notify_all();
+  return r;
+}
+
+Result<std::vector<std::string>> Coordinator::heartbeat(const std::string& worker_id,
+                                                        const std::vector<std::string>& lease_ids) {
+  std::lock_guard lk(mu_);
+  return scheduler_.heartbeat(worker_id, lease_ids);
+}
+
+}  // namespace locus::farm

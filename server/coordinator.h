@@ -1,0 +1,125 @@
+// The coordinator's service logic: thread-safe, no gRPC. It validates
+// submissions, keeps scenes by content hash, runs the Scheduler under one
+// lock, holds long polls and watches on a condition variable, lapses leases
+// on a ticker thread and writes finished frames on a writer thread.
+// server/grpc_service.cpp adapts it to the two gRPC services.
+#pragma once
+
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "proto/scene.pb.h"
+#include "server/farm_types.h"
+#include "server/scheduler.h"
+
+namespace locus::farm {
+
+struct CoordinatorOptions {
+  std::string data_dir;          // frames go to DATA/jobs/<job>/<file>
+  Millis lease{5000};
+  Millis heartbeat{1000};        // asked of workers; well inside the lease
+  Millis max_poll{10000};        // longest GetTask wait
+  Millis max_watch{30000};       // longest single WatchJob stream
+  Millis tick{100};              // how often leases are checked
+  int max_attempts = 3;
+  NowFn now = [] { return SteadyClock::now(); };
+};
+
+// A submission as the client sends it, before validation.
+struct SubmitRequest {
+  v1::Scene scene;
+  std::string scene_name;
+  RenderSettings render;
+  int width = 0;   // 0: the scene camera's
+  int height = 0;
+  int frame_first = 1;
+  int frame_last = 1;
+  int bands = 0;   // 0: default_bands()
+  std::string output;
+  double orbit_degrees = 0;
+};
+
+struct Registration {
+  std::string worker_id;
+  Millis heartbeat{0};
+  Millis lease{0};
+};
+
+struct FileChunk {
+  int frame = 0;
+  std::string file_name;
+  int64_t offset = 0;
+  std::string data;
+  bool last = false;
+};
+
+// Return false to stop a stream (the client has gone).
+using JobSink = std::function<bool(const JobInfo&)>;
+using ChunkSink = std::function<bool(const FileChunk&)>;
+using CancelledFn = std::function<bool()>;
+
+class Coordinator {
+ public:
+  explicit Coordinator(CoordinatorOptions options);
+  ~Coordinator();
+  Coordinator(const Coordinator&) = delete;
+  Coordinator& operator=(const Coordinator&) = delete;
+
+  // Creates the data directory and starts the ticker and writer threads.
+  Status start();
+  // Ends long polls and watches, writes the frames already stitched, joins.
+  void shutdown();
+
+  // ---- ClientService ----
+  // InvalidArgument naming the scene and the problem; nothing is stored then.
+  Result<JobInfo> submit(const SubmitRequest& request);
+  Result<JobInfo> job(const std::string& job_id);
+  std::vector<JobInfo> jobs();
+  Result<JobInfo> cancel(const std::string& job_id);
+  std::vector<WorkerInfo> workers();
+  // Sends the job's status now, then on each change (throttled), until the
+  // job ends, `max` passes, the client cancels or the sink refuses.
+  Status watch(const std::string& job_id, Millis max, const CancelledFn& cancelled, const JobSink& sink);
+  // Sends the written frame files; `frames` empty: all written so far.
+  Status fetch(const std::string& job_id, const std::vector<int>& frames, const ChunkSink& sink);
+
+  // ---- WorkerService ----
+  Registration register_worker(const std::string& name, int threads);
+  Result<std::optional<BandTask>> get_task(const std::string& worker_id, Millis wait,
+                                           const CancelledFn& cancelled);
+  Result<std::shared_ptr<const v1::Scene>> get_scene(const std::string& worker_id,
+                                                     const std::string& hash);
+  Result<CompleteOutcome> complete_band(BandOutput output);
+  Result<std::vector<std::string>> heartbeat(const std::string& worker_id,
+                                             const std::vector<std::string>& lease_ids);
+
+  // The directory holding a job's frames.
+  std::string job_dir(const std::string& job_id) const;
+
+ private:
+  void tick_loop();
+  void write_loop();
+  void drop_unused_scenes();  // mu_ held
+
+  CoordinatorOptions options_;
+  std::mutex mu_;
+  std::condition_variable changed_;  // scheduler version moved, or stopping
+  Scheduler scheduler_;
+  std::map<std::string, std::shared_ptr<const v1::Scene>> scenes_;  // by content hash
+  std::deque<FrameImage> to_write_;
+  std::condition_variable write_ready_;
+  bool stopping_ = false;
+  bool started_ = false;
+  std::thread ticker_;
+  std::thread writer_;
+};
+
+}  // namespace locus::farm

@@ -1,0 +1,96 @@
+#include "server/farm_types.h"
+
+#include <openssl/evp.h>
+
+#include <algorithm>
+#include <cstdio>
+
+namespace locus::farm {
+
+Result<RenderParams> to_render_params(const RenderSettings& s, int threads) {
+  RenderParams p;
+  if (s.method.empty() || s.method == "raytrace") {
+    p.method = Method::kRaytrace;
+  } else if (s.method == "local") {
+    p.method = Method::kLocal;
+  } else {
+    return InvalidArgument("render method '" + s.method + "' is unknown; use raytrace or local");
+  }
+  if (s.boxes.empty() || s.boxes == "eye+shadow") {
+    p.boxes = Boxes::kEyeShadow;
+  } else if (s.boxes == "eye") {
+    p.boxes = Boxes::kEye;
+  } else if (s.boxes == "none") {
+    p.boxes = Boxes::kNone;
+  } else {
+    return InvalidArgument("boxes '" + s.boxes + "' is unknown; use none, eye or eye+shadow");
+  }
+  p.spp = s.spp == 0 ? 1 : s.spp;
+  if (p.spp < 1 || p.spp > 64) {
+    return InvalidArgument("spp must be between 1 and 64, got " + std::to_string(s.spp));
+  }
+  p.threads = threads;
+  return p;
+}
+
+RenderSettings from_render_params(const RenderParams& p) {
+  RenderSettings s;
+  s.method = p.method == Method::kLocal ? "local" : "raytrace";
+  s.boxes = p.boxes == Boxes::kNone ? "none" : (p.boxes == Boxes::kEye ? "eye" : "eye+shadow");
+  s.spp = p.spp;
+  return s;
+}
+
+const char* job_state_name(JobState s) {
+  switch (s) {
+    case JobState::kQueued:
+      return "queued";
+    case JobState::kRunning:
+      return "running";
+    case JobState::kSucceeded:
+      return "succeeded";
+    case JobState::kFailed:
+      return "failed";
+    case JobState::kCancelled:
+      return "cancelled";
+  }
+  return "unknown";
+}
+
+Band band_rows(int height, int bands, int index) {
+  // 64-bit products: height * index overflows int for tall frames cut finely.
+  const auto at = [&](int i) { return static_cast<int>(static_cast<int64_t>(height) * i / bands); };
+  return Band{at(index), at(index + 1)};
+}
+
+int min_bands(int width, int height) {
+  const int64_t frame_bytes = static_cast<int64_t>(width) * height * 3 * 4;
+  return static_cast<int>(std::max<int64_t>(1, (frame_bytes + kMaxBandBytes - 1) / kMaxBandBytes));
+}
+
+int default_bands(int width, int height, int frames, int workers) {
+  // 8 bands per worker (at least 2 workers' worth, as workers may join
+  // later) spread over the frames: rows differ in cost by orders of magnitude
+  // (sky against glass), so many small bands keep the tail short, and a band
+  // costs the coordinator well under a millisecond (bench/farm).
+  const int64_t target = 8 * static_cast<int64_t>(std::max(workers, 2));
+  const int64_t per_frame = (target + frames - 1) / std::max(frames, 1);
+  const int64_t n = std::max<int64_t>(per_frame, min_bands(width, height));
+  return static_cast<int>(std::clamp<int64_t>(n, 1, std::max(height, 1)));
+}
+
+std::string content_hash(std::string_view bytes) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_Digest(bytes.data(), bytes.size(), md, &len, EVP_sha256(), nullptr);
+  std::string hex;
+  hex.reserve(len * 2);
+  char buf[3];
+  for (unsigned int i = 0; i < len; ++i) {
+    std::snprintf(buf, sizeof buf, "%02x", md[i]);
+    hex += buf;
+  }
+  return hex;
+}
+
+}  // namespace locus::farm

@@ -1,0 +1,145 @@
+// The farm's vocabulary as plain C++ types, shared by the coordinator's
+// scheduling logic, the worker's rendering logic and the CLI. No gRPC here:
+// server/grpc_service.cpp converts between these and proto/locus.proto.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/image.h"
+#include "common/render.h"
+#include "common/status.h"
+
+namespace locus::farm {
+
+using SteadyClock = std::chrono::steady_clock;
+using TimePoint = SteadyClock::time_point;
+using Millis = std::chrono::milliseconds;
+// Injected wherever time matters, so tests drive leases with a fake clock.
+using NowFn = std::function<TimePoint()>;
+
+// The limits a coordinator enforces on every job (docs/farm.md "Limits").
+inline constexpr int kMaxFramesPerJob = 100000;
+inline constexpr int64_t kMaxBandsPerJob = 1000000;
+// gRPC's message size limit, set explicitly on every server and channel; a
+// band's pixels must fit in one message with room to spare.
+inline constexpr int kMaxMessageBytes = 64 << 20;
+inline constexpr int64_t kMaxBandBytes = 48 << 20;
+
+// How every pixel is computed; the names are those of the CLI flags.
+struct RenderSettings {
+  std::string method = "raytrace";
+  std::string boxes = "eye+shadow";
+  int spp = 1;
+};
+
+// Checks the names and ranges; the thread count is the worker's own.
+Result<RenderParams> to_render_params(const RenderSettings& settings, int threads);
+RenderSettings from_render_params(const RenderParams& params);
+
+enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
+const char* job_state_name(JobState state);
+inline bool is_terminal(JobState s) {
+  return s == JobState::kSucceeded || s == JobState::kFailed || s == JobState::kCancelled;
+}
+
+// A validated job as the scheduler sees it. The scene itself lives in the
+// coordinator's scene store under `scene_hash`.
+struct JobSpec {
+  std::string scene_hash;
+  std::string scene_name;
+  RenderSettings render;
+  int width = 0;
+  int height = 0;
+  int frame_first = 1;
+  int frame_last = 1;
+  int bands = 1;       // per frame, 1..height
+  std::string output;  // file-name pattern, e.g. "shot_####.png"
+  double orbit_degrees = 0;
+
+  int frames() const { return frame_last - frame_first + 1; }
+  int64_t bands_total() const { return static_cast<int64_t>(frames()) * bands; }
+};
+
+// Rows of band `index` when `height` rows are cut into `bands` bands: as
+// equal as integers allow, every row in exactly one band.
+Band band_rows(int height, int bands, int index);
+
+// The default split when a job does not give --bands: enough bands to keep
+// every worker busy with several each, fewer per frame when the frames
+// themselves give the parallelism, and at least enough that every band fits
+// in one message.
+int default_bands(int width, int height, int frames, int workers);
+// The fewest bands whose pixels each fit in kMaxBandBytes.
+int min_bands(int width, int height);
+
+// A band leased to a worker: everything a stateless worker needs but the
+// scene, which it fetches once per hash.
+struct BandTask {
+  std::string lease_id;
+  Millis lease_remaining{0};
+  std::string job_id;
+  std::string scene_hash;
+  int frame = 0;
+  int band = 0;
+  int y0 = 0;
+  int y1 = 0;
+  int width = 0;
+  int height = 0;
+  RenderSettings render;
+  double orbit_degrees = 0;
+  int frame_first = 0;
+  int frame_last = 0;
+};
+
+// What a worker returns for a band: its pixels (linear RGB floats, rows
+// y0..y1-1) or the error that prevented them.
+struct BandOutput {
+  std::string worker_id;
+  std::string lease_id;
+  std::vector<float> rgb;
+  Stats stats;
+  std::string error;
+};
+
+struct JobInfo {
+  std::string job_id;
+  JobState state = JobState::kQueued;
+  JobSpec spec;
+  int64_t bands_done = 0;
+  int frames_done = 0;  // stitched and written
+  std::vector<int> frames_written;
+  std::string error;
+  double seconds_elapsed = 0;
+  Stats stats;
+};
+
+struct WorkerInfo {
+  std::string worker_id;
+  std::string name;
+  int threads = 1;
+  bool busy = false;
+  std::string job_id;  // of the band in hand
+  int frame = 0;
+  int band = 0;
+  int64_t bands_done = 0;
+  double seconds_since_seen = 0;
+};
+
+// A frame whose bands are all in, ready to be written.
+struct FrameImage {
+  std::string job_id;
+  int frame = 0;
+  std::string file_name;
+  Image image;
+};
+
+// Hex SHA-256: scenes are addressed by the hash of their serialized form.
+std::string content_hash(std::string_view bytes);
+
+}  // namespace locus::farm
