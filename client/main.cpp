@@ -1,28 +1,51 @@
-// locus: the command-line client. `render` and `validate` work in process;
-// the farm commands talk to a coordinator.
+// locus: the command-line client. `render` renders in process (--workers 0)
+// or on an embedded local farm; `validate` checks a scene; `submit`,
+// `status`, `watch`, `cancel`, `workers` and `fetch` talk to a coordinator.
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <regex>
+#include <thread>
 
+#include "client/farm_client.h"
+#include "client/local_farm.h"
+#include "client/progress.h"
+#include "common/animation.h"
 #include "common/render.h"
 #include "common/scene_io.h"
+#include "proto/scene.pb.h"
+#include "worker/band_renderer.h"
 
 namespace {
 
 using namespace locus;
+namespace fs = std::filesystem;
 
-struct RenderArgs {
+// Flags shared by `render` and `submit`: what to render and how.
+struct JobArgs {
   std::string scene;
   std::string output;
   std::string size;
   std::string method = "raytrace";
   std::string boxes = "eye+shadow";
   int spp = 1;
+  std::string frames;
+  double orbit = 0;
+  int bands = 0;
+};
+
+struct RenderArgs {
+  JobArgs job;
   int threads = 0;
+  bool threads_given = false;
+  int workers = -1;  // -1: one per core
+  bool workers_given = false;
   std::string stats;
 };
 
@@ -30,6 +53,8 @@ int fail(const std::string& message) {
   std::fprintf(stderr, "locus: %s\n", message.c_str());
   return 1;
 }
+
+int fail(const Status& status) { return fail(status.message()); }
 
 // Parses "WxH" into the camera's resolution.
 bool parse_size(const std::string& s, int* w, int* h) {
@@ -41,39 +66,184 @@ bool parse_size(const std::string& s, int* w, int* h) {
   return *w > 0 && *h > 0;
 }
 
-int run_render(const RenderArgs& a) {
+// "A-B" or "A"; empty: frame 1.
+Status parse_frames(const std::string& s, int* first, int* last) {
+  if (s.empty()) {
+    *first = *last = 1;
+    return Status::Ok();
+  }
+  static const std::regex re("^([0-9]{1,9})(?:-([0-9]{1,9}))?$");
+  std::smatch m;
+  if (!std::regex_match(s, m, re)) {
+    return InvalidArgument("--frames: expected A-B such as 1-24 (or one frame number), got '" + s + "'");
+  }
+  *first = std::stoi(m[1]);
+  *last = m[2].matched ? std::stoi(m[2]) : *first;
+  if (*last < *first) return InvalidArgument("--frames " + s + ": the last frame comes before the first");
+  if (*last - *first + 1 > farm::kMaxFramesPerJob) {
+    return InvalidArgument("--frames " + s + ": at most " + std::to_string(farm::kMaxFramesPerJob) + " frames");
+  }
+  return Status::Ok();
+}
+
+// A loaded, sized scene and the job around it, ready for either path.
+struct PreparedJob {
+  Scene scene;
+  farm::SubmitRequest request;  // request.scene is filled only for the farm
+};
+
+Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
+  PreparedJob job;
+  farm::SubmitRequest& r = job.request;
+  if (Status s = parse_frames(a.frames, &r.frame_first, &r.frame_last); !s.ok()) return s;
+  const int frames = r.frame_last - r.frame_first + 1;
+  if (frames > 1 && !has_frame_field(a.output)) {
+    return InvalidArgument("-o " + a.output + ": " + std::to_string(frames) +
+                           " frames need a frame number field in the file name, e.g. shot_####.png");
+  }
   auto scene = load_scene(a.scene);
-  if (!scene.ok()) return fail(scene.status().message());
+  if (!scene.ok()) return scene.status();
+  job.scene = std::move(*scene);
   if (!a.size.empty()) {
     int w, h;
     if (!parse_size(a.size, &w, &h)) {
-      return fail("--size: expected WIDTHxHEIGHT such as 640x480, got '" + a.size + "'");
+      return InvalidArgument("--size: expected WIDTHxHEIGHT such as 640x480, got '" + a.size + "'");
     }
     if (w > kMaxResolution || h > kMaxResolution) {
-      return fail("--size: " + a.size + " exceeds the limit of " + std::to_string(kMaxResolution) +
-                  " pixels per side");
+      return InvalidArgument("--size: " + a.size + " exceeds the limit of " + std::to_string(kMaxResolution) +
+                             " pixels per side");
     }
-    scene->camera.width = w;
-    scene->camera.height = h;
+    job.scene.camera.width = w;
+    job.scene.camera.height = h;
   }
-  RenderParams params;
-  params.method = Method::kRaytrace;
-  params.boxes = a.boxes == "none" ? Boxes::kNone : (a.boxes == "eye" ? Boxes::kEye : Boxes::kEyeShadow);
-  params.spp = a.spp;
-  params.threads = a.threads;
-  auto result = render_image(*scene, params);
-  if (!result.ok()) return fail(result.status().message());
-  const Status st = write_image(a.output, result->pixels);
-  if (!st.ok()) return fail(st.message());
-  if (!a.stats.empty()) {
-    std::ofstream f(a.stats);
-    f << result->stats.to_json();
-    if (!f) return fail(a.stats + ": cannot write stats file");
+  r.scene_name = a.scene;
+  r.render.method = a.method;
+  r.render.boxes = a.boxes;
+  r.render.spp = a.spp;
+  r.width = job.scene.camera.width;
+  r.height = job.scene.camera.height;
+  r.bands = a.bands;
+  r.output = a.output;
+  r.orbit_degrees = a.orbit;
+  if (a.bands > r.height) {
+    return InvalidArgument("--bands " + std::to_string(a.bands) + ": the frame has only " +
+                           std::to_string(r.height) + " rows; a band is at least one row");
   }
-  spdlog::info("rendered {} ({}x{}) in {:.3f} s -> {}", a.scene, scene->camera.width,
-               scene->camera.height, result->stats.seconds_prepare + result->stats.seconds_render,
-               a.output);
+  if (for_farm) r.scene = scene_to_proto(job.scene);
+  return job;
+}
+
+Status write_stats(const std::string& path, const Stats& stats) {
+  if (path.empty()) return Status::Ok();
+  std::ofstream f(path);
+  f << stats.to_json();
+  if (!f) return FailedPrecondition(path + ": cannot write stats file");
+  return Status::Ok();
+}
+
+void make_parent_dirs(const std::string& path) {
+  std::error_code ec;
+  const fs::path parent = fs::path(path).parent_path();
+  if (!parent.empty()) fs::create_directories(parent, ec);
+}
+
+// --workers 0: every frame rendered here, through the same frame_scene()
+// the workers use.
+int render_in_process(const RenderArgs& a) {
+  auto job = prepare_job(a.job, false);
+  if (!job.ok()) return fail(job.status());
+  auto params = farm::to_render_params(job->request.render, a.threads);
+  if (!params.ok()) return fail(params.status());
+  const farm::SubmitRequest& r = job->request;
+  Stats total;
+  double seconds = 0;
+  for (int f = r.frame_first; f <= r.frame_last; ++f) {
+    const Scene s = farm::frame_scene(job->scene, r.width, r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
+    auto result = render_image(s, *params);
+    if (!result.ok()) return fail(result.status());
+    const std::string path = frame_path(a.job.output, f);
+    make_parent_dirs(path);
+    if (Status st = write_image(path, result->pixels); !st.ok()) return fail(st);
+    total += result->stats;
+    seconds += result->stats.seconds_prepare + result->stats.seconds_render;
+  }
+  if (Status st = write_stats(a.stats, total); !st.ok()) return fail(st);
+  spdlog::info("rendered {} ({}x{}, {} frame{}) in {:.3f} s -> {}", a.job.scene, r.width, r.height,
+               r.frame_last - r.frame_first + 1, r.frame_last > r.frame_first ? "s" : "", seconds, a.job.output);
   return 0;
+}
+
+// Follows a job to its end with a progress display on stderr, then fetches
+// its frames to the output pattern. Returns the process exit code.
+int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted, const std::string& output,
+                     bool show_progress, farm::JobInfo* final_info) {
+  client::Progress progress(stderr, isatty(STDERR_FILENO) != 0);
+  auto done = farm.watch(submitted.job_id, [&](const farm::JobInfo& j) {
+    if (show_progress) progress.update(j);
+  });
+  progress.finish();
+  if (!done.ok()) return fail(done.status());
+  if (final_info) *final_info = *done;
+  if (done->state != farm::JobState::kSucceeded) {
+    return fail("job " + done->job_id + " " + farm::job_state_name(done->state) +
+                (done->error.empty() ? "" : ": " + done->error));
+  }
+  auto files = farm.fetch(done->job_id, {}, [&](int frame, const std::string&) { return frame_path(output, frame); });
+  if (!files.ok()) return fail(files.status());
+  return 0;
+}
+
+int render_on_local_farm(const RenderArgs& a, int workers) {
+  auto job = prepare_job(a.job, true);
+  if (!job.ok()) return fail(job.status());
+  // Farm mode: --threads is per worker, and a worker is one core unless
+  // told otherwise (the farm's parallelism is its workers).
+  client::LocalFarmOptions options;
+  options.workers = workers;
+  options.threads = a.threads_given ? a.threads : 1;
+  // The coordinator and workers log to their own places; keep this
+  // terminal for the job's progress.
+  const auto level = spdlog::get_level();
+  spdlog::set_level(spdlog::level::warn);
+  const auto start = std::chrono::steady_clock::now();
+  auto local = client::LocalFarm::start(options);
+  if (!local.ok()) {
+    spdlog::set_level(level);
+    return fail(local.status());
+  }
+  client::FarmClient farm((*local)->address());
+  auto submitted = farm.submit(job->request);
+  if (!submitted.ok()) {
+    spdlog::set_level(level);
+    return fail(submitted.status());
+  }
+  farm::JobInfo info;
+  const int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info);
+  if (rc != 0) (*local)->keep_logs();
+  const std::string logs = (*local)->dir();
+  local->reset();
+  spdlog::set_level(level);
+  if (rc != 0) {
+    std::fprintf(stderr, "locus: the local farm's logs are in %s\n", logs.c_str());
+    return rc;
+  }
+  if (Status st = write_stats(a.stats, info.stats); !st.ok()) return fail(st);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  spdlog::info("rendered {} ({}x{}, {} frame{}, {} bands each, {} workers) in {:.3f} s -> {}", a.job.scene,
+               info.spec.width, info.spec.height, info.spec.frames(), info.spec.frames() > 1 ? "s" : "",
+               info.spec.bands, workers, seconds, a.job.output);
+  return 0;
+}
+
+int run_render(const RenderArgs& a) {
+  int workers = a.workers;
+  if (workers < 0) workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (workers == 0) return render_in_process(a);
+  if (!a.workers_given && !client::worker_binary().ok()) {
+    spdlog::warn("{}; rendering in process", client::worker_binary().status().message());
+    return render_in_process(a);
+  }
+  return render_on_local_farm(a, workers);
 }
 
 int run_validate(const std::string& path) {
@@ -87,6 +257,136 @@ int run_validate(const std::string& path) {
   return 0;
 }
 
+// ---------------------------------------------------------------- farm commands
+
+struct SubmitArgs {
+  JobArgs job;
+  bool wait = false;
+};
+
+int run_submit(const std::string& address, const SubmitArgs& a) {
+  // Validated here first: the user sees the scene's problems and nothing
+  // reaches the coordinator.
+  auto job = prepare_job(a.job, true);
+  if (!job.ok()) return fail(job.status());
+  client::FarmClient farm(address);
+  auto submitted = farm.submit(job->request);
+  if (!submitted.ok()) return fail(submitted.status());
+  std::printf("%s\n", submitted->job_id.c_str());
+  std::fflush(stdout);
+  if (!a.wait) return 0;
+  return follow_and_fetch(farm, *submitted, a.job.output, true, nullptr);
+}
+
+void print_job(const farm::JobInfo& j) {
+  std::printf("job %s: %s\n", j.job_id.c_str(), farm::job_state_name(j.state));
+  std::printf("  scene    %s, %dx%d, frames %d-%d, %d bands per frame\n", j.spec.scene_name.c_str(), j.spec.width,
+              j.spec.height, j.spec.frame_first, j.spec.frame_last, j.spec.bands);
+  std::printf("  progress %lld/%lld bands, %d/%d frames written, %s elapsed\n", static_cast<long long>(j.bands_done),
+              static_cast<long long>(j.spec.bands_total()), j.frames_done, j.spec.frames(),
+              client::format_duration(j.seconds_elapsed).c_str());
+  std::printf("  output   %s (fetch with `locus fetch %s DIR`)\n", j.spec.output.c_str(), j.job_id.c_str());
+  if (!j.error.empty()) std::printf("  error    %s\n", j.error.c_str());
+}
+
+int run_status(const std::string& address, const std::string& job_id) {
+  client::FarmClient farm(address);
+  if (!job_id.empty()) {
+    auto j = farm.job(job_id);
+    if (!j.ok()) return fail(j.status());
+    print_job(*j);
+    return 0;
+  }
+  auto jobs = farm.jobs();
+  if (!jobs.ok()) return fail(jobs.status());
+  if (jobs->empty()) {
+    std::printf("no jobs\n");
+    return 0;
+  }
+  std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", "JOB", "STATE", "FRAMES", "BANDS", "ELAPSED", "SCENE");
+  for (const farm::JobInfo& j : *jobs) {
+    const std::string frames = std::to_string(j.frames_done) + "/" + std::to_string(j.spec.frames());
+    const std::string bands = std::to_string(j.bands_done) + "/" + std::to_string(j.spec.bands_total());
+    std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", j.job_id.c_str(), farm::job_state_name(j.state), frames.c_str(),
+                bands.c_str(), client::format_duration(j.seconds_elapsed).c_str(), j.spec.scene_name.c_str());
+  }
+  return 0;
+}
+
+int run_watch(const std::string& address, const std::string& job_id) {
+  client::FarmClient farm(address);
+  client::Progress progress(stdout, isatty(STDOUT_FILENO) != 0);
+  auto done = farm.watch(job_id, [&](const farm::JobInfo& j) { progress.update(j); });
+  progress.finish();
+  if (!done.ok()) return fail(done.status());
+  if (!done->error.empty()) std::printf("error: %s\n", done->error.c_str());
+  return done->state == farm::JobState::kSucceeded ? 0 : 1;
+}
+
+int run_cancel(const std::string& address, const std::string& job_id) {
+  client::FarmClient farm(address);
+  auto j = farm.cancel(job_id);
+  if (!j.ok()) return fail(j.status());
+  std::printf("job %s: %s (%lld/%lld bands done)\n", j->job_id.c_str(), farm::job_state_name(j->state),
+              static_cast<long long>(j->bands_done), static_cast<long long>(j->spec.bands_total()));
+  return 0;
+}
+
+int run_workers(const std::string& address) {
+  client::FarmClient farm(address);
+  auto ws = farm.workers();
+  if (!ws.ok()) return fail(ws.status());
+  if (ws->empty()) {
+    std::printf("no workers\n");
+    return 0;
+  }
+  std::printf("%-7s %-24s %-8s %-6s %-22s %-7s %s\n", "WORKER", "NAME", "THREADS", "STATE", "BAND", "BANDS", "SEEN");
+  for (const farm::WorkerInfo& w : *ws) {
+    const std::string band =
+        w.busy ? w.job_id + " f" + std::to_string(w.frame) + " b" + std::to_string(w.band) : "-";
+    char seen[32];
+    std::snprintf(seen, sizeof seen, "%.1f s ago", w.seconds_since_seen);
+    std::printf("%-7s %-24s %-8d %-6s %-22s %-7lld %s\n", w.worker_id.c_str(), w.name.c_str(), w.threads,
+                w.busy ? "busy" : "idle", band.c_str(), static_cast<long long>(w.bands_done), seen);
+  }
+  return 0;
+}
+
+int run_fetch(const std::string& address, const std::string& job_id, const std::string& dir) {
+  client::FarmClient farm(address);
+  auto j = farm.job(job_id);
+  if (!j.ok()) return fail(j.status());
+  auto files = farm.fetch(job_id, {}, [&](int, const std::string& name) { return (fs::path(dir) / name).string(); });
+  if (!files.ok()) return fail(files.status());
+  std::printf("%zu frame%s of job %s in %s", files->size(), files->size() == 1 ? "" : "s", job_id.c_str(), dir.c_str());
+  if (j->state != farm::JobState::kSucceeded) {
+    std::printf(" (job %s: %d of %d frames written so far)", farm::job_state_name(j->state), j->frames_done,
+                j->spec.frames());
+  }
+  std::printf("\n");
+  return 0;
+}
+
+void add_job_flags(CLI::App* cmd, JobArgs& a) {
+  cmd->add_option("scene", a.scene, "Scene file (.nff or .json)")->required();
+  cmd->add_option("-o,--output", a.output,
+                  "Output image or pattern (.png, .exr, .tif); #### becomes the zero-padded frame number")
+      ->required();
+  cmd->add_option("--size", a.size, "Override the resolution, WIDTHxHEIGHT");
+  cmd->add_option("--method", a.method, "Rendering method")->check(CLI::IsMember({"raytrace"}));
+  cmd->add_option("--boxes", a.boxes, "Bounding boxes: none, eye, eye+shadow")
+      ->check(CLI::IsMember({"none", "eye", "eye+shadow"}));
+  cmd->add_option("--spp", a.spp, "N: N x N stratified samples per pixel")->check(CLI::Range(1, 64));
+  cmd->add_option("--frames", a.frames, "Frames A-B of the animation (default 1)");
+  cmd->add_option("--orbit", a.orbit, "The camera orbits `at` about `up` by DEG degrees over the frames");
+  cmd->add_option("--bands", a.bands, "Bands per frame (default: several per worker)")->check(CLI::Range(1, 1 << 20));
+}
+
+std::string default_farm() {
+  const char* env = std::getenv("LOCUS_FARM");
+  return env && *env ? env : "127.0.0.1:7000";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -94,25 +394,58 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
 
   RenderArgs ra;
-  auto* render = app.add_subcommand("render", "Render a scene to an image");
-  render->add_option("scene", ra.scene, "Scene file (.nff or .json)")->required();
-  render->add_option("-o,--output", ra.output, "Output image (.png, .exr, .tif)")->required();
-  render->add_option("--size", ra.size, "Override the resolution, WIDTHxHEIGHT");
-  render->add_option("--method", ra.method, "Rendering method")
-      ->check(CLI::IsMember({"raytrace"}));
-  render->add_option("--boxes", ra.boxes, "Bounding boxes: none, eye, eye+shadow")
-      ->check(CLI::IsMember({"none", "eye", "eye+shadow"}));
-  render->add_option("--spp", ra.spp, "N: N x N stratified samples per pixel")
-      ->check(CLI::Range(1, 64));
-  render->add_option("--threads", ra.threads, "Threads (0 = all cores)")->check(CLI::Range(0, 1024));
+  auto* render = app.add_subcommand("render", "Render a scene (or frames of it) to images");
+  add_job_flags(render, ra.job);
+  render->add_option("--threads", ra.threads, "Threads (0 = all cores); with workers: threads per worker (default 1)")
+      ->check(CLI::Range(0, 1024));
+  render->add_option("--workers", ra.workers,
+                     "Local worker processes on an embedded farm (default: one per core); 0 renders in process")
+      ->check(CLI::Range(0, 256));
   render->add_option("--stats", ra.stats, "Write render statistics as JSON");
 
   std::string vpath;
   auto* validate = app.add_subcommand("validate", "Check a scene file and list every problem");
   validate->add_option("scene", vpath, "Scene file")->required();
 
+  std::string farm_address = default_farm();
+  auto add_farm = [&](CLI::App* cmd) {
+    cmd->add_option("--farm", farm_address, "Coordinator address HOST:PORT (default $LOCUS_FARM or 127.0.0.1:7000)");
+  };
+  SubmitArgs sa;
+  auto* submit = app.add_subcommand("submit", "Submit a job to a farm; prints its id");
+  add_job_flags(submit, sa.job);
+  add_farm(submit);
+  submit->add_flag("--wait", sa.wait, "Follow the job and fetch its frames to the output pattern");
+
+  std::string job_id, dir;
+  auto* status = app.add_subcommand("status", "Show one job, or list them all");
+  status->add_option("job", job_id, "Job id");
+  add_farm(status);
+  auto* watch = app.add_subcommand("watch", "Follow a job's progress until it ends");
+  watch->add_option("job", job_id, "Job id")->required();
+  add_farm(watch);
+  auto* cancel = app.add_subcommand("cancel", "Cancel a job");
+  cancel->add_option("job", job_id, "Job id")->required();
+  add_farm(cancel);
+  auto* workers = app.add_subcommand("workers", "List the farm's workers");
+  add_farm(workers);
+  auto* fetch = app.add_subcommand("fetch", "Download a job's written frames into a directory");
+  fetch->add_option("job", job_id, "Job id")->required();
+  fetch->add_option("dir", dir, "Directory")->required();
+  add_farm(fetch);
+
   CLI11_PARSE(app, argc, argv);
-  if (render->parsed()) return run_render(ra);
+  if (render->parsed()) {
+    ra.threads_given = render->count("--threads") > 0;
+    ra.workers_given = render->count("--workers") > 0;
+    return run_render(ra);
+  }
   if (validate->parsed()) return run_validate(vpath);
+  if (submit->parsed()) return run_submit(farm_address, sa);
+  if (status->parsed()) return run_status(farm_address, job_id);
+  if (watch->parsed()) return run_watch(farm_address, job_id);
+  if (cancel->parsed()) return run_cancel(farm_address, job_id);
+  if (workers->parsed()) return run_workers(farm_address);
+  if (fetch->parsed()) return run_fetch(farm_address, job_id, dir);
   return 1;
 }

@@ -132,8 +132,8 @@ class NffParser {
     if (dropped_ > 0) {
       // SPD's teapot at low sizes has patches collapsed to a line; they have
       // no surface to render, so they are dropped rather than rejected.
-      spdlog::warn("{}:{}: dropped {} zero-area polygon(s) or patch(es) (this is the first)",
-                   name_, first_dropped_line_, dropped_);
+      spdlog::warn("{}:{}: dropped {} zero-area polygon(s) or patch(es) (this is the first)", name_,
+                   first_dropped_line_, dropped_);
     }
     const std::vector<std::string> problems = validate_scene(scene_);
     if (!problems.empty()) return problems_status(problems);
@@ -153,13 +153,15 @@ class NffParser {
     if (k == "pp") return polygon(true);
     if (to_double(k)) {
       if (entity_line_ == 0) {
-        return fail(fmt::format("unexpected number {} at the start of the file (expected one of "
-                                "{})",
-                                quote(k), kEntities));
+        return fail(
+            fmt::format("unexpected number {} at the start of the file (expected one of "
+                        "{})",
+                        quote(k), kEntities));
       }
-      return fail(fmt::format("unexpected number {} where an entity keyword was expected ({}); "
-                              "the entity before it (line {}) has too many values",
-                              quote(k), kEntities, entity_line_));
+      return fail(
+          fmt::format("unexpected number {} where an entity keyword was expected ({}); "
+                      "the entity before it (line {}) has too many values",
+                      quote(k), kEntities, entity_line_));
     }
     return fail(fmt::format("unknown entity {} (expected one of {})", quote(k), kEntities));
   }
@@ -279,7 +281,7 @@ class NffParser {
     }
     Camera c;
     // Fields in any order, each once; hither may be absent (NFF before 2.7).
-    static constexpr std::string_view kFields[] = {"from", "at",     "up",
+    static constexpr std::string_view kFields[] = {"from",  "at",     "up",
                                                    "angle", "hither", "resolution"};
     bool seen[6] = {};
     while (std::optional<Token> t = lex_.peek()) {
@@ -369,8 +371,7 @@ class NffParser {
 
   bool fill() {
     begin();
-    static constexpr const char* kNames[] = {"r",     "g", "b",  "Kd", "Ks",
-                                             "Shine", "T", "ior"};
+    static constexpr const char* kNames[] = {"r", "g", "b", "Kd", "Ks", "Shine", "T", "ior"};
     double v[8];
     for (int k = 0; k < 8; ++k) {
       const std::optional<double> x = number(kFill, kNames[k]);
@@ -470,8 +471,8 @@ class NffParser {
   Scene scene_;
   std::string error_;
   std::vector<std::string> problems_;
-  int line_ = 1;              // where a syntax error is reported
-  int entity_line_ = 0;       // first line of the entity being read, 0 before any
+  int line_ = 1;         // where a syntax error is reported
+  int entity_line_ = 0;  // first line of the entity being read, 0 before any
   int camera_line_ = 0;
   int current_material_ = -1;
   int dropped_ = 0;

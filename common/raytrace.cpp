@@ -13,6 +13,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // SHADING.md "Ray tree".
 constexpr int kMaxDepth = 5;
 constexpr double kMinWeight = 1.0 / 512.0;
+constexpr double kTieRel = 1e-9;
 
 Color beer(const Color& q, double d) {
   return Color(std::exp(-q.x * d), std::exp(-q.y * d), std::exp(-q.z * d));
@@ -21,30 +22,36 @@ Color beer(const Color& q, double d) {
 }  // namespace
 
 std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tmax) {
-  SurfaceHit best;
-  best.t = tmax;
-  // Upper bound for further tests: inclusive of best.t, so that a hit at
-  // exactly the same distance (an edge shared by two triangles) is seen and
-  // the tie goes to the lower index whatever the traversal order.
-  double bound = tmax;
+  // Crossings within kTieRel of the nearest distance are coincident surfaces
+  // (doubled faces, an edge shared by two triangles). Among them the
+  // primitive defined first in the scene wins. Candidates in the band of the
+  // nearest distance seen so far are kept, so the choice is the same for
+  // any traversal order (bit-identical images with and without boxes).
+  thread_local std::vector<SurfaceHit> band;
+  band.clear();
+  double nearest_t = tmax;
   auto test = [&](int prim) {
     ++stats_.tests_ray_object;
+    const double bound = std::min(tmax, nearest_t * (1.0 + kTieRel));
     const auto c = intersect_nearest(ps_.prims, prim, ray, tmin, bound);
-    if (c && (c->t < best.t || (c->t == best.t && (best.prim < 0 || prim < best.prim)))) {
-      best.t = c->t;
-      best.prim = prim;
-      best.crossing = *c;
-      bound = std::nextafter(best.t, kInf);
+    if (c) {
+      band.push_back(SurfaceHit{c->t, prim, *c});
+      if (c->t < nearest_t) nearest_t = c->t;
     }
-    return bound;
+    return std::min(tmax, std::nextafter(nearest_t * (1.0 + kTieRel), kInf));
   };
   if (ps_.bvh_for_rays) {
     traverse_bvh(ps_.bvh, ray, tmin, tmax, test);
   } else {
     for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()); ++i) test(i);
   }
-  if (best.prim < 0) return std::nullopt;
-  return best;
+  const SurfaceHit* best = nullptr;
+  const double limit = nearest_t * (1.0 + kTieRel);
+  for (const SurfaceHit& h : band) {
+    if (h.t <= limit && (!best || h.prim < best->prim)) best = &h;
+  }
+  if (!best) return std::nullopt;
+  return *best;
 }
 
 Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light) {

@@ -1,11 +1,11 @@
 // load_scene: the loader by file extension (scene_io.h).
+#include "common/scene_io.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
-
-#include "common/scene_io.h"
 
 namespace locus {
 
@@ -15,10 +15,10 @@ Result<Scene> load_scene(const std::string& path) {
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".nff") return load_nff(path);
   if (ext == ".json") return load_scene_json(path);
-  return InvalidArgument(fmt::format(
-      "{}: unknown scene format '{}' (expected a .nff file or a .json scene, "
-      "docs/scene-format.md)",
-      path, ext.empty() ? "no extension" : ext));
+  return InvalidArgument(
+      fmt::format("{}: unknown scene format '{}' (expected a .nff file or a .json scene, "
+                  "docs/scene-format.md)",
+                  path, ext.empty() ? "no extension" : ext));
 }
 
 }  // namespace locus

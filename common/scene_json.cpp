@@ -5,14 +5,14 @@
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
+#include <glm/gtc/matrix_transform.hpp>
 #include <map>
 #include <set>
 #include <string>
 #include <string_view>
 #include <utility>
-
-#include <glm/gtc/matrix_transform.hpp>
 
 #include "common/animation.h"
 #include "common/polyhedron.h"
@@ -181,6 +181,7 @@ class JsonSyntax {
         return fail("control character in a string (write \\n, \\t, ...)");
       }
       if (c == '\\') {
+        const size_t start = pos_;
         if (++pos_ >= t_.size()) break;
         const char e = t_[pos_];
         if (e == 'u') {
@@ -193,7 +194,8 @@ class JsonSyntax {
         } else if (std::string_view("\"\\/bfnrt").find(e) == std::string_view::npos) {
           return fail(fmt::format("invalid escape \\{} in a string", e));
         }
-        if (out) *out += '?';  // escapes only matter for telling keys apart
+        // Keys are compared as written: only repeated keys matter here.
+        if (out) *out += t_.substr(start, pos_ + 1 - start);
       } else if (out) {
         *out += c;
       }
@@ -350,8 +352,8 @@ class SceneFromProto {
   std::vector<Vec3> points(const RepeatedField<double>& f, const std::string& path) {
     std::vector<Vec3> out;
     if (f.size() % 3 != 0) {
-      error(path, fmt::format("must hold x, y, z triples; {} numbers is not a multiple of 3",
-                              f.size()));
+      error(path,
+            fmt::format("must hold x, y, z triples; {} numbers is not a multiple of 3", f.size()));
       return out;
     }
     out.reserve(f.size() / 3);
@@ -494,8 +496,8 @@ class SceneFromProto {
         const std::optional<Vec3> lo = vec3(p.box().min(), at + ".min", std::nullopt);
         const std::optional<Vec3> hi = vec3(p.box().max(), at + ".max", std::nullopt);
         if (!lo || !hi) return std::nullopt;
-        if (!is_finite(*lo) || !is_finite(*hi) || !(lo->x < hi->x && lo->y < hi->y &&
-                                                     lo->z < hi->z)) {
+        if (!is_finite(*lo) || !is_finite(*hi) ||
+            !(lo->x < hi->x && lo->y < hi->y && lo->z < hi->z)) {
           error(at, fmt::format("max must exceed min in every component, got min {} and max {}",
                                 format_vec(*lo), format_vec(*hi)));
           return std::nullopt;
@@ -509,7 +511,8 @@ class SceneFromProto {
         const std::optional<Vec3> apex = vec3(q.apex(), at + ".apex", std::nullopt);
         const size_t before = problems_.size();
         if (q.sides() < 3 || q.sides() > kMaxPrismSides) {
-          error(at + ".sides", fmt::format("must be in [3, {}], got {}", kMaxPrismSides, q.sides()));
+          error(at + ".sides",
+                fmt::format("must be in [3, {}], got {}", kMaxPrismSides, q.sides()));
         }
         if (!(q.radius() > 0.0 && is_finite(q.radius()))) {
           error(at + ".radius", "must be positive, got " + format_number(q.radius()));
@@ -529,7 +532,8 @@ class SceneFromProto {
         Polyhedron out;
         out.vertices = points(q.vertices(), at + ".vertices");
         if (q.faces().empty()) return hull(out.vertices, at);
-        for (const v1::Face& f : q.faces()) out.faces.emplace_back(f.vertices().begin(), f.vertices().end());
+        for (const v1::Face& f : q.faces())
+          out.faces.emplace_back(f.vertices().begin(), f.vertices().end());
         return out;
       }
       case Object::kPolygon:
@@ -564,8 +568,9 @@ class SceneFromProto {
       case Object::SHAPE_NOT_SET:
         break;
     }
-    error(path, "has no shape (expected one of sphere, cylinder, cone, box, prism, polyhedron, "
-                "polygon, mesh, patch, csg)");
+    error(path,
+          "has no shape (expected one of sphere, cylinder, cone, box, prism, polyhedron, "
+          "polygon, mesh, patch, csg)");
     return std::nullopt;
   }
 
@@ -578,7 +583,8 @@ class SceneFromProto {
     }
     for (size_t i = 0; i < vertices.size(); ++i) {
       if (!is_finite(vertices[i])) {
-        error(fmt::format("{}.vertices[{}]", at, i), "must be finite, got " + format_vec(vertices[i]));
+        error(fmt::format("{}.vertices[{}]", at, i),
+              "must be finite, got " + format_vec(vertices[i]));
         return std::nullopt;
       }
     }
@@ -596,8 +602,8 @@ class SceneFromProto {
       m.positions = points(p.positions(), at + ".positions");
       m.normals = points(p.normals(), at + ".normals");
       if (p.indices_size() % 3 != 0) {
-        error(at + ".indices", fmt::format("must hold 3 per triangle; {} is not a multiple of 3",
-                                           p.indices_size()));
+        error(at + ".indices",
+              fmt::format("must hold 3 per triangle; {} is not a multiple of 3", p.indices_size()));
         return std::nullopt;
       }
       for (int i = 0; i + 2 < p.indices_size(); i += 3) {
@@ -639,7 +645,8 @@ class SceneFromProto {
     const tinyobj::attrib_t& attrib = reader.GetAttrib();
     bool all_normals = true;
     for (const tinyobj::shape_t& s : reader.GetShapes()) {
-      for (const tinyobj::index_t& i : s.mesh.indices) all_normals = all_normals && i.normal_index >= 0;
+      for (const tinyobj::index_t& i : s.mesh.indices)
+        all_normals = all_normals && i.normal_index >= 0;
     }
     Mesh m;
     const size_t nv = attrib.vertices.size() / 3, nn = attrib.normals.size() / 3;
@@ -686,7 +693,7 @@ class SceneFromProto {
   std::string name_;
   std::string base_dir_;
   Scene scene_;
-  std::string part_;                // the part being converted: "objects[3]"
+  std::string part_;                 // the part being converted: "objects[3]"
   std::vector<std::string> broken_;  // parts that failed to convert
   std::vector<std::string> problems_;
 };
@@ -731,7 +738,9 @@ struct ShapeToProto {
       q->add_faces()->mutable_vertices()->Add(f.begin(), f.end());
     }
   }
-  void operator()(const Polygon& p) const { put(o->mutable_polygon()->mutable_vertices(), p.vertices); }
+  void operator()(const Polygon& p) const {
+    put(o->mutable_polygon()->mutable_vertices(), p.vertices);
+  }
   void operator()(const Mesh& m) const {
     v1::Mesh* q = o->mutable_mesh();
     put(q->mutable_positions(), m.positions);

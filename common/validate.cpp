@@ -71,7 +71,8 @@ void check_range(double x, double lo, double hi, const std::string& field, Probl
 
 void check_at_least(double x, double lo, const std::string& field, Problems& out) {
   if (!(x >= lo && is_finite(x))) {
-    out.push_back({field, fmt::format("must be a finite number >= {}, got {}", lo, format_number(x))});
+    out.push_back(
+        {field, fmt::format("must be a finite number >= {}, got {}", lo, format_number(x))});
   }
 }
 
@@ -105,7 +106,8 @@ Problems check(const Cone& c) {
   check_finite(c.base, "base", out);
   check_finite(c.apex, "apex", out);
   bool radii_ok = true;
-  for (auto [r, field] : {std::pair{c.base_radius, "base_radius"}, {c.apex_radius, "apex_radius"}}) {
+  for (auto [r, field] :
+       {std::pair{c.base_radius, "base_radius"}, {c.apex_radius, "apex_radius"}}) {
     if (!(r >= 0.0 && is_finite(r))) {
       out.push_back({field, "must not be negative, got " + format_number(r)});
       radii_ok = false;
@@ -115,7 +117,8 @@ Problems check(const Cone& c) {
     out.push_back({"", "base_radius and apex_radius are both 0; at least one must be positive"});
   }
   if (is_finite(c.base) && is_finite(c.apex) && c.base == c.apex) {
-    out.push_back({"", "base and apex coincide at " + format_vec(c.base) + "; the axis needs a length"});
+    out.push_back(
+        {"", "base and apex coincide at " + format_vec(c.base) + "; the axis needs a length"});
   }
   return out;
 }
@@ -139,8 +142,8 @@ Problems check(const Polyhedron& p) {
   for (size_t f = 0; f < p.faces.size(); ++f) {
     for (int i : p.faces[f]) {
       if (i < 0 || i >= n) {
-        out.push_back({indexed("faces", f),
-                       fmt::format("vertex index {} out of range [0, {})", i, n)});
+        out.push_back(
+            {indexed("faces", f), fmt::format("vertex index {} out of range [0, {})", i, n)});
         indices_ok = false;
       }
     }
@@ -164,10 +167,11 @@ Problems check(const Polyhedron& p) {
     const double offset = glm::dot(normal, loop[0]);
     for (int i = 0; i < n; ++i) {
       if (glm::dot(normal, p.vertices[i]) - offset > kPlanarityTolerance * size) {
-        out.push_back({indexed("faces", f),
-                       fmt::format("vertex {} lies outside this face's plane; the polyhedron must be "
-                                   "convex with faces counter-clockwise seen from outside",
-                                   i)});
+        out.push_back(
+            {indexed("faces", f),
+             fmt::format("vertex {} lies outside this face's plane; the polyhedron must be "
+                         "convex with faces counter-clockwise seen from outside",
+                         i)});
         break;
       }
     }
@@ -242,12 +246,11 @@ Problems check(const Csg& c) {
 }
 
 bool is_solid(const Shape& s) {
-  return std::visit(Overloaded{[](const Sphere&) { return true; },
-                               [](const Cone& c) { return c.capped; },
-                               [](const Polyhedron&) { return true; },
-                               [](const Csg&) { return true; },
-                               [](const auto&) { return false; }},
-                    s);
+  return std::visit(
+      Overloaded{[](const Sphere&) { return true; }, [](const Cone& c) { return c.capped; },
+                 [](const Polyhedron&) { return true; }, [](const Csg&) { return true; },
+                 [](const auto&) { return false; }},
+      s);
 }
 
 // "<file>: <path>.<field>" for parts named by a path inside the file (JSON,
@@ -278,8 +281,8 @@ std::string format_vec(const Vec3& v) {
 }
 
 const char* shape_name(const Shape& shape) {
-  static constexpr const char* kNames[] = {"sphere",  "cone", "polyhedron", "polygon",
-                                           "mesh",    "patch", "csg"};
+  static constexpr const char* kNames[] = {"sphere", "cone",  "polyhedron", "polygon",
+                                           "mesh",   "patch", "csg"};
   static_assert(std::size(kNames) == std::variant_size_v<Shape>);
   return kNames[shape.index()];
 }
@@ -316,10 +319,10 @@ Problems check_polygon(const std::vector<Vec3>& vertices) {
   std::sort(order.begin(), order.end(), lex);
   for (size_t k = 1; k < order.size(); ++k) {
     if (vertices[order[k - 1]] == vertices[order[k]]) {
-      out.push_back({"vertices", fmt::format("{} and {} coincide at {}",
-                                             std::min(order[k - 1], order[k]),
-                                             std::max(order[k - 1], order[k]),
-                                             format_vec(vertices[order[k]]))});
+      out.push_back(
+          {"vertices",
+           fmt::format("{} and {} coincide at {}", std::min(order[k - 1], order[k]),
+                       std::max(order[k - 1], order[k]), format_vec(vertices[order[k]]))});
       return out;
     }
   }
@@ -463,8 +466,8 @@ std::vector<std::string> validate_scene(const Scene& scene) {
     for (auto [operand, field] : {std::pair{csg->left, "csg.left"}, {csg->right, "csg.right"}}) {
       const std::string where = locate(src, part, field);
       if (operand < 0 || operand >= n) {
-        out.push_back(where + fmt::format(": index {} out of range; the scene has {} objects",
-                                          operand, n));
+        out.push_back(where +
+                      fmt::format(": index {} out of range; the scene has {} objects", operand, n));
       } else if (operand == i) {
         out.push_back(where + ": a CSG node cannot be its own operand");
       } else if (!is_solid(scene.objects[operand].shape)) {

@@ -74,7 +74,8 @@ TEST(Nff, EverySpdFileLoads) {
         ASSERT_LT(o.material, static_cast<int>(s.materials.size()));
       }
       EXPECT_TRUE(validate_scene(s).empty()) << path;
-      RecordProperty(entry.path().filename().string() + "_seconds", std::to_string(seconds));
+      RecordProperty(std::string(set) + "/" + entry.path().filename().string() + "_seconds",
+                     std::to_string(seconds));
     }
   }
   EXPECT_EQ(files, 33);
@@ -94,8 +95,7 @@ TEST(Nff, ObjectCountsMatchTheFile) {
         << c.file;
     EXPECT_EQ(static_cast<int>(r->materials.size()), count_entities(kSpd / c.file, {"f"}))
         << c.file;
-    EXPECT_EQ(static_cast<int>(r->lights.size()), count_entities(kSpd / c.file, {"l"}))
-        << c.file;
+    EXPECT_EQ(static_cast<int>(r->lights.size()), count_entities(kSpd / c.file, {"l"})) << c.file;
   }
   // Known values: grep -c '^s ' def/balls.nff is 7381, plus its floor.
   Result<Scene> balls = load_nff((kSpd / "def/balls.nff").string());
@@ -270,8 +270,7 @@ TEST(Nff, NonNumericToken) {
   EXPECT_NE(e.find("t.nff:9: material ior: expected a number, got '1x'"), std::string::npos) << e;
   // The token's own line, in a multi-line entity.
   const std::string p = error_of(std::string(kHeader) + "p 3\n0 0 0\n1 0 0\n0 one 0\n");
-  EXPECT_NE(p.find("t.nff:12: polygon vertex 2 y: expected a number, got 'one'"),
-            std::string::npos)
+  EXPECT_NE(p.find("t.nff:12: polygon vertex 2 y: expected a number, got 'one'"), std::string::npos)
       << p;
 }
 
@@ -356,8 +355,7 @@ TEST(Nff, MaterialOutOfRange) {
       << e;
   e = error_of(std::string(kHeader) + "f 1 -1 1 0.5 0 -2 0 1\n");
   EXPECT_NE(e.find("material color must be finite and >= 0"), std::string::npos) << e;
-  EXPECT_NE(e.find("material shine must be a finite number >= 0, got -2"), std::string::npos)
-      << e;
+  EXPECT_NE(e.find("material shine must be a finite number >= 0, got -2"), std::string::npos) << e;
 }
 
 TEST(Nff, ViewpointProblems) {
@@ -383,8 +381,7 @@ TEST(Nff, ViewpointProblems) {
   e = error_of("v\nfrom 1 2 3\nfrom 1 2 3\n");
   EXPECT_NE(e.find("t.nff:3: viewpoint gives 'from' twice"), std::string::npos) << e;
   e = error_of(std::string(kHeader) + "v\nfrom 0 0 1\n");
-  EXPECT_NE(e.find("t.nff:9: viewpoint is given twice (first at line 1)"), std::string::npos)
-      << e;
+  EXPECT_NE(e.find("t.nff:9: viewpoint is given twice (first at line 1)"), std::string::npos) << e;
   e = error_of(view + "resolution 64.5 64\n");
   EXPECT_NE(e.find("resolution width: expected a whole number, got '64.5'"), std::string::npos)
       << e;

@@ -203,22 +203,29 @@ class Scene:
         self.mats = []       # (C(3), Kd, Ks, Shine, T, ior)
         self.groups = []
 
-    def finish(self, spheres, cones, polys):
+    def finish(self, spheres, cones, polys, order):
+        # order[kind]: file position of each object (ties between coincident
+        # surfaces go to the object defined first, see nearest()).
         if self.eye is None:
             raise SceneError('no viewpoint (v) entity')
         if spheres:
             self.groups.append(Spheres(spheres))
+            self.groups[-1].order = np.array(order['s'], np.int64)
         if cones:
             self.groups.append(Cones(cones))
+            self.groups[-1].order = np.array(order['c'], np.int64)
         by_kind = {}
-        for v, nv, m in polys:
+        ord_by_kind = {}
+        for (v, nv, m), o in zip(polys, order['p']):
             rel = np.array(v) - v[0]
             area = np.linalg.norm(np.cross(rel, np.roll(rel, -1, axis=0)).sum(axis=0))
             if not area > 1e-14 * np.abs(rel).max() ** 2:
                 continue   # degenerate (zero-area) polygon: never hit
             by_kind.setdefault((len(v), nv is not None), []).append((v, nv, m))
+            ord_by_kind.setdefault((len(v), nv is not None), []).append(o)
         for key in sorted(by_kind):
             self.groups.append(Polygons(by_kind[key]))
+            self.groups[-1].order = np.array(ord_by_kind[key], np.int64)
         L = len(self.lights)
         default = math.sqrt(L) / (2 * L) if L else 0.0
         self.ambient = default
@@ -268,6 +275,7 @@ def parse_nff(text, name='scene'):
 
     sc = Scene()
     spheres, cones, polys = [], [], []
+    order = {'s': [], 'c': [], 'p': []}
     mat = None
 
     def cur_mat():
@@ -308,6 +316,7 @@ def parse_nff(text, name='scene'):
             if r <= 0:
                 err('sphere radius must be positive (inside-only spheres unsupported)')
             spheres.append((c, r, cur_mat()))
+            order['s'].append(len(spheres) + len(cones) + len(polys))
         elif kw == 'c':
             b, rb, a, ra = vec(), num(), vec(), num()
             if rb < 0 or ra < 0 or rb + ra == 0:
@@ -315,6 +324,7 @@ def parse_nff(text, name='scene'):
             if b == a:
                 err('cone base and apex coincide')
             cones.append((b, rb, a, ra, cur_mat()))
+            order['c'].append(len(spheres) + len(cones) + len(polys))
         elif kw in ('p', 'pp'):
             n = int(num())
             if n < 3:
@@ -325,9 +335,10 @@ def parse_nff(text, name='scene'):
                 if kw == 'pp':
                     ns.append(vec())
             polys.append((vs, ns if kw == 'pp' else None, cur_mat()))
+            order['p'].append(len(spheres) + len(cones) + len(polys))
         else:
             err('unknown entity %r' % kw)
-    sc.finish(spheres, cones, polys)
+    sc.finish(spheres, cones, polys, order)
     return sc
 
 
@@ -339,24 +350,43 @@ def chunks(g, N):
         yield j0, min(g.M, j0 + step)
 
 
+# Crossings closer than this relative distance to the nearest one count as
+# coincident surfaces (e.g. SPD teapot s1's doubled spout triangles); among
+# them the object defined first in the file wins, so the answer does not
+# depend on rounding.
+TIE_REL = 1e-9
+
+
 def nearest(sc, O, D, tmin):
     """Nearest crossing with t > tmin: (t, group index or -1, object index)."""
     N = len(O)
-    best_t = np.full(N, np.inf)
-    best_g = np.full(N, -1)
-    best_k = np.zeros(N, int)
     idx = np.arange(N)
-    for gi, g in enumerate(sc.groups):
+    best_t = np.full(N, np.inf)
+    for g in sc.groups:                       # pass 1: the nearest distance
         for j0, j1 in chunks(g, N):
             for t, _ in g.roots(O, D, j0, j1):
                 t = np.where(t > tmin[:, None], t, np.inf)
-                j = np.argmin(t, axis=1)
-                tj = t[idx, j]
-                better = tj < best_t
-                best_t[better] = tj[better]
+                best_t = np.minimum(best_t, t.min(axis=1))
+    band = best_t * (1 + TIE_REL)
+    big = np.iinfo(np.int64).max
+    best_o = np.full(N, big)
+    best_g = np.full(N, -1)
+    best_k = np.zeros(N, int)
+    out_t = np.full(N, np.inf)
+    for gi, g in enumerate(sc.groups):        # pass 2: first-defined in the band
+        for j0, j1 in chunks(g, N):
+            for t, _ in g.roots(O, D, j0, j1):
+                t = np.where(t > tmin[:, None], t, np.inf)
+                near = (t <= band[:, None]) & np.isfinite(t)
+                o = np.where(near, g.order[j0:j1][None, :], big)
+                j = np.argmin(o, axis=1)
+                oj = o[idx, j]
+                better = oj < best_o
+                best_o[better] = oj[better]
                 best_g[better] = gi
                 best_k[better] = j[better] + j0
-    return best_t, best_g, best_k
+                out_t[better] = t[idx, j][better]
+    return out_t, best_g, best_k
 
 
 def fresnel(c, ior):

@@ -1,0 +1,152 @@
+#include "client/farm_client.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include "server/rpc.h"
+
+namespace locus::client {
+namespace fs = std::filesystem;
+
+class FarmClient::Impl {
+ public:
+  explicit Impl(const std::string& address)
+      : stub(v1::ClientService::NewStub(rpc::make_channel(address))), peer("farm at " + address) {}
+  std::unique_ptr<v1::ClientService::Stub> stub;
+  std::string peer;
+
+  Status check(const grpc::Status& s) const { return rpc::FromGrpc(s, peer); }
+};
+
+FarmClient::FarmClient(const std::string& address) : impl_(std::make_unique<Impl>(address)) {}
+FarmClient::~FarmClient() = default;
+
+Result<farm::JobInfo> FarmClient::submit(const farm::SubmitRequest& request) {
+  v1::SubmitJobRequest req;
+  *req.mutable_spec() = rpc::ToProto(request);
+  v1::SubmitJobResponse resp;
+  grpc::ClientContext ctx;
+  rpc::set_deadline(ctx, rpc::kDataCall);
+  if (Status s = impl_->check(impl_->stub->SubmitJob(&ctx, req, &resp)); !s.ok()) return s;
+  return rpc::FromProto(resp.status());
+}
+
+Result<farm::JobInfo> FarmClient::job(const std::string& job_id) {
+  v1::GetJobRequest req;
+  req.set_job_id(job_id);
+  v1::JobStatus resp;
+  grpc::ClientContext ctx;
+  rpc::set_deadline(ctx, rpc::kShortCall);
+  if (Status s = impl_->check(impl_->stub->GetJob(&ctx, req, &resp)); !s.ok()) return s;
+  return rpc::FromProto(resp);
+}
+
+Result<std::vector<farm::JobInfo>> FarmClient::jobs() {
+  v1::ListJobsResponse resp;
+  grpc::ClientContext ctx;
+  rpc::set_deadline(ctx, rpc::kShortCall);
+  if (Status s = impl_->check(impl_->stub->ListJobs(&ctx, v1::ListJobsRequest(), &resp)); !s.ok()) return s;
+  std::vector<farm::JobInfo> out;
+  for (const v1::JobStatus& j : resp.jobs()) out.push_back(rpc::FromProto(j));
+  return out;
+}
+
+Result<farm::JobInfo> FarmClient::cancel(const std::string& job_id) {
+  v1::CancelJobRequest req;
+  req.set_job_id(job_id);
+  v1::CancelJobResponse resp;
+  grpc::ClientContext ctx;
+  rpc::set_deadline(ctx, rpc::kShortCall);
+  if (Status s = impl_->check(impl_->stub->CancelJob(&ctx, req, &resp)); !s.ok()) return s;
+  return rpc::FromProto(resp.status());
+}
+
+Result<std::vector<farm::WorkerInfo>> FarmClient::workers() {
+  v1::ListWorkersResponse resp;
+  grpc::ClientContext ctx;
+  rpc::set_deadline(ctx, rpc::kShortCall);
+  if (Status s = impl_->check(impl_->stub->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp)); !s.ok()) {
+    return s;
+  }
+  std::vector<farm::WorkerInfo> out;
+  for (const v1::WorkerInfo& w : resp.workers()) out.push_back(rpc::FromProto(w));
+  return out;
+}
+
+Result<farm::JobInfo> FarmClient::watch(const std::string& job_id,
+                                        const std::function<void(const farm::JobInfo&)>& on_update) {
+  constexpr int kStreamSeconds = 30;
+  for (;;) {
+    v1::WatchJobRequest req;
+    req.set_job_id(job_id);
+    req.set_max_seconds(kStreamSeconds);
+    grpc::ClientContext ctx;
+    rpc::set_deadline(ctx, farm::Millis(kStreamSeconds * 1000) + rpc::kShortCall);
+    auto reader = impl_->stub->WatchJob(&ctx, req);
+    v1::JobStatus status;
+    std::optional<farm::JobInfo> last;
+    while (reader->Read(&status)) {
+      last = rpc::FromProto(status);
+      on_update(*last);
+    }
+    if (Status s = impl_->check(reader->Finish()); !s.ok()) return s;
+    if (last && farm::is_terminal(last->state)) return *last;
+  }
+}
+
+Result<std::vector<std::string>> FarmClient::fetch(
+    const std::string& job_id, const std::vector<int>& frames,
+    const std::function<std::string(int, const std::string&)>& dest) {
+  v1::FetchResultsRequest req;
+  req.set_job_id(job_id);
+  for (int f : frames) req.add_frames(f);
+  grpc::ClientContext ctx;
+  rpc::set_deadline(ctx, rpc::kDataCall);
+  auto reader = impl_->stub->FetchResults(&ctx, req);
+  std::vector<std::string> written;
+  std::ofstream out;
+  fs::path path, tmp;
+  int64_t expected = 0;
+  v1::FileChunk chunk;
+  auto abandon = [&](Status s) -> Status {
+    ctx.TryCancel();
+    reader->Finish();
+    std::error_code ec;
+    if (!tmp.empty()) fs::remove(tmp, ec);
+    return s;
+  };
+  while (reader->Read(&chunk)) {
+    if (chunk.offset() == 0) {
+      path = dest(chunk.frame(), chunk.file_name());
+      std::error_code ec;
+      if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
+      tmp = path;
+      tmp += ".partial";
+      out = std::ofstream(tmp, std::ios::binary | std::ios::trunc);
+      if (!out) return abandon(Status(Code::kFailedPrecondition, path.string() + ": cannot write"));
+      expected = 0;
+    }
+    if (chunk.offset() != expected || !out.is_open()) {
+      return abandon(Internal("frame " + std::to_string(chunk.frame()) + " arrived out of order"));
+    }
+    out.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
+    expected += static_cast<int64_t>(chunk.data().size());
+    if (chunk.last()) {
+      out.close();
+      std::error_code ec;
+      if (!out) return abandon(Status(Code::kFailedPrecondition, path.string() + ": cannot write"));
+      fs::rename(tmp, path, ec);
+      if (ec) return abandon(Status(Code::kFailedPrecondition, path.string() + ": " + ec.message()));
+      tmp.clear();
+      written.push_back(path.string());
+    }
+  }
+  if (Status s = impl_->check(reader->Finish()); !s.ok()) {
+    std::error_code ec;
+    if (!tmp.empty()) fs::remove(tmp, ec);
+    return s;
+  }
+  return written;
+}
+
+}  // namespace locus::client

@@ -1,0 +1,43 @@
+// The CLI's side of ClientService: every call with a deadline, every error
+// a locus::Status whose message names the farm and the fix.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "server/coordinator.h"
+#include "server/farm_types.h"
+
+namespace locus::v1 {
+class ClientService;
+}
+
+namespace locus::client {
+
+class FarmClient {
+ public:
+  explicit FarmClient(const std::string& address);
+  ~FarmClient();
+
+  Result<farm::JobInfo> submit(const farm::SubmitRequest& request);
+  Result<farm::JobInfo> job(const std::string& job_id);
+  Result<std::vector<farm::JobInfo>> jobs();
+  Result<farm::JobInfo> cancel(const std::string& job_id);
+  Result<std::vector<farm::WorkerInfo>> workers();
+  // Follows the job until it ends (re-opening the stream as the server caps
+  // its length); `on_update` sees every status. Returns the final status.
+  Result<farm::JobInfo> watch(const std::string& job_id,
+                              const std::function<void(const farm::JobInfo&)>& on_update);
+  // Fetches written frames (`frames` empty: all written so far); each file
+  // goes to dest(frame, file_name), written atomically. Returns the paths.
+  Result<std::vector<std::string>> fetch(const std::string& job_id, const std::vector<int>& frames,
+                                         const std::function<std::string(int, const std::string&)>& dest);
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace locus::client

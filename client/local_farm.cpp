@@ -1,0 +1,125 @@
+#include "client/local_farm.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <thread>
+
+#include "client/farm_client.h"
+
+namespace locus::client {
+namespace fs = std::filesystem;
+namespace {
+
+pid_t spawn_worker(const std::string& binary, const std::string& address, int threads, const std::string& log) {
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid != 0) return pid;
+  // Child: only async-signal-safe calls until exec. A worker must not
+  // outlive the `locus` that started it, even when that one is killed.
+  prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (getppid() != parent) _exit(1);
+  const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd >= 0) {
+    dup2(fd, 1);
+    dup2(fd, 2);
+    close(fd);
+  }
+  // Signals blocked in `locus` stay blocked across exec; unblock them.
+  sigset_t none;
+  sigemptyset(&none);
+  sigprocmask(SIG_SETMASK, &none, nullptr);
+  const std::string threads_arg = std::to_string(threads);
+  const char* argv[] = {binary.c_str(), "--coordinator", address.c_str(), "--threads", threads_arg.c_str(),
+                        "--poll-ms", "2000", nullptr};
+  execv(binary.c_str(), const_cast<char* const*>(argv));
+  _exit(127);
+}
+
+}  // namespace
+
+Result<std::string> worker_binary() {
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return NotFound("cannot locate the running locus binary: " + ec.message());
+  const fs::path worker = self.parent_path() / "locus-worker";
+  if (access(worker.c_str(), X_OK) != 0) {
+    return NotFound("locus-worker not found next to locus (looked for " + worker.string() +
+                    "); build it, or render in process with --workers 0");
+  }
+  return worker.string();
+}
+
+Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
+  auto binary = worker_binary();
+  if (!binary.ok()) return binary.status();
+  std::unique_ptr<LocalFarm> farm(new LocalFarm());
+  std::string templ = (fs::temp_directory_path() / "locus-farm-XXXXXX").string();
+  if (!mkdtemp(templ.data())) return Internal("cannot create a temporary directory for the local farm");
+  farm->dir_ = templ;
+
+  farm::CoordinatorOptions co;
+  co.data_dir = farm->dir_;
+  co.lease = o.lease;
+  co.heartbeat = std::max(farm::Millis(50), o.lease / 5);
+  farm->coordinator_ = std::make_unique<farm::Coordinator>(co);
+  if (Status s = farm->coordinator_->start(); !s.ok()) return s;
+  farm->server_ = std::make_unique<rpc::CoordinatorServer>(*farm->coordinator_);
+  auto port = farm->server_->start("127.0.0.1:0");
+  if (!port.ok()) return port.status();
+  farm->address_ = "127.0.0.1:" + std::to_string(*port);
+
+  for (int i = 0; i < o.workers; ++i) {
+    const std::string log = (fs::path(farm->dir_) / ("worker-" + std::to_string(i) + ".log")).string();
+    const pid_t pid = spawn_worker(*binary, farm->address_, o.threads, log);
+    if (pid < 0) return Internal("cannot start " + *binary);
+    farm->pids_.push_back(pid);
+  }
+  // The default split counts the registered workers; give them a moment.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (std::chrono::steady_clock::now() < until) {
+    if (farm->coordinator_->workers().size() >= static_cast<size_t>(o.workers)) break;
+    for (pid_t pid : farm->pids_) {
+      int status = 0;
+      if (waitpid(pid, &status, WNOHANG) == pid) {
+        farm->pids_.erase(std::find(farm->pids_.begin(), farm->pids_.end(), pid));
+        farm->keep_logs();
+        return Internal("a locus-worker exited at start (status " + std::to_string(status) + "); see " +
+                        farm->dir_);
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return farm;
+}
+
+LocalFarm::~LocalFarm() {
+  for (pid_t pid : pids_) kill(pid, SIGTERM);
+  // Workers end their long poll at once on SIGTERM; a worker stuck in a
+  // band past the grace period is killed.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+  for (pid_t pid : pids_) {
+    for (;;) {
+      int status = 0;
+      if (waitpid(pid, &status, WNOHANG) != 0) break;
+      if (std::chrono::steady_clock::now() > until) {
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
+  if (server_) server_->shutdown(farm::Millis(1000));
+  if (coordinator_) coordinator_->shutdown();
+  std::error_code ec;
+  if (!keep_ && !dir_.empty()) fs::remove_all(dir_, ec);
+}
+
+}  // namespace locus::client

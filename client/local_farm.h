@@ -1,0 +1,50 @@
+// The embedded farm of `locus render --workers N`: a coordinator inside this
+// process on 127.0.0.1 (ephemeral port) and N `locus-worker` processes found
+// next to the `locus` binary. The job then runs through the same gRPC path
+// as on a real farm.
+#pragma once
+
+#include <sys/types.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/status.h"
+#include "server/coordinator.h"
+#include "server/grpc_service.h"
+
+namespace locus::client {
+
+struct LocalFarmOptions {
+  int workers = 2;
+  int threads = 1;  // per worker
+  farm::Millis lease{5000};
+};
+
+class LocalFarm {
+ public:
+  // Starts the coordinator and the workers and waits (briefly) until the
+  // workers have registered.
+  static Result<std::unique_ptr<LocalFarm>> start(const LocalFarmOptions& options);
+  ~LocalFarm();  // SIGTERM to the workers (SIGKILL if they linger), then the server
+
+  const std::string& address() const { return address_; }
+  // The directory of worker logs; kept when keep_logs() was called.
+  const std::string& dir() const { return dir_; }
+  void keep_logs() { keep_ = true; }
+
+ private:
+  LocalFarm() = default;
+  std::string dir_;
+  std::string address_;
+  std::unique_ptr<farm::Coordinator> coordinator_;
+  std::unique_ptr<rpc::CoordinatorServer> server_;
+  std::vector<pid_t> pids_;
+  bool keep_ = false;
+};
+
+// The `locus-worker` beside the running `locus`, or NotFound.
+Result<std::string> worker_binary();
+
+}  // namespace locus::client

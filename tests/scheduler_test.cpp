@@ -1,0 +1,274 @@
+// The coordinator's scheduling logic without a network: a fake clock drives
+// leases, hand-made band outputs play the workers.
+#include "server/scheduler.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+namespace locus::farm {
+namespace {
+
+struct FakeClock {
+  TimePoint t{};
+  NowFn fn() {
+    return [this] { return t; };
+  }
+  void advance(int ms) { t += Millis(ms); }
+};
+
+JobSpec spec(int w, int h, int first, int last, int bands) {
+  JobSpec s;
+  s.scene_hash = "hash";
+  s.scene_name = "test";
+  s.width = w;
+  s.height = h;
+  s.frame_first = first;
+  s.frame_last = last;
+  s.bands = bands;
+  s.output = "shot_####.png";
+  return s;
+}
+
+// The value a test worker writes into pixel (x, y) of frame f.
+float value(int f, int x, int y, int c) { return static_cast<float>(f * 1000000 + y * 1000 + x * 3 + c); }
+
+BandOutput render(const std::string& worker, const BandTask& t) {
+  BandOutput o;
+  o.worker_id = worker;
+  o.lease_id = t.lease_id;
+  for (int y = t.y0; y < t.y1; ++y) {
+    for (int x = 0; x < t.width; ++x) {
+      for (int c = 0; c < 3; ++c) o.rgb.push_back(value(t.frame, x, y, c));
+    }
+  }
+  o.stats.pixels_total = static_cast<uint64_t>(t.width) * (t.y1 - t.y0);
+  return o;
+}
+
+class SchedulerTest : public ::testing::Test {
+ protected:
+  SchedulerTest() : s(SchedulerOptions{Millis(1000), Millis(3000), 3}, clock.fn()) {}
+
+  BandTask lease(const std::string& worker) {
+    auto r = s.next_task(worker);
+    EXPECT_TRUE(r.ok()) << r.status().message();
+    EXPECT_TRUE(r.ok() && r->has_value());
+    return **r;
+  }
+
+  FakeClock clock;
+  Scheduler s;
+};
+
+TEST(BandRows, CoverEveryRowOnce) {
+  for (int h : {1, 2, 7, 48, 97}) {
+    for (int n = 1; n <= h; ++n) {
+      int next = 0;
+      for (int i = 0; i < n; ++i) {
+        const Band b = band_rows(h, n, i);
+        EXPECT_EQ(b.y0, next);
+        EXPECT_GT(b.y1, b.y0) << "h=" << h << " n=" << n << " i=" << i;
+        next = b.y1;
+      }
+      EXPECT_EQ(next, h);
+    }
+  }
+}
+
+TEST(DefaultBands, SeveralPerWorkerWithinLimits) {
+  EXPECT_EQ(default_bands(640, 480, 1, 2), 16);
+  EXPECT_EQ(default_bands(640, 480, 1, 4), 32);
+  EXPECT_EQ(default_bands(640, 480, 100, 2), 1);  // the frames keep the workers busy
+  EXPECT_EQ(default_bands(64, 3, 1, 8), 3);        // never more than the rows
+  EXPECT_GE(default_bands(16384, 16384, 1, 1), min_bands(16384, 16384));
+  EXPECT_GT(min_bands(16384, 16384), 1);
+}
+
+TEST_F(SchedulerTest, StitchesFramesFromBandsInAnyOrder) {
+  const std::string job = s.add_job(spec(5, 7, 3, 4, 3));
+  const std::string w1 = s.add_worker("a", 1), w2 = s.add_worker("b", 1);
+  std::vector<BandTask> tasks;
+  for (int i = 0; i < 6; ++i) tasks.push_back(lease(i % 2 ? w2 : w1));
+  EXPECT_FALSE(s.next_task(w1)->has_value());
+  EXPECT_EQ(s.job(job)->state, JobState::kRunning);
+  std::vector<FrameImage> frames;
+  for (int i : {5, 0, 3, 1, 4, 2}) {
+    auto r = s.complete_band(render(i % 2 ? w2 : w1, tasks[i]));
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    EXPECT_TRUE(r->accepted) << r->reason;
+    if (r->frame) frames.push_back(std::move(*r->frame));
+  }
+  ASSERT_EQ(frames.size(), 2u);
+  for (const FrameImage& f : frames) {
+    EXPECT_EQ(f.file_name, f.frame == 3 ? "shot_0003.png" : "shot_0004.png");
+    for (int y = 0; y < 7; ++y) {
+      for (int x = 0; x < 5; ++x) {
+        for (int c = 0; c < 3; ++c) ASSERT_EQ(f.image.pixel(x, y)[c], value(f.frame, x, y, c));
+      }
+    }
+  }
+  EXPECT_EQ(s.job(job)->bands_done, 6);
+  EXPECT_EQ(s.job(job)->stats.pixels_total, 70u);
+  EXPECT_EQ(s.job(job)->state, JobState::kRunning);  // until the frames are written
+  s.frame_written(job, 3, Status::Ok());
+  s.frame_written(job, 4, Status::Ok());
+  EXPECT_EQ(s.job(job)->state, JobState::kSucceeded);
+  EXPECT_EQ(s.job(job)->frames_done, 2);
+}
+
+TEST_F(SchedulerTest, LapsedLeaseIsLeasedAgainAndItsLateResultIgnored) {
+  const std::string job = s.add_job(spec(4, 4, 1, 1, 1));
+  const std::string slow = s.add_worker("slow", 1), fast = s.add_worker("fast", 1);
+  const BandTask first = lease(slow);
+  clock.advance(1001);
+  s.touch(slow);  // alive, but the lease was not renewed
+  s.expire();
+  const BandTask second = lease(fast);
+  EXPECT_NE(first.lease_id, second.lease_id);
+  EXPECT_EQ(first.band, second.band);
+  auto late = s.complete_band(render(slow, first));
+  ASSERT_TRUE(late.ok());
+  EXPECT_FALSE(late->accepted);
+  EXPECT_FALSE(late->frame);
+  auto good = s.complete_band(render(fast, second));
+  ASSERT_TRUE(good.ok());
+  EXPECT_TRUE(good->accepted);
+  EXPECT_TRUE(good->frame);
+  EXPECT_EQ(s.job(job)->bands_done, 1);
+}
+
+TEST_F(SchedulerTest, ResultAfterDeadlineIsRejectedEvenBeforeExpiryRuns) {
+  s.add_job(spec(4, 4, 1, 1, 1));
+  const std::string w = s.add_worker("w", 1);
+  const BandTask t = lease(w);
+  clock.advance(1500);
+  auto r = s.complete_band(render(w, t));
+  ASSERT_TRUE(r.ok());
+  EXPECT_FALSE(r->accepted);
+  EXPECT_NE(r->reason.find("lapsed"), std::string::npos) << r->reason;
+  // The band is back in the queue.
+  const BandTask again = lease(w);
+  EXPECT_EQ(again.band, t.band);
+}
+
+TEST_F(SchedulerTest, HeartbeatRenewsLeases) {
+  s.add_job(spec(4, 4, 1, 1, 1));
+  const std::string w = s.add_worker("w", 1);
+  const BandTask t = lease(w);
+  for (int i = 0; i < 10; ++i) {
+    clock.advance(600);
+    auto revoked = s.heartbeat(w, {t.lease_id});
+    ASSERT_TRUE(revoked.ok());
+    EXPECT_TRUE(revoked->empty());
+    s.expire();
+  }
+  auto r = s.complete_band(render(w, t));
+  ASSERT_TRUE(r.ok());
+  EXPECT_TRUE(r->accepted);
+}
+
+TEST_F(SchedulerTest, SilentWorkerIsDroppedAndItsBandsReleased) {
+  const std::string job = s.add_job(spec(4, 4, 1, 1, 2));
+  const std::string dead = s.add_worker("dead", 1), live = s.add_worker("live", 1);
+  const BandTask t = lease(dead);
+  clock.advance(900);
+  s.heartbeat(live, {});
+  s.heartbeat(dead, {t.lease_id});  // renewing, then it dies
+  clock.advance(3100);
+  s.heartbeat(live, {});
+  s.expire();
+  EXPECT_EQ(s.worker_count(), 1u);
+  EXPECT_FALSE(s.touch(dead).ok());
+  EXPECT_EQ(s.touch(dead).code(), Code::kNotFound);
+  std::set<int> bands;
+  bands.insert(lease(live).band);
+  bands.insert(lease(live).band);
+  EXPECT_EQ(bands, (std::set<int>{0, 1}));
+  EXPECT_EQ(s.job(job)->state, JobState::kRunning);
+}
+
+TEST_F(SchedulerTest, CancelRevokesLeasesAndStopsDispatch) {
+  const std::string job = s.add_job(spec(4, 8, 1, 3, 4));
+  const std::string w = s.add_worker("w", 1);
+  const BandTask t = lease(w);
+  auto c = s.cancel(job);
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ(c->state, JobState::kCancelled);
+  EXPECT_FALSE(s.next_task(w)->has_value());
+  auto hb = s.heartbeat(w, {t.lease_id});
+  ASSERT_TRUE(hb.ok());
+  EXPECT_EQ(*hb, std::vector<std::string>{t.lease_id});
+  auto r = s.complete_band(render(w, t));
+  ASSERT_TRUE(r.ok());
+  EXPECT_FALSE(r->accepted);
+  EXPECT_EQ(s.job(job)->bands_done, 0);
+  EXPECT_EQ(s.cancel("nope").status().code(), Code::kNotFound);
+}
+
+TEST_F(SchedulerTest, RepeatedFailuresFailTheJob) {
+  const std::string job = s.add_job(spec(4, 4, 1, 1, 1));
+  const std::string w = s.add_worker("w", 1);
+  for (int i = 0; i < 3; ++i) {
+    BandTask t = lease(w);
+    BandOutput o;
+    o.worker_id = w;
+    o.lease_id = t.lease_id;
+    o.error = "out of memory";
+    ASSERT_TRUE(s.complete_band(o).ok());
+  }
+  auto j = s.job(job);
+  EXPECT_EQ(j->state, JobState::kFailed);
+  EXPECT_NE(j->error.find("out of memory"), std::string::npos) << j->error;
+  EXPECT_NE(j->error.find("3 times"), std::string::npos) << j->error;
+  EXPECT_FALSE(s.next_task(w)->has_value());
+}
+
+TEST_F(SchedulerTest, MalformedPixelsAreRefusedAndTheBandRequeued) {
+  s.add_job(spec(4, 4, 1, 1, 1));
+  const std::string w = s.add_worker("w", 1);
+  BandTask t = lease(w);
+  BandOutput o = render(w, t);
+  o.rgb.pop_back();
+  auto r = s.complete_band(o);
+  EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("expected 48 floats"), std::string::npos) << r.status().message();
+  BandTask again = lease(w);
+  EXPECT_EQ(again.band, t.band);
+}
+
+TEST_F(SchedulerTest, UnknownWorkersAndForeignLeasesAreRefused) {
+  s.add_job(spec(4, 4, 1, 1, 1));
+  EXPECT_EQ(s.next_task("w9999").status().code(), Code::kNotFound);
+  const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1);
+  BandTask t = lease(a);
+  auto r = s.complete_band(render(b, t));  // b sends a's lease
+  ASSERT_TRUE(r.ok());
+  EXPECT_FALSE(r->accepted);
+  EXPECT_TRUE(s.complete_band(render(a, t))->accepted);
+}
+
+TEST_F(SchedulerTest, FailedWriteFailsTheJob) {
+  const std::string job = s.add_job(spec(2, 2, 1, 1, 1));
+  const std::string w = s.add_worker("w", 1);
+  auto r = s.complete_band(render(w, lease(w)));
+  ASSERT_TRUE(r->frame);
+  s.frame_written(job, 1, Internal("disk full"));
+  EXPECT_EQ(s.job(job)->state, JobState::kFailed);
+  EXPECT_NE(s.job(job)->error.find("disk full"), std::string::npos);
+}
+
+TEST_F(SchedulerTest, JobsAreServedInSubmissionOrder) {
+  const std::string j1 = s.add_job(spec(2, 2, 1, 1, 2));
+  const std::string j2 = s.add_job(spec(2, 2, 1, 1, 2));
+  const std::string w = s.add_worker("w", 1);
+  EXPECT_EQ(lease(w).job_id, j1);
+  EXPECT_EQ(lease(w).job_id, j1);
+  EXPECT_EQ(lease(w).job_id, j2);
+  ASSERT_EQ(s.jobs().size(), 2u);
+  EXPECT_EQ(s.workers().size(), 1u);
+  EXPECT_TRUE(s.workers()[0].busy);
+}
+
+}  // namespace
+}  // namespace locus::farm

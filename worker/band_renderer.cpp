@@ -1,0 +1,79 @@
+#include "worker/band_renderer.h"
+
+#include <cstdio>
+
+#include "common/animation.h"
+#include "common/scene_io.h"
+#include "proto/scene.pb.h"
+
+namespace locus::farm {
+
+Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first, int frame_last,
+                  double orbit_degrees) {
+  Scene s = base;
+  s.camera.width = width;
+  s.camera.height = height;
+  return scene_at_frame(s, frame, Orbit{orbit_degrees, frame_first, frame_last});
+}
+
+BandRenderer::BandRenderer(int threads, size_t max_scenes, size_t max_prepared)
+    : threads_(threads), max_scenes_(std::max<size_t>(1, max_scenes)), max_prepared_(std::max<size_t>(1, max_prepared)) {}
+
+Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto, const std::string& name) {
+  if (scenes_.count(hash)) return Status::Ok();
+  Result<Scene> scene = scene_from_proto(proto, name);
+  if (!scene.ok()) return scene.status();
+  while (scenes_.size() >= max_scenes_) {
+    scenes_.erase(scene_order_.front());
+    scene_order_.pop_front();
+  }
+  scenes_.emplace(hash, std::make_shared<const Scene>(std::move(*scene)));
+  scene_order_.push_back(hash);
+  return Status::Ok();
+}
+
+Result<BandOutput> BandRenderer::render(const BandTask& t) {
+  auto it = scenes_.find(t.scene_hash);
+  if (it == scenes_.end()) return FailedPrecondition("scene " + t.scene_hash + " is not held");
+  Result<RenderParams> params = to_render_params(t.render, threads_);
+  if (!params.ok()) return params.status();
+  if (t.width < 1 || t.height < 1 || t.y0 < 0 || t.y1 <= t.y0 || t.y1 > t.height) {
+    return InvalidArgument("band rows [" + std::to_string(t.y0) + ", " + std::to_string(t.y1) +
+                           ") do not fit a " + std::to_string(t.width) + "x" + std::to_string(t.height) +
+                           " frame");
+  }
+  // Everything prepare_scene depends on: the bands of one frame share it.
+  char key[512];
+  std::snprintf(key, sizeof key, "%s|%d|%dx%d|%.17g|%d-%d|%s|%s|%d", t.scene_hash.c_str(), t.frame, t.width,
+                t.height, t.orbit_degrees, t.frame_first, t.frame_last, t.render.method.c_str(),
+                t.render.boxes.c_str(), params->spp);
+  std::shared_ptr<const PreparedScene> prepared;
+  double prepare_seconds = 0;
+  for (auto p = prepared_.begin(); p != prepared_.end(); ++p) {
+    if (p->key == key) {
+      prepared = p->scene;
+      prepared_.splice(prepared_.begin(), prepared_, p);
+      break;
+    }
+  }
+  if (!prepared) {
+    const auto start = SteadyClock::now();
+    const Scene s = frame_scene(*it->second, t.width, t.height, t.frame, t.frame_first, t.frame_last,
+                                t.orbit_degrees);
+    auto r = prepare_scene(s, *params);
+    if (!r.ok()) return r.status();
+    prepared = *r;
+    ++prepares_;
+    prepare_seconds = std::chrono::duration<double>(SteadyClock::now() - start).count();
+    prepared_.push_front(Prepared{key, prepared});
+    while (prepared_.size() > max_prepared_) prepared_.pop_back();
+  }
+  BandResult band = render_band(*prepared, Band{t.y0, t.y1}, *params);
+  BandOutput out;
+  out.rgb = std::move(band.pixels.rgb);
+  out.stats = band.stats;
+  out.stats.seconds_prepare = prepare_seconds;
+  return out;
+}
+
+}  // namespace locus::farm

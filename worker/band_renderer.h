@@ -1,0 +1,58 @@
+// The worker's rendering logic, without a network: scenes cached by content
+// hash, the prepared frame of the last few (scene, frame) pairs reused across
+// that frame's bands, and one band rendered through render_band().
+#pragma once
+
+#include <list>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "common/render.h"
+#include "common/scene.h"
+#include "server/farm_types.h"
+
+namespace locus {
+namespace v1 {
+class Scene;
+}
+
+namespace farm {
+
+class BandRenderer {
+ public:
+  // `threads` per band (0 = all cores); the cache sizes bound memory.
+  explicit BandRenderer(int threads, size_t max_scenes = 4, size_t max_prepared = 2);
+
+  bool has_scene(const std::string& hash) const { return scenes_.count(hash) != 0; }
+  // Converts and keeps a scene received from the coordinator.
+  Status add_scene(const std::string& hash, const v1::Scene& scene, const std::string& name);
+  // Renders the band of `task`; its scene must have been added. The
+  // returned output carries pixels and stats (ids are the caller's).
+  Result<BandOutput> render(const BandTask& task);
+
+  size_t scenes_held() const { return scenes_.size(); }
+  int prepares() const { return prepares_; }
+
+ private:
+  struct Prepared {
+    std::string key;
+    std::shared_ptr<const PreparedScene> scene;
+  };
+  int threads_;
+  size_t max_scenes_;
+  size_t max_prepared_;
+  std::map<std::string, std::shared_ptr<const Scene>> scenes_;
+  std::list<std::string> scene_order_;  // least recently added first
+  std::list<Prepared> prepared_;        // most recently used first
+  int prepares_ = 0;
+};
+
+// The frame's still scene exactly as every renderer of the farm builds it:
+// the resolution set, then scene_at_frame() with the job's orbit. The
+// in-process `locus render --workers 0` calls it too.
+Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first, int frame_last,
+                  double orbit_degrees);
+
+}  // namespace farm
+}  // namespace locus

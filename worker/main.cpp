@@ -1,0 +1,40 @@
+// locus-worker: a stateless render worker. It dials the coordinator, takes
+// bands, renders them and returns the pixels until SIGTERM/SIGINT, after
+// which it finishes the band in hand and exits.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <csignal>
+#include <thread>
+
+#include "worker/worker_client.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"locus-worker: renders bands for a Locus coordinator"};
+  locus::farm::WorkerOptions options;
+  int poll_ms = 10000;
+  app.add_option("--coordinator", options.coordinator, "Coordinator address, HOST:PORT")->required();
+  app.add_option("--threads", options.threads, "Threads per band (0 = all cores); run one worker per core by default")
+      ->check(CLI::Range(0, 1024));
+  app.add_option("--name", options.name, "Name shown by `locus workers` (default host:pid)");
+  app.add_option("--poll-ms", poll_ms, "Longest wait for a band per request")->check(CLI::Range(100, 60000));
+  CLI11_PARSE(app, argc, argv);
+  options.poll = locus::farm::Millis(poll_ms);
+
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  locus::farm::WorkerClient worker(options);
+  std::thread waiter([&] {
+    int sig = 0;
+    sigwait(&signals, &sig);
+    if (sig != 0) spdlog::info("signal {}: finishing the band in hand, then exiting", sig);
+    worker.stop();
+  });
+  // The waiter may still sit in sigwait when run() returns; exiting ends it.
+  waiter.detach();
+  return worker.run();
+}
