@@ -343,7 +343,7 @@ int run_workers(const std::string& address) {
   std::printf("%-7s %-24s %-8s %-6s %-22s %-7s %s\n", "WORKER", "NAME", "THREADS", "STATE", "BAND", "BANDS", "SEEN");
   for (const farm::WorkerInfo& w : *ws) {
     const std::string band =
-        w.busy ? w.job_id + " f" + std::to_string(w.frame) + " b" + std::to_string(w.band) : "-";
+        w.busy ? w.job_id + "/f" + std::to_string(w.frame) + "/b" + std::to_string(w.band) : "-";
     char seen[32];
     std::snprintf(seen, sizeof seen, "%.1f s ago", w.seconds_since_seen);
     std::printf("%-7s %-24s %-8d %-6s %-22s %-7lld %s\n", w.worker_id.c_str(), w.name.c_str(), w.threads,

@@ -72,22 +72,29 @@ job=$(head -1 "$tmp/submit.out")
   -o "$tmp/k/k_####.png" --wait >"$tmp/kill.out" 2>"$tmp/kill.log" &
 submit=$!
 victim=
-for _ in $(seq 400); do
-  # `locus workers` names each worker host:pid; take a busy one.
-  victim=$("$bin/locus" workers --farm "$farm" 2>/dev/null | awk '$5 == "busy" && $7 > 0 {split($2, a, ":"); print a[2]; exit}')
-  [ -n "$victim" ] && break
-  sleep 0.02
+for _ in $(seq 20); do
+  grep -q " running " "$tmp/kill.log" 2>/dev/null || { sleep 0.02; continue; }
+  # Freeze a worker, so that what `locus workers` says of it stays true,
+  # and kill it only if it holds a band.
+  kill -STOP "$w1"
+  if "$bin/locus" workers --farm "$farm" 2>/dev/null | awk -v pid="$w1" '$4 == "busy" && $2 ~ (":" pid "$")' | grep -q .; then
+    victim=$w1
+    kill -9 "$w1"
+    break
+  fi
+  "$bin/locus" workers --farm "$farm" >&2
+  kill -CONT "$w1"
+  sleep 0.03
 done
 if [ -n "$victim" ]; then
-  kill -9 "$victim"
   wait "$submit" && same_frames "$tmp/k" k "$tmp/r" k 1 8 &&
-    ok "worker $victim killed with SIGKILL mid-job: the job completed with identical frames" ||
+    ok "worker $victim killed with SIGKILL holding a band: the job completed with identical frames" ||
     { bad "job after SIGKILL"; cat "$tmp/kill.log"; }
   grep -q "back in the queue" "$tmp/coord.log" && ok "the killed worker's band was leased again" ||
     bad "no band was re-leased after the SIGKILL"
 else
   wait "$submit"
-  bad "no busy worker seen to kill"
+  bad "no worker seen holding a band to kill"
 fi
 
 # ---- cancel
@@ -100,8 +107,9 @@ before=$("$bin/locus" status "$cjob" --farm "$farm" | awk '/progress/ {print $2}
 sleep 0.5
 after=$("$bin/locus" status "$cjob" --farm "$farm" | awk '/progress/ {print $2}')
 [ "$before" = "$after" ] && ok "no band completes after cancel ($after)" || bad "work went on after cancel: $before -> $after"
-"$bin/locus" watch "$cjob" --farm "$farm" | tail -1 | grep -q cancelled && ok "watch of a cancelled job ends" ||
-  bad "watch of a cancelled job"
+"$bin/locus" watch "$cjob" --farm "$farm" >"$tmp/watch.out"
+[ $? -eq 1 ] && tail -1 "$tmp/watch.out" | grep -q cancelled && ok "watch of a cancelled job ends (exit 1)" ||
+  { bad "watch of a cancelled job"; cat "$tmp/watch.out"; }
 
 # ---- errors a user can cause
 printf '{"camera": {"from": [0,0,5], "at": [0,0,0], "width": 32, "height": 24},\n "objects": [{"sphere": {"radius": -1}}]}\n' \
