@@ -2,6 +2,7 @@
 // or on an embedded local farm; `validate` checks a scene; `submit`,
 // `status`, `watch`, `cancel`, `workers` and `fetch` talk to a coordinator.
 #include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -373,7 +374,7 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
                   "Output image or pattern (.png, .exr, .tif); #### becomes the zero-padded frame number")
       ->required();
   cmd->add_option("--size", a.size, "Override the resolution, WIDTHxHEIGHT");
-  cmd->add_option("--method", a.method, "Rendering method")->check(CLI::IsMember({"raytrace"}));
+  cmd->add_option("--method", a.method, "Rendering method")->check(CLI::IsMember({"raytrace", "local"}));
   cmd->add_option("--boxes", a.boxes, "Bounding boxes: none, eye, eye+shadow")
       ->check(CLI::IsMember({"none", "eye", "eye+shadow"}));
   cmd->add_option("--spp", a.spp, "N: N x N stratified samples per pixel")->check(CLI::Range(1, 64));
@@ -435,6 +436,8 @@ int main(int argc, char** argv) {
   add_farm(fetch);
 
   CLI11_PARSE(app, argc, argv);
+  // Logs go to stderr: stdout carries what scripts read.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
   if (render->parsed()) {
     ra.threads_given = render->count("--threads") > 0;
     ra.workers_given = render->count("--workers") > 0;

@@ -299,6 +299,7 @@ class Builder {
       if (glm::dot(n, fc - centroid) < 0) n = -n;
       c.normals.push_back(n);
       c.offsets.push_back(glm::dot(n, fc));
+      c.faces.push_back(std::move(pts));
     }
     set_.convexes.push_back(std::move(c));
     return static_cast<int>(set_.convexes.size()) - 1;
@@ -411,6 +412,7 @@ class Builder {
             p.axis_u = (drop + 1) % 3;
             p.axis_v = (drop + 2) % 3;
             for (const Vec3& v : w) p.pts.emplace_back(v[p.axis_u], v[p.axis_v]);
+            p.verts = std::move(w);
             set_.polygons.push_back(std::move(p));
             push(PrimKind::kPolygon, static_cast<int>(set_.polygons.size()) - 1, obj, b);
           } else if constexpr (std::is_same_v<T, Mesh>) {

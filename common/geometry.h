@@ -74,6 +74,7 @@ struct ConePrim {
 struct ConvexPrim {
   std::vector<Vec3> normals;
   std::vector<double> offsets;
+  std::vector<std::vector<Vec3>> faces;  // world-space outlines, for the scanline pass
 };
 
 // Planar polygon (convex or concave): plane, and the vertices projected on
@@ -83,6 +84,7 @@ struct PolygonPrim {
   double offset;
   int axis_u, axis_v;
   std::vector<Vec2> pts;
+  std::vector<Vec3> verts;  // world space, for the scanline pass
 };
 
 // A triangle of a mesh or of a patch's fan; n0..n2 are vertex normals when

@@ -2,11 +2,13 @@
 // rendered. Built once per frame, shared read-only by threads and bands.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "common/bvh.h"
 #include "common/geometry.h"
 #include "common/render.h"
+#include "common/scanline.h"
 #include "common/scene.h"
 
 namespace locus {
@@ -38,6 +40,7 @@ class PreparedScene {
   std::vector<Color> emission;  // per light, resolved
   double ambient = 0;
   double eps = 1e-9;            // offset of secondary ray origins
+  std::unique_ptr<ScanScene> scan;  // the local method's faces (--method local)
 };
 
 }  // namespace locus

@@ -70,11 +70,16 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light) {
       const Material& m = ps_.scene.materials[ps_.scene.objects[crossings[i].leaf].material];
       if (m.t <= 0.0) {
         opaque = true;  // eq. (2): an opaque occluder stops everything
+        last_occluder_[light] = prim;
         return -1.0;
       }
     }
     return 1.0;
   };
+  if (const int cached = last_occluder_[light]; cached >= 0) {
+    if (test(cached) < 0) return Color(0.0);
+    crossings.clear();  // seen again in the full search below
+  }
   if (ps_.bvh_for_shadows) {
     traverse_bvh(ps_.bvh, seg, 0.0, 1.0, test);
   } else {

@@ -19,7 +19,8 @@ struct SurfaceHit {
 
 class Tracer {
  public:
-  Tracer(const PreparedScene& ps, Stats& stats) : ps_(ps), stats_(stats) {}
+  Tracer(const PreparedScene& ps, Stats& stats)
+      : ps_(ps), stats_(stats), last_occluder_(ps.scene.lights.size(), -1) {}
 
   // Nearest surface along the ray in (tmin, tmax). Ties go to the lower
   // primitive index, so every traversal order gives the same answer.
@@ -44,6 +45,11 @@ class Tracer {
 
   const PreparedScene& ps_;
   Stats& stats_;
+  // Per light, the primitive that last blocked it (Haines' shadow cache):
+  // neighbouring samples are usually shadowed by the same object, so it is
+  // tested first. Any opaque crossing gives t_pj = 0, so the answer does not
+  // depend on which occluder is found.
+  std::vector<int> last_occluder_;
 };
 
 // The ray-tracing path of render_band (--method raytrace).

@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "common/prepared.h"
+#include "common/local.h"
 #include "common/raytrace.h"
 
 namespace locus {
@@ -38,12 +39,15 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   double scale = 1.0;
   if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
   eps = 1e-9 * std::min(scale, 1e7) * 100.0;
+  if (params.method == Method::kLocal) scan = std::make_unique<ScanScene>(build_scan_scene(*this));
 }
 
 Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
                                                            const RenderParams& params) {
-  if (params.method != Method::kRaytrace) {
-    return InvalidArgument("render method 'local' is not available in this build; use --method raytrace");
+  if (params.method == Method::kLocal && params.boxes == Boxes::kEyeShadow) {
+    return InvalidArgument(
+        "--method local --boxes eye+shadow (configuration IV) needs shadow volumes, not yet "
+        "available; use --boxes none or eye");
   }
   if (params.spp < 1 || params.spp > 64) {
     return InvalidArgument("--spp must be between 1 and 64, got " + std::to_string(params.spp));
@@ -67,7 +71,11 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   std::atomic<int> next{y0};
   auto work = [&](int id) {
     for (int y = next++; y < y1; y = next++) {
-      raytrace_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);
+      if (ps.scan) {
+        local_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);
+      } else {
+        raytrace_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);
+      }
     }
   };
   std::vector<std::thread> pool;
@@ -100,6 +108,9 @@ Stats& Stats::operator+=(const Stats& o) {
   tests_ray_object += o.tests_ray_object;
   pixels_total += o.pixels_total;
   pixels_ray_traced += o.pixels_ray_traced;
+  spans_total += o.spans_total;
+  spans_ray_traced += o.spans_ray_traced;
+  if (!o.shadow_method.empty()) shadow_method = o.shadow_method;
   return *this;
 }
 
@@ -111,7 +122,8 @@ std::string Stats::to_json() const {
     << ", \"refracted\": " << rays_refracted << ", \"shadow\": " << rays_shadow
     << "},\n  \"tests\": {\"ray_object\": " << tests_ray_object
     << "},\n  \"pixels\": {\"total\": " << pixels_total << ", \"ray_traced\": " << pixels_ray_traced
-    << "}\n}\n";
+    << "},\n  \"spans\": {\"total\": " << spans_total << ", \"ray_traced\": " << spans_ray_traced
+    << "},\n  \"shadows\": {\"method\": \"" << shadow_method << "\"}\n}\n";
   return o.str();
 }
 

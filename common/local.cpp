@@ -1,0 +1,63 @@
+#include "common/local.h"
+
+#include "common/raytrace.h"
+#include "common/scanline.h"
+
+namespace locus {
+
+void local_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int y,
+                Image& out, Stats& stats) {
+  const CameraFrame& cam = ps.camera;
+  const ScanScene& scan = *ps.scan;
+  Tracer tracer(ps, stats);
+  const RowVisibility vis = visible_faces(scan, cam, cam.from, y);
+  stats.spans_total += vis.spans;
+  (void)params;
+
+  bool prev_traced = false;
+  int prev_face = -2;
+  for (int x = 0; x < cam.width; ++x) {
+    const int fi = vis.face[x];
+    const Ray ray{cam.from, cam.direction(x + 0.5, y + 0.5)};
+    Color c = ps.scene.background;
+    bool traced = false;
+    if (scan.trace_everything || (fi >= 0 && scan.faces[fi].curved)) {
+      // Inside a curved body's bounding polyhedron: the ray finds the true
+      // surface, or whatever lies behind it (paper §3.2).
+      ++stats.rays_eye;
+      c = tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
+      traced = true;
+    } else if (fi >= 0) {
+      // The visible face is known: its hit point is a ray-plane intersection
+      // with that one surface, no eye-ray search.
+      const ScanFace& f = scan.faces[fi];
+      ++stats.tests_ray_object;
+      const auto hit = intersect_nearest(ps.prims, f.prim, ray, cam.hither, 1e300);
+      if (!hit) {
+        // The sample grazes the face's edge, or the surface lies inside
+        // hither's sphere: let a ray decide.
+        ++stats.rays_eye;
+        c = tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
+        traced = true;
+      } else {
+        const Material& m =
+            ps.scene.materials[ps.scene.objects[hit->leaf].material];
+        traced = m.ks > 0 || m.t > 0;
+        c = tracer.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr);
+      }
+    }
+    if (traced) {
+      ++stats.pixels_ray_traced;
+      if (!prev_traced || fi != prev_face) ++stats.spans_ray_traced;
+    }
+    prev_traced = traced;
+    prev_face = fi;
+    float* px = out.pixel(x, y - band.y0);
+    px[0] = static_cast<float>(c.x);
+    px[1] = static_cast<float>(c.y);
+    px[2] = static_cast<float>(c.z);
+  }
+  stats.pixels_total += cam.width;
+}
+
+}  // namespace locus

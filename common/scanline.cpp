@@ -1,0 +1,202 @@
+#include "common/scanline.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/bounding.h"
+#include "common/prepared.h"
+
+namespace locus {
+namespace {
+
+// Depths within this relative distance are coincident surfaces; the same
+// rule as the ray tracer's nearest() (docs/renderer.md).
+constexpr double kTieRel = 1e-9;
+
+struct Projector {
+  const CameraFrame& cam;
+  double z_near;
+
+  double depth(const Vec3& p) const { return glm::dot(p - cam.from, cam.w); }
+  // Image coordinates of a point in front of the eye (SHADING.md camera,
+  // inverted): x right, y down, in pixels.
+  Vec2 project(const Vec3& p) const {
+    const Vec3 q = p - cam.from;
+    const double zc = glm::dot(q, cam.w);
+    return Vec2(0.5 * cam.width * (1.0 + glm::dot(q, cam.u) / (zc * cam.tan_half * cam.aspect)),
+                0.5 * cam.height * (1.0 - glm::dot(q, cam.v) / (zc * cam.tan_half)));
+  }
+};
+
+// Sutherland-Hodgman against the near plane depth >= z_near. Sets *clipped
+// when any part of the outline lay behind it.
+std::vector<Vec3> clip_near(const std::vector<Vec3>& poly, const Projector& pr, bool* clipped) {
+  std::vector<Vec3> out;
+  const size_t n = poly.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3& a = poly[i];
+    const Vec3& b = poly[(i + 1) % n];
+    const double da = pr.depth(a) - pr.z_near, db = pr.depth(b) - pr.z_near;
+    if (da >= 0) out.push_back(a);
+    if ((da >= 0) != (db >= 0)) {
+      out.push_back(a + (da / (da - db)) * (b - a));
+    }
+    if (da < 0) *clipped = true;
+  }
+  return out;
+}
+
+Vec3 plane_normal(const std::vector<Vec3>& pts) {
+  Vec3 n(0.0);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec3& a = pts[i];
+    const Vec3& b = pts[(i + 1) % pts.size()];
+    n += glm::cross(a, b);
+  }
+  const double len = glm::length(n);
+  return len > 0 ? n / len : Vec3(0.0);
+}
+
+}  // namespace
+
+ScanScene build_scan_scene(const PreparedScene& ps) {
+  ScanScene scan;
+  const CameraFrame& cam = ps.camera;
+  // Anything nearer than the near plane is clipped away; the near plane is
+  // far in front of hither's sphere so nothing visible is lost (pixels whose
+  // surface lies within hither are traced instead, see local_rows).
+  const double z_near = std::max(1e-12, 1e-6 * std::max(cam.hither, ps.eps));
+  const Projector pr{cam, z_near};
+  const PrimitiveSet& set = ps.prims;
+
+  auto add_face = [&](const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
+                      bool curved) {
+    bool clipped = false;
+    const std::vector<Vec3> kept = clip_near(outline, pr, &clipped);
+    if (curved && clipped) scan.trace_everything = true;
+    if (kept.size() < 3) return;
+    ScanFace f;
+    f.normal = normal;
+    f.offset = offset;
+    f.prim = prim;
+    f.curved = curved;
+    f.ymin = 1e300;
+    f.ymax = -1e300;
+    for (const Vec3& p : kept) {
+      f.outline.push_back(pr.project(p));
+      f.ymin = std::min(f.ymin, f.outline.back().y);
+      f.ymax = std::max(f.ymax, f.outline.back().y);
+    }
+    if (!(f.ymax > f.ymin)) return;  // edge-on in y: crosses no sample line
+    scan.faces.push_back(std::move(f));
+  };
+
+  // Bounding polyhedra are per object; a CSG or quadric object is one prim.
+  for (int i = 0; i < static_cast<int>(set.prims.size()); ++i) {
+    const PrimRef& ref = set.prims[i];
+    switch (ref.kind) {
+      case PrimKind::kPolygon: {
+        const PolygonPrim& p = set.polygons[ref.index];
+        add_face(p.verts, p.normal, p.offset, i, false);
+        break;
+      }
+      case PrimKind::kTriangle: {
+        const TrianglePrim& t = set.triangles[ref.index];
+        add_face({t.p0, t.p0 + t.e1, t.p0 + t.e2}, t.normal, glm::dot(t.normal, t.p0), i, false);
+        break;
+      }
+      case PrimKind::kConvex: {
+        const ConvexPrim& c = set.convexes[ref.index];
+        for (size_t k = 0; k < c.faces.size(); ++k) add_face(c.faces[k], c.normals[k], c.offsets[k], i, false);
+        break;
+      }
+      case PrimKind::kSphere:
+      case PrimKind::kCone:
+      case PrimKind::kCsg: {
+        for (const Polyhedron& poly : bounding_polyhedra(ps.scene, ref.object)) {
+          // The eye inside the polyhedron: the body may be anywhere along
+          // every eye ray.
+          bool eye_inside = true;
+          for (const auto& face : poly.faces) {
+            std::vector<Vec3> pts;
+            for (int v : face) pts.push_back(poly.vertices[v]);
+            const Vec3 n = plane_normal(pts);
+            if (glm::dot(n, cam.from - pts[0]) > 0) eye_inside = false;
+            add_face(pts, n, glm::dot(n, pts[0]), i, true);
+          }
+          if (eye_inside) scan.trace_everything = true;
+        }
+        break;
+      }
+    }
+  }
+
+  // Rows whose sample line y = j + 0.5 lies in [ymin, ymax).
+  scan.rows.assign(cam.height, {});
+  for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
+    const ScanFace& face = scan.faces[f];
+    const double lo = std::ceil(face.ymin - 0.5), hi = std::ceil(face.ymax - 0.5);
+    const int j0 = static_cast<int>(std::max(0.0, lo));
+    const int j1 = static_cast<int>(std::min<double>(cam.height, hi));
+    for (int j = j0; j < j1; ++j) scan.rows[j].push_back(f);
+  }
+  return scan;
+}
+
+RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const Vec3& eye, int row) {
+  const int width = cam.width;
+  RowVisibility vis;
+  vis.face.assign(width, -1);
+  vis.s.assign(width, 0.0);
+  const double yc = row + 0.5;
+  // Sample direction (unnormalised): w + a(x) u + b v (SHADING.md).
+  const double b = (1.0 - 2.0 * yc / cam.height) * cam.tan_half;
+  std::vector<double> xs;
+  for (int fi : scan.rows[row]) {
+    const ScanFace& f = scan.faces[fi];
+    // Crossings of the outline with the sample line. Each edge is taken from
+    // its upper to its lower end, so an edge shared by two faces gives the
+    // same x in both: no cracks, no double coverage (half-open rule).
+    xs.clear();
+    const size_t n = f.outline.size();
+    for (size_t k = 0; k < n; ++k) {
+      Vec2 p = f.outline[k], q = f.outline[(k + 1) % n];
+      if (p.y > q.y || (p.y == q.y && p.x > q.x)) std::swap(p, q);
+      if (!(p.y <= yc && yc < q.y)) continue;
+      xs.push_back(p.x + (yc - p.y) * (q.x - p.x) / (q.y - p.y));
+    }
+    std::sort(xs.begin(), xs.end());
+    const double nw = glm::dot(f.normal, cam.w) + b * glm::dot(f.normal, cam.v);
+    const double nu = glm::dot(f.normal, cam.u);
+    const double num = f.offset - glm::dot(f.normal, eye);
+    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+      // Pixel centres i + 0.5 in [xl, xr).
+      const int i0 = static_cast<int>(std::max(0.0, std::ceil(xs[k] - 0.5)));
+      const int i1 = static_cast<int>(std::min<double>(width, std::ceil(xs[k + 1] - 0.5)));
+      for (int i = i0; i < i1; ++i) {
+        const double a = (2.0 * (i + 0.5) / width - 1.0) * cam.tan_half * cam.aspect;
+        const double s = num / (nw + a * nu);
+        if (!(s > 0)) continue;
+        const int cur = vis.face[i];
+        bool take = cur < 0 || s < vis.s[i] * (1.0 - kTieRel);
+        if (!take && cur >= 0 && s <= vis.s[i] * (1.0 + kTieRel)) {
+          // Coincident: a bounding polyhedron wins (its pixel is traced, and
+          // the trace finds the truth); else the first-defined surface.
+          const ScanFace& c = scan.faces[cur];
+          take = (f.curved && !c.curved) ||
+                 (f.curved == c.curved && (f.prim < c.prim || (f.prim == c.prim && fi < cur)));
+        }
+        if (take) {
+          vis.face[i] = fi;
+          vis.s[i] = s;
+        }
+      }
+    }
+  }
+  for (int i = 0; i < width; ++i) {
+    if (i == 0 || vis.face[i] != vis.face[i - 1]) ++vis.spans;
+  }
+  return vis;
+}
+
+}  // namespace locus

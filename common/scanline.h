@@ -1,0 +1,52 @@
+// The scanline pass of the local method (paper §3.1, §3.2; METHOD.md §4):
+// every face (polygons, polyhedron faces, mesh triangles, and the faces of
+// curved bodies' bounding polyhedra) is projected once; per scanline the
+// faces crossing it give x-intervals, and the visible face at each sample is
+// the nearest of the intervals covering it.
+#pragma once
+
+#include <vector>
+
+#include "common/math.h"
+
+namespace locus {
+
+class PreparedScene;
+struct CameraFrame;
+
+// A face as the scanline pass sees it: its plane (world space) for depth,
+// and its outline projected to image coordinates (x right, y down, pixels).
+struct ScanFace {
+  Vec3 normal;          // plane: dot(normal, p) = offset
+  double offset = 0;
+  int prim = -1;        // index into PrimitiveSet::prims (the surface it belongs to)
+  bool curved = false;  // a face of a curved body's bounding polyhedron
+  std::vector<Vec2> outline;  // projected, after clipping at the near plane
+  double ymin = 0, ymax = 0;
+};
+
+// Faces of a scene, bucketed by the rows whose sample lines they cross. Built
+// once per frame; rows are then independent of each other, so a band that
+// starts at any row computes exactly what an unbanded render does.
+struct ScanScene {
+  std::vector<ScanFace> faces;
+  std::vector<std::vector<int>> rows;  // rows[j]: faces crossing y = j + 0.5
+  // A curved body's bounding polyhedron contains the eye or is cut by the
+  // near plane: its span is the whole screen, every pixel is traced.
+  bool trace_everything = false;
+};
+
+ScanScene build_scan_scene(const PreparedScene& ps);
+
+// The visible face (index into ScanScene::faces, or -1 for background) at
+// each pixel centre of row j, with the eye-ray distance parameter s along
+// the unnormalised direction (w + a u + b v).
+struct RowVisibility {
+  std::vector<int> face;
+  std::vector<double> s;
+  int spans = 0;  // maximal runs of pixels with the same visible face
+};
+
+RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const Vec3& eye, int row);
+
+}  // namespace locus
