@@ -123,7 +123,11 @@ class NffParser {
   Result<Scene> parse() {
     while (std::optional<Token> t = lex_.next()) {
       line_ = t->line;
-      if (!entity(*t)) return InvalidArgument(error_);
+      if (!entity(*t)) {
+        // The parse stops here; problems found before it are reported too.
+        problems_.push_back(error_);
+        return problems_status(problems_);
+      }
     }
     if (!scene_.has_camera) {
       problems_.push_back(name_ + ": no viewpoint (expected: a v entity: " + kViewpoint.form + ")");

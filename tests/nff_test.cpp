@@ -432,3 +432,21 @@ TEST(Nff, MissingFileAndUnknownExtension) {
 
 }  // namespace
 }  // namespace locus
+
+namespace locus {
+namespace {
+
+// `locus validate` lists every problem: those found before a syntax error
+// that stops the parse are reported with it.
+TEST(Nff, SyntaxErrorStillReportsEarlierProblems) {
+  const std::string text = std::string(kHeader) +
+                           "f 1 0 0 1 0 0 0 1\n"
+                           "s 0 0 0 -1\n"
+                           "s 0 0 zero 1\n";
+  const std::string msg = error_of(text, "both.nff");
+  EXPECT_NE(msg.find("both.nff:10: sphere radius must be positive"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("both.nff:11:"), std::string::npos) << msg;
+}
+
+}  // namespace
+}  // namespace locus
