@@ -501,6 +501,28 @@ int intersect_cone(const Cone& c, const Ray& ray, double tmin, double tmax, Cros
 
 PrimitiveSet build_primitives(const Scene& scene) { return Builder(scene).build(); }
 
+namespace {
+
+// The primitives bounded by planes: convex polyhedra, polygons, triangles.
+int intersect_flat(const PrimitiveSet& set, const PrimRef& ref, const Ray& ray, double tmin,
+                   double tmax, Crossing* c) {
+  switch (ref.kind) {
+    case PrimKind::kConvex:
+      return intersect_convex(set.convexes[ref.index], ray, tmin, tmax, c);
+    case PrimKind::kPolygon:
+      return intersect_polygon(set.polygons[ref.index], ray, tmin, tmax, c);
+    case PrimKind::kTriangle: {
+      const int n = intersect_triangle(set.triangles[ref.index], ray, tmin, tmax, c);
+      if (n) c[0].tri = ref.index;
+      return n;
+    }
+    default:
+      return 0;
+  }
+}
+
+}  // namespace
+
 int intersect_all(const PrimitiveSet& set, int prim, const Ray& ray, double tmin, double tmax,
                   std::vector<Crossing>& out) {
   const PrimRef& ref = set.prims[prim];
@@ -519,14 +541,9 @@ int intersect_all(const PrimitiveSet& set, int prim, const Ray& ray, double tmin
       break;
     }
     case PrimKind::kConvex:
-      n = intersect_convex(set.convexes[ref.index], ray, tmin, tmax, c);
-      break;
     case PrimKind::kPolygon:
-      n = intersect_polygon(set.polygons[ref.index], ray, tmin, tmax, c);
-      break;
     case PrimKind::kTriangle:
-      n = intersect_triangle(set.triangles[ref.index], ray, tmin, tmax, c);
-      if (n) c[0].tri = ref.index;
+      n = intersect_flat(set, ref, ray, tmin, tmax, c);
       break;
     case PrimKind::kCsg: {
       const auto iv = csg_intervals(set, set.csgs[ref.index], 0, ray);
@@ -558,14 +575,9 @@ std::optional<Crossing> intersect_nearest(const PrimitiveSet& set, int prim, con
   int n = 0;
   switch (ref.kind) {
     case PrimKind::kConvex:
-      n = intersect_convex(set.convexes[ref.index], ray, tmin, tmax, c);
-      break;
     case PrimKind::kPolygon:
-      n = intersect_polygon(set.polygons[ref.index], ray, tmin, tmax, c);
-      break;
     case PrimKind::kTriangle:
-      n = intersect_triangle(set.triangles[ref.index], ray, tmin, tmax, c);
-      if (n) c[0].tri = ref.index;
+      n = intersect_flat(set, ref, ray, tmin, tmax, c);
       break;
     default: {
       thread_local std::vector<Crossing> buf;
