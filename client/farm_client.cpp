@@ -45,7 +45,8 @@ Result<std::vector<farm::JobInfo>> FarmClient::jobs() {
   v1::ListJobsResponse resp;
   grpc::ClientContext ctx;
   rpc::set_deadline(ctx, rpc::kShortCall);
-  if (Status s = impl_->check(impl_->stub->ListJobs(&ctx, v1::ListJobsRequest(), &resp)); !s.ok()) return s;
+  if (Status s = impl_->check(impl_->stub->ListJobs(&ctx, v1::ListJobsRequest(), &resp)); !s.ok())
+    return s;
   std::vector<farm::JobInfo> out;
   for (const v1::JobStatus& j : resp.jobs()) out.push_back(rpc::FromProto(j));
   return out;
@@ -65,7 +66,8 @@ Result<std::vector<farm::WorkerInfo>> FarmClient::workers() {
   v1::ListWorkersResponse resp;
   grpc::ClientContext ctx;
   rpc::set_deadline(ctx, rpc::kShortCall);
-  if (Status s = impl_->check(impl_->stub->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp)); !s.ok()) {
+  if (Status s = impl_->check(impl_->stub->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp));
+      !s.ok()) {
     return s;
   }
   std::vector<farm::WorkerInfo> out;
@@ -73,8 +75,8 @@ Result<std::vector<farm::WorkerInfo>> FarmClient::workers() {
   return out;
 }
 
-Result<farm::JobInfo> FarmClient::watch(const std::string& job_id,
-                                        const std::function<void(const farm::JobInfo&)>& on_update) {
+Result<farm::JobInfo> FarmClient::watch(
+    const std::string& job_id, const std::function<void(const farm::JobInfo&)>& on_update) {
   constexpr int kStreamSeconds = 30;
   for (;;) {
     v1::WatchJobRequest req;
@@ -136,7 +138,8 @@ Result<std::vector<std::string>> FarmClient::fetch(
       std::error_code ec;
       if (!out) return abandon(Status(Code::kFailedPrecondition, path.string() + ": cannot write"));
       fs::rename(tmp, path, ec);
-      if (ec) return abandon(Status(Code::kFailedPrecondition, path.string() + ": " + ec.message()));
+      if (ec)
+        return abandon(Status(Code::kFailedPrecondition, path.string() + ": " + ec.message()));
       tmp.clear();
       written.push_back(path.string());
     }

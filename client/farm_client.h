@@ -32,8 +32,9 @@ class FarmClient {
                               const std::function<void(const farm::JobInfo&)>& on_update);
   // Fetches written frames (`frames` empty: all written so far); each file
   // goes to dest(frame, file_name), written atomically. Returns the paths.
-  Result<std::vector<std::string>> fetch(const std::string& job_id, const std::vector<int>& frames,
-                                         const std::function<std::string(int, const std::string&)>& dest);
+  Result<std::vector<std::string>> fetch(
+      const std::string& job_id, const std::vector<int>& frames,
+      const std::function<std::string(int, const std::string&)>& dest);
 
  private:
   class Impl;

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <spdlog/spdlog.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -17,7 +18,8 @@ namespace locus::client {
 namespace fs = std::filesystem;
 namespace {
 
-pid_t spawn_worker(const std::string& binary, const std::string& address, int threads, const std::string& log) {
+pid_t spawn_worker(const std::string& binary, const std::string& address, int threads,
+                   const std::string& log) {
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid != 0) return pid;
@@ -36,8 +38,8 @@ pid_t spawn_worker(const std::string& binary, const std::string& address, int th
   sigemptyset(&none);
   sigprocmask(SIG_SETMASK, &none, nullptr);
   const std::string threads_arg = std::to_string(threads);
-  const char* argv[] = {binary.c_str(), "--coordinator", address.c_str(), "--threads", threads_arg.c_str(),
-                        "--poll-ms", "2000", nullptr};
+  const char* argv[] = {binary.c_str(),      "--coordinator", address.c_str(), "--threads",
+                        threads_arg.c_str(), "--poll-ms",     "2000",          nullptr};
   execv(binary.c_str(), const_cast<char* const*>(argv));
   _exit(127);
 }
@@ -61,7 +63,8 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   if (!binary.ok()) return binary.status();
   std::unique_ptr<LocalFarm> farm(new LocalFarm());
   std::string templ = (fs::temp_directory_path() / "locus-farm-XXXXXX").string();
-  if (!mkdtemp(templ.data())) return Internal("cannot create a temporary directory for the local farm");
+  if (!mkdtemp(templ.data()))
+    return Internal("cannot create a temporary directory for the local farm");
   farm->dir_ = templ;
 
   farm::CoordinatorOptions co;
@@ -76,30 +79,57 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   farm->address_ = "127.0.0.1:" + std::to_string(*port);
 
   for (int i = 0; i < o.workers; ++i) {
-    const std::string log = (fs::path(farm->dir_) / ("worker-" + std::to_string(i) + ".log")).string();
+    const std::string log =
+        (fs::path(farm->dir_) / ("worker-" + std::to_string(i) + ".log")).string();
     const pid_t pid = spawn_worker(*binary, farm->address_, o.threads, log);
     if (pid < 0) return Internal("cannot start " + *binary);
     farm->pids_.push_back(pid);
   }
+  farm->monitor_ = std::thread([f = farm.get()] { f->monitor(); });
   // The default split counts the registered workers; give them a moment.
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   while (std::chrono::steady_clock::now() < until) {
     if (farm->coordinator_->workers().size() >= static_cast<size_t>(o.workers)) break;
-    for (pid_t pid : farm->pids_) {
-      int status = 0;
-      if (waitpid(pid, &status, WNOHANG) == pid) {
-        farm->pids_.erase(std::find(farm->pids_.begin(), farm->pids_.end(), pid));
-        farm->keep_logs();
-        return Internal("a locus-worker exited at start (status " + std::to_string(status) + "); see " +
-                        farm->dir_);
-      }
+    {
+      std::lock_guard lk(farm->mu_);
+      if (farm->pids_.empty())
+        return Internal("every locus-worker exited at start; see the logs in " + farm->dir_);
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   return farm;
 }
 
+void LocalFarm::monitor() {
+  while (!stopping_) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    std::lock_guard lk(mu_);
+    if (stopping_) return;
+    bool died = false;
+    for (auto it = pids_.begin(); it != pids_.end();) {
+      int status = 0;
+      if (waitpid(*it, &status, WNOHANG) == *it) {
+        spdlog::error("local worker {} exited ({}); its log is in {}", *it,
+                      WIFSIGNALED(status) ? "signal " + std::to_string(WTERMSIG(status))
+                                          : "status " + std::to_string(WEXITSTATUS(status)),
+                      dir_);
+        it = pids_.erase(it);
+        died = true;
+      } else {
+        ++it;
+      }
+    }
+    if (died) keep_ = true;
+    if (died && pids_.empty()) {
+      spdlog::error("no local worker is left: cancelling the job");
+      for (const farm::JobInfo& j : coordinator_->jobs()) coordinator_->cancel(j.job_id);
+    }
+  }
+}
+
 LocalFarm::~LocalFarm() {
+  stopping_ = true;
+  if (monitor_.joinable()) monitor_.join();
   for (pid_t pid : pids_) kill(pid, SIGTERM);
   // Workers end their long poll at once on SIGTERM; a worker stuck in a
   // band past the grace period is killed.

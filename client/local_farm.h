@@ -6,8 +6,11 @@
 
 #include <sys/types.h>
 
+#include <atomic>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/status.h"
@@ -30,17 +33,25 @@ class LocalFarm {
   ~LocalFarm();  // SIGTERM to the workers (SIGKILL if they linger), then the server
 
   const std::string& address() const { return address_; }
-  // The directory of worker logs; kept when keep_logs() was called.
+  // The directory of worker logs (worker-N.log); kept when keep_logs() was
+  // called, or when workers died.
   const std::string& dir() const { return dir_; }
   void keep_logs() { keep_ = true; }
 
  private:
   LocalFarm() = default;
+  // Reaps workers that exit on their own; when none is left, cancels every
+  // job, so that a client waiting on one learns of it instead of hanging.
+  void monitor();
+
   std::string dir_;
   std::string address_;
   std::unique_ptr<farm::Coordinator> coordinator_;
   std::unique_ptr<rpc::CoordinatorServer> server_;
-  std::vector<pid_t> pids_;
+  std::mutex mu_;
+  std::vector<pid_t> pids_;  // running workers
+  std::atomic<bool> stopping_{false};
+  std::thread monitor_;
   bool keep_ = false;
 };
 

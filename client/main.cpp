@@ -1,11 +1,11 @@
 // locus: the command-line client. `render` renders in process (--workers 0)
 // or on an embedded local farm; `validate` checks a scene; `submit`,
 // `status`, `watch`, `cancel`, `workers` and `fetch` talk to a coordinator.
-#include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -76,13 +76,16 @@ Status parse_frames(const std::string& s, int* first, int* last) {
   static const std::regex re("^([0-9]{1,9})(?:-([0-9]{1,9}))?$");
   std::smatch m;
   if (!std::regex_match(s, m, re)) {
-    return InvalidArgument("--frames: expected A-B such as 1-24 (or one frame number), got '" + s + "'");
+    return InvalidArgument("--frames: expected A-B such as 1-24 (or one frame number), got '" + s +
+                           "'");
   }
   *first = std::stoi(m[1]);
   *last = m[2].matched ? std::stoi(m[2]) : *first;
-  if (*last < *first) return InvalidArgument("--frames " + s + ": the last frame comes before the first");
+  if (*last < *first)
+    return InvalidArgument("--frames " + s + ": the last frame comes before the first");
   if (*last - *first + 1 > farm::kMaxFramesPerJob) {
-    return InvalidArgument("--frames " + s + ": at most " + std::to_string(farm::kMaxFramesPerJob) + " frames");
+    return InvalidArgument("--frames " + s + ": at most " + std::to_string(farm::kMaxFramesPerJob) +
+                           " frames");
   }
   return Status::Ok();
 }
@@ -99,8 +102,9 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
   if (Status s = parse_frames(a.frames, &r.frame_first, &r.frame_last); !s.ok()) return s;
   const int frames = r.frame_last - r.frame_first + 1;
   if (frames > 1 && !has_frame_field(a.output)) {
-    return InvalidArgument("-o " + a.output + ": " + std::to_string(frames) +
-                           " frames need a frame number field in the file name, e.g. shot_####.png");
+    return InvalidArgument(
+        "-o " + a.output + ": " + std::to_string(frames) +
+        " frames need a frame number field in the file name, e.g. shot_####.png");
   }
   auto scene = load_scene(a.scene);
   if (!scene.ok()) return scene.status();
@@ -111,8 +115,8 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
       return InvalidArgument("--size: expected WIDTHxHEIGHT such as 640x480, got '" + a.size + "'");
     }
     if (w > kMaxResolution || h > kMaxResolution) {
-      return InvalidArgument("--size: " + a.size + " exceeds the limit of " + std::to_string(kMaxResolution) +
-                             " pixels per side");
+      return InvalidArgument("--size: " + a.size + " exceeds the limit of " +
+                             std::to_string(kMaxResolution) + " pixels per side");
     }
     job.scene.camera.width = w;
     job.scene.camera.height = h;
@@ -159,7 +163,8 @@ int render_in_process(const RenderArgs& a) {
   Stats total;
   double seconds = 0;
   for (int f = r.frame_first; f <= r.frame_last; ++f) {
-    const Scene s = farm::frame_scene(job->scene, r.width, r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
+    const Scene s = farm::frame_scene(job->scene, r.width, r.height, f, r.frame_first, r.frame_last,
+                                      r.orbit_degrees);
     auto result = render_image(s, *params);
     if (!result.ok()) return fail(result.status());
     const std::string path = frame_path(a.job.output, f);
@@ -170,14 +175,15 @@ int render_in_process(const RenderArgs& a) {
   }
   if (Status st = write_stats(a.stats, total); !st.ok()) return fail(st);
   spdlog::info("rendered {} ({}x{}, {} frame{}) in {:.3f} s -> {}", a.job.scene, r.width, r.height,
-               r.frame_last - r.frame_first + 1, r.frame_last > r.frame_first ? "s" : "", seconds, a.job.output);
+               r.frame_last - r.frame_first + 1, r.frame_last > r.frame_first ? "s" : "", seconds,
+               a.job.output);
   return 0;
 }
 
 // Follows a job to its end with a progress display on stderr, then fetches
 // its frames to the output pattern. Returns the process exit code.
-int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted, const std::string& output,
-                     bool show_progress, farm::JobInfo* final_info) {
+int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted,
+                     const std::string& output, bool show_progress, farm::JobInfo* final_info) {
   client::Progress progress(stderr, isatty(STDERR_FILENO) != 0);
   auto done = farm.watch(submitted.job_id, [&](const farm::JobInfo& j) {
     if (show_progress) progress.update(j);
@@ -189,7 +195,8 @@ int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted, c
     return fail("job " + done->job_id + " " + farm::job_state_name(done->state) +
                 (done->error.empty() ? "" : ": " + done->error));
   }
-  auto files = farm.fetch(done->job_id, {}, [&](int frame, const std::string&) { return frame_path(output, frame); });
+  auto files = farm.fetch(done->job_id, {},
+                          [&](int frame, const std::string&) { return frame_path(output, frame); });
   if (!files.ok()) return fail(files.status());
   return 0;
 }
@@ -219,7 +226,8 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     return fail(submitted.status());
   }
   farm::JobInfo info;
-  const int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info);
+  const int rc =
+      follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info);
   if (rc != 0) (*local)->keep_logs();
   const std::string logs = (*local)->dir();
   local->reset();
@@ -229,10 +237,11 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     return rc;
   }
   if (Status st = write_stats(a.stats, info.stats); !st.ok()) return fail(st);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  spdlog::info("rendered {} ({}x{}, {} frame{}, {} bands each, {} workers) in {:.3f} s -> {}", a.job.scene,
-               info.spec.width, info.spec.height, info.spec.frames(), info.spec.frames() > 1 ? "s" : "",
-               info.spec.bands, workers, seconds, a.job.output);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  spdlog::info("rendered {} ({}x{}, {} frame{}, {} bands each, {} workers) in {:.3f} s -> {}",
+               a.job.scene, info.spec.width, info.spec.height, info.spec.frames(),
+               info.spec.frames() > 1 ? "s" : "", info.spec.bands, workers, seconds, a.job.output);
   return 0;
 }
 
@@ -281,12 +290,13 @@ int run_submit(const std::string& address, const SubmitArgs& a) {
 
 void print_job(const farm::JobInfo& j) {
   std::printf("job %s: %s\n", j.job_id.c_str(), farm::job_state_name(j.state));
-  std::printf("  scene    %s, %dx%d, frames %d-%d, %d bands per frame\n", j.spec.scene_name.c_str(), j.spec.width,
-              j.spec.height, j.spec.frame_first, j.spec.frame_last, j.spec.bands);
-  std::printf("  progress %lld/%lld bands, %d/%d frames written, %s elapsed\n", static_cast<long long>(j.bands_done),
-              static_cast<long long>(j.spec.bands_total()), j.frames_done, j.spec.frames(),
-              client::format_duration(j.seconds_elapsed).c_str());
-  std::printf("  output   %s (fetch with `locus fetch %s DIR`)\n", j.spec.output.c_str(), j.job_id.c_str());
+  std::printf("  scene    %s, %dx%d, frames %d-%d, %d bands per frame\n", j.spec.scene_name.c_str(),
+              j.spec.width, j.spec.height, j.spec.frame_first, j.spec.frame_last, j.spec.bands);
+  std::printf("  progress %lld/%lld bands, %d/%d frames written, %s elapsed\n",
+              static_cast<long long>(j.bands_done), static_cast<long long>(j.spec.bands_total()),
+              j.frames_done, j.spec.frames(), client::format_duration(j.seconds_elapsed).c_str());
+  std::printf("  output   %s (fetch with `locus fetch %s DIR`)\n", j.spec.output.c_str(),
+              j.job_id.c_str());
   if (!j.error.empty()) std::printf("  error    %s\n", j.error.c_str());
 }
 
@@ -304,12 +314,16 @@ int run_status(const std::string& address, const std::string& job_id) {
     std::printf("no jobs\n");
     return 0;
   }
-  std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", "JOB", "STATE", "FRAMES", "BANDS", "ELAPSED", "SCENE");
+  std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", "JOB", "STATE", "FRAMES", "BANDS", "ELAPSED",
+              "SCENE");
   for (const farm::JobInfo& j : *jobs) {
-    const std::string frames = std::to_string(j.frames_done) + "/" + std::to_string(j.spec.frames());
-    const std::string bands = std::to_string(j.bands_done) + "/" + std::to_string(j.spec.bands_total());
-    std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", j.job_id.c_str(), farm::job_state_name(j.state), frames.c_str(),
-                bands.c_str(), client::format_duration(j.seconds_elapsed).c_str(), j.spec.scene_name.c_str());
+    const std::string frames =
+        std::to_string(j.frames_done) + "/" + std::to_string(j.spec.frames());
+    const std::string bands =
+        std::to_string(j.bands_done) + "/" + std::to_string(j.spec.bands_total());
+    std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", j.job_id.c_str(),
+                farm::job_state_name(j.state), frames.c_str(), bands.c_str(),
+                client::format_duration(j.seconds_elapsed).c_str(), j.spec.scene_name.c_str());
   }
   return 0;
 }
@@ -328,8 +342,9 @@ int run_cancel(const std::string& address, const std::string& job_id) {
   client::FarmClient farm(address);
   auto j = farm.cancel(job_id);
   if (!j.ok()) return fail(j.status());
-  std::printf("job %s: %s (%lld/%lld bands done)\n", j->job_id.c_str(), farm::job_state_name(j->state),
-              static_cast<long long>(j->bands_done), static_cast<long long>(j->spec.bands_total()));
+  std::printf("job %s: %s (%lld/%lld bands done)\n", j->job_id.c_str(),
+              farm::job_state_name(j->state), static_cast<long long>(j->bands_done),
+              static_cast<long long>(j->spec.bands_total()));
   return 0;
 }
 
@@ -341,14 +356,16 @@ int run_workers(const std::string& address) {
     std::printf("no workers\n");
     return 0;
   }
-  std::printf("%-7s %-24s %-8s %-6s %-22s %-7s %s\n", "WORKER", "NAME", "THREADS", "STATE", "BAND", "BANDS", "SEEN");
+  std::printf("%-7s %-24s %-8s %-6s %-22s %-7s %s\n", "WORKER", "NAME", "THREADS", "STATE", "BAND",
+              "BANDS", "SEEN");
   for (const farm::WorkerInfo& w : *ws) {
     const std::string band =
         w.busy ? w.job_id + "/f" + std::to_string(w.frame) + "/b" + std::to_string(w.band) : "-";
     char seen[32];
     std::snprintf(seen, sizeof seen, "%.1f s ago", w.seconds_since_seen);
-    std::printf("%-7s %-24s %-8d %-6s %-22s %-7lld %s\n", w.worker_id.c_str(), w.name.c_str(), w.threads,
-                w.busy ? "busy" : "idle", band.c_str(), static_cast<long long>(w.bands_done), seen);
+    std::printf("%-7s %-24s %-8d %-6s %-22s %-7lld %s\n", w.worker_id.c_str(), w.name.c_str(),
+                w.threads, w.busy ? "busy" : "idle", band.c_str(),
+                static_cast<long long>(w.bands_done), seen);
   }
   return 0;
 }
@@ -357,12 +374,14 @@ int run_fetch(const std::string& address, const std::string& job_id, const std::
   client::FarmClient farm(address);
   auto j = farm.job(job_id);
   if (!j.ok()) return fail(j.status());
-  auto files = farm.fetch(job_id, {}, [&](int, const std::string& name) { return (fs::path(dir) / name).string(); });
+  auto files = farm.fetch(
+      job_id, {}, [&](int, const std::string& name) { return (fs::path(dir) / name).string(); });
   if (!files.ok()) return fail(files.status());
-  std::printf("%zu frame%s of job %s in %s", files->size(), files->size() == 1 ? "" : "s", job_id.c_str(), dir.c_str());
+  std::printf("%zu frame%s of job %s in %s", files->size(), files->size() == 1 ? "" : "s",
+              job_id.c_str(), dir.c_str());
   if (j->state != farm::JobState::kSucceeded) {
-    std::printf(" (job %s: %d of %d frames written so far)", farm::job_state_name(j->state), j->frames_done,
-                j->spec.frames());
+    std::printf(" (job %s: %d of %d frames written so far)", farm::job_state_name(j->state),
+                j->frames_done, j->spec.frames());
   }
   std::printf("\n");
   return 0;
@@ -370,17 +389,22 @@ int run_fetch(const std::string& address, const std::string& job_id, const std::
 
 void add_job_flags(CLI::App* cmd, JobArgs& a) {
   cmd->add_option("scene", a.scene, "Scene file (.nff or .json)")->required();
-  cmd->add_option("-o,--output", a.output,
-                  "Output image or pattern (.png, .exr, .tif); #### becomes the zero-padded frame number")
+  cmd->add_option(
+         "-o,--output", a.output,
+         "Output image or pattern (.png, .exr, .tif); #### becomes the zero-padded frame number")
       ->required();
   cmd->add_option("--size", a.size, "Override the resolution, WIDTHxHEIGHT");
-  cmd->add_option("--method", a.method, "Rendering method")->check(CLI::IsMember({"raytrace", "local"}));
+  cmd->add_option("--method", a.method, "Rendering method")
+      ->check(CLI::IsMember({"raytrace", "local"}));
   cmd->add_option("--boxes", a.boxes, "Bounding boxes: none, eye, eye+shadow")
       ->check(CLI::IsMember({"none", "eye", "eye+shadow"}));
-  cmd->add_option("--spp", a.spp, "N: N x N stratified samples per pixel")->check(CLI::Range(1, 64));
+  cmd->add_option("--spp", a.spp, "N: N x N stratified samples per pixel")
+      ->check(CLI::Range(1, 64));
   cmd->add_option("--frames", a.frames, "Frames A-B of the animation (default 1)");
-  cmd->add_option("--orbit", a.orbit, "The camera orbits `at` about `up` by DEG degrees over the frames");
-  cmd->add_option("--bands", a.bands, "Bands per frame (default: several per worker)")->check(CLI::Range(1, 1 << 20));
+  cmd->add_option("--orbit", a.orbit,
+                  "The camera orbits `at` about `up` by DEG degrees over the frames");
+  cmd->add_option("--bands", a.bands, "Bands per frame (default: several per worker)")
+      ->check(CLI::Range(1, 1 << 20));
 }
 
 std::string default_farm() {
@@ -397,10 +421,14 @@ int main(int argc, char** argv) {
   RenderArgs ra;
   auto* render = app.add_subcommand("render", "Render a scene (or frames of it) to images");
   add_job_flags(render, ra.job);
-  render->add_option("--threads", ra.threads, "Threads (0 = all cores); with workers: threads per worker (default 1)")
+  render
+      ->add_option("--threads", ra.threads,
+                   "Threads (0 = all cores); with workers: threads per worker (default 1)")
       ->check(CLI::Range(0, 1024));
-  render->add_option("--workers", ra.workers,
-                     "Local worker processes on an embedded farm (default: one per core); 0 renders in process")
+  render
+      ->add_option("--workers", ra.workers,
+                   "Local worker processes on an embedded farm (default: one per core); 0 renders "
+                   "in process")
       ->check(CLI::Range(0, 256));
   render->add_option("--stats", ra.stats, "Write render statistics as JSON");
 
@@ -410,7 +438,8 @@ int main(int argc, char** argv) {
 
   std::string farm_address = default_farm();
   auto add_farm = [&](CLI::App* cmd) {
-    cmd->add_option("--farm", farm_address, "Coordinator address HOST:PORT (default $LOCUS_FARM or 127.0.0.1:7000)");
+    cmd->add_option("--farm", farm_address,
+                    "Coordinator address HOST:PORT (default $LOCUS_FARM or 127.0.0.1:7000)");
   };
   SubmitArgs sa;
   auto* submit = app.add_subcommand("submit", "Submit a job to a farm; prints its id");

@@ -1,10 +1,9 @@
 #include "common/animation.h"
 
-#include <glm/gtc/matrix_transform.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "common/scene.h"
 #include "common/validate.h"
@@ -69,7 +68,8 @@ std::optional<std::vector<AxisAngle>> sample_rotation(const std::vector<ObjectKe
   double t = static_cast<double>(frame - a.frame) / (b.frame - a.frame);
   if (how == Interpolation::kSmooth) t = t * t * (3.0 - 2.0 * t);
   std::vector<AxisAngle> out = *a.rotate;
-  for (size_t i = 0; i < out.size(); ++i) out[i].degrees = mix(a.rotate->at(i).degrees, b.rotate->at(i).degrees, t);
+  for (size_t i = 0; i < out.size(); ++i)
+    out[i].degrees = mix(a.rotate->at(i).degrees, b.rotate->at(i).degrees, t);
   return out;
 }
 
@@ -90,7 +90,8 @@ std::string origin_of(const Scene& scene) { return scene.source.empty() ? "scene
 
 Result<Vec3> vec_from(const google::protobuf::RepeatedField<double>& r, const std::string& path) {
   if (r.size() != 3) {
-    return InvalidArgument(path + ": expected 3 numbers [x, y, z], got " + std::to_string(r.size()));
+    return InvalidArgument(path + ": expected 3 numbers [x, y, z], got " +
+                           std::to_string(r.size()));
   }
   return Vec3(r[0], r[1], r[2]);
 }
@@ -126,20 +127,25 @@ Scene scene_at_frame(const Scene& scene, int frame, const Orbit& orbit) {
 
   for (const LightTrack& t : a.lights) {
     if (t.light < 0 || static_cast<size_t>(t.light) >= s.lights.size()) continue;
-    auto pos = collect<LightKey, Vec3>(t.keys, [](const LightKey& k) { return std::optional<Vec3>(k.position); });
+    auto pos = collect<LightKey, Vec3>(
+        t.keys, [](const LightKey& k) { return std::optional<Vec3>(k.position); });
     if (auto v = sample(pos, frame, how)) s.lights[t.light].position = *v;
   }
 
   for (const ObjectTrack& t : a.objects) {
     if (t.object < 0 || static_cast<size_t>(t.object) >= s.objects.size()) continue;
-    const auto translate = sample(collect<ObjectKey, Vec3>(t.keys, [](const ObjectKey& k) { return k.translate; }), frame, how);
-    const auto scale = sample(collect<ObjectKey, Vec3>(t.keys, [](const ObjectKey& k) { return k.scale; }), frame, how);
+    const auto translate =
+        sample(collect<ObjectKey, Vec3>(t.keys, [](const ObjectKey& k) { return k.translate; }),
+               frame, how);
+    const auto scale = sample(
+        collect<ObjectKey, Vec3>(t.keys, [](const ObjectKey& k) { return k.scale; }), frame, how);
     const auto rotate = sample_rotation(t.keys, frame, how);
     if (!translate && !scale && !rotate) continue;
     Mat4 m(1.0);
     if (translate) m = glm::translate(m, *translate);
     if (rotate) {
-      for (auto it = rotate->rbegin(); it != rotate->rend(); ++it) m = m * rotation(it->axis, it->degrees);
+      for (auto it = rotate->rbegin(); it != rotate->rend(); ++it)
+        m = m * rotation(it->axis, it->degrees);
     }
     if (scale) m = glm::scale(m, *scale);
     Object& o = s.objects[t.object];
@@ -173,12 +179,14 @@ std::vector<std::string> check_animation(const Scene& scene) {
     finite(k.from, p + ".from");
     finite(k.at, p + ".at");
     finite(k.up, p + ".up");
-    if (k.up && is_finite(*k.up) && glm::length(*k.up) == 0.0) report(p + ".up", "must not be zero");
+    if (k.up && is_finite(*k.up) && glm::length(*k.up) == 0.0)
+      report(p + ".up", "must not be zero");
     if (k.angle && !(*k.angle > 0.0 && *k.angle < 180.0)) {
       report(p + ".angle", "must be in (0, 180) degrees, got " + format_number(*k.angle));
     }
   }
-  if (!strictly_increasing(frames)) report("camera", "keys must be in increasing frame order, each frame once");
+  if (!strictly_increasing(frames))
+    report("camera", "keys must be in increasing frame order, each frame once");
 
   for (size_t i = 0; i < a.lights.size(); ++i) {
     const LightTrack& t = a.lights[i];
@@ -192,7 +200,8 @@ std::vector<std::string> check_animation(const Scene& scene) {
       frames.push_back(t.keys[j].frame);
       finite(t.keys[j].position, p + ".keys[" + std::to_string(j) + "].position");
     }
-    if (!strictly_increasing(frames)) report(p + ".keys", "keys must be in increasing frame order, each frame once");
+    if (!strictly_increasing(frames))
+      report(p + ".keys", "keys must be in increasing frame order, each frame once");
   }
 
   for (size_t i = 0; i < a.objects.size(); ++i) {
@@ -226,14 +235,17 @@ std::vector<std::string> check_animation(const Scene& scene) {
         first_rotate = &*k.rotate;
       } else {
         bool same = first_rotate->size() == k.rotate->size();
-        for (size_t r = 0; same && r < k.rotate->size(); ++r) same = (*first_rotate)[r].axis == (*k.rotate)[r].axis;
+        for (size_t r = 0; same && r < k.rotate->size(); ++r)
+          same = (*first_rotate)[r].axis == (*k.rotate)[r].axis;
         if (!same) {
-          report(kp + ".rotate", "must list the same axes in the same order as the track's first rotate; "
-                                 "only the degrees are interpolated");
+          report(kp + ".rotate",
+                 "must list the same axes in the same order as the track's first rotate; "
+                 "only the degrees are interpolated");
         }
       }
     }
-    if (!strictly_increasing(frames)) report(p + ".keys", "keys must be in increasing frame order, each frame once");
+    if (!strictly_increasing(frames))
+      report(p + ".keys", "keys must be in increasing frame order, each frame once");
   }
   return out;
 }
@@ -282,7 +294,8 @@ Result<Animation> animation_from_proto(const v1::Animation& p, const std::string
   Animation a;
   std::vector<std::string> problems;
   const std::string base = origin + ": animation.";
-  auto vec = [&](const google::protobuf::RepeatedField<double>& r, const std::string& path) -> std::optional<Vec3> {
+  auto vec = [&](const google::protobuf::RepeatedField<double>& r,
+                 const std::string& path) -> std::optional<Vec3> {
     if (r.empty()) return std::nullopt;
     auto v = vec_from(r, base + path);
     if (!v.ok()) {
@@ -291,7 +304,8 @@ Result<Animation> animation_from_proto(const v1::Animation& p, const std::string
     }
     return *v;
   };
-  a.interpolation = p.interpolation() == v1::Animation::SMOOTH ? Interpolation::kSmooth : Interpolation::kLinear;
+  a.interpolation =
+      p.interpolation() == v1::Animation::SMOOTH ? Interpolation::kSmooth : Interpolation::kLinear;
   for (int i = 0; i < p.camera_size(); ++i) {
     const v1::CameraKey& pk = p.camera(i);
     const std::string path = "camera[" + std::to_string(i) + "].";
@@ -309,7 +323,8 @@ Result<Animation> animation_from_proto(const v1::Animation& p, const std::string
     t.object = pt.object();
     for (int j = 0; j < pt.keys_size(); ++j) {
       const v1::ObjectKey& pk = pt.keys(j);
-      const std::string path = "objects[" + std::to_string(i) + "].keys[" + std::to_string(j) + "].";
+      const std::string path =
+          "objects[" + std::to_string(i) + "].keys[" + std::to_string(j) + "].";
       ObjectKey k;
       k.frame = pk.frame();
       k.translate = vec(pk.translate(), path + "translate");
@@ -322,7 +337,8 @@ Result<Animation> animation_from_proto(const v1::Animation& p, const std::string
         std::vector<AxisAngle> rs;
         for (int r = 0; r < pk.rotate_size(); ++r) {
           AxisAngle aa;
-          if (auto axis = vec(pk.rotate(r).axis(), path + "rotate[" + std::to_string(r) + "].axis")) aa.axis = *axis;
+          if (auto axis = vec(pk.rotate(r).axis(), path + "rotate[" + std::to_string(r) + "].axis"))
+            aa.axis = *axis;
           aa.degrees = pk.rotate(r).degrees();
           rs.push_back(aa);
         }
@@ -339,7 +355,8 @@ Result<Animation> animation_from_proto(const v1::Animation& p, const std::string
     for (int j = 0; j < pt.keys_size(); ++j) {
       LightKey k;
       k.frame = pt.keys(j).frame();
-      const std::string path = "lights[" + std::to_string(i) + "].keys[" + std::to_string(j) + "].position";
+      const std::string path =
+          "lights[" + std::to_string(i) + "].keys[" + std::to_string(j) + "].position";
       if (pt.keys(j).position().empty()) {
         problems.push_back(base + path + ": required, 3 numbers [x, y, z]");
       } else if (auto v = vec(pt.keys(j).position(), path)) {

@@ -1,7 +1,10 @@
 #include "common/local.h"
 
+#include <optional>
+
 #include "common/raytrace.h"
 #include "common/scanline.h"
+#include "common/shadow_volume.h"
 
 namespace locus {
 
@@ -13,11 +16,20 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
   const RowVisibility vis = visible_faces(scan, cam, cam.from, y);
   stats.spans_total += vis.spans;
   (void)params;
+  // Configuration IV: the shadows of each span come from the shadow
+  // volumes before shading (paper §3.2 step 2).
+  std::optional<SpanShadows> shadows;
+  if (ps.volumes) shadows.emplace(ps, y, stats);
 
   bool prev_traced = false;
   int prev_face = -2;
   for (int x = 0; x < cam.width; ++x) {
     const int fi = vis.face[x];
+    if (shadows && fi >= 0 && (x == 0 || vis.face[x - 1] != fi)) {
+      int x1 = x + 1;
+      while (x1 < cam.width && vis.face[x1] == fi) ++x1;
+      shadows->begin_span(fi, x, x1);
+    }
     const Ray ray{cam.from, cam.direction(x + 0.5, y + 0.5)};
     Color c = ps.scene.background;
     bool traced = false;
@@ -43,7 +55,9 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
         const Material& m =
             ps.scene.materials[ps.scene.objects[hit->leaf].material];
         traced = m.ks > 0 || m.t > 0;
-        c = tracer.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr);
+        if (shadows) shadows->set_pixel(x);
+        c = tracer.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr,
+                         shadows ? &*shadows : nullptr);
       }
     }
     if (traced) {

@@ -13,6 +13,8 @@
 
 namespace locus {
 
+struct ShadowVolumes;  // common/shadow_volume.h
+
 // SHADING.md "Camera and pixels".
 struct CameraFrame {
   Vec3 from, u, v, w;
@@ -41,6 +43,9 @@ class PreparedScene {
   double ambient = 0;
   double eps = 1e-9;            // offset of secondary ray origins
   std::unique_ptr<ScanScene> scan;  // the local method's faces (--method local)
+  // Configuration IV (--method local --boxes eye+shadow): shadow volumes
+  // replace shadow rays (paper §4.1).
+  std::shared_ptr<const ShadowVolumes> volumes;
 };
 
 }  // namespace locus

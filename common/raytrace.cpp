@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "common/optics.h"
+#include "common/shadow_volume.h"
 
 namespace locus {
 namespace {
@@ -54,10 +55,51 @@ std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tm
   return *best;
 }
 
-Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light) {
-  ++stats_.rays_shadow;
+Color segment_transmittance(const Scene& scene, const Ray& seg, std::vector<Crossing>& crossings) {
+  if (crossings.empty()) return Color(1.0);
+  // Sorted so the product is formed in the same order whatever the
+  // traversal (bit-identical images with and without boxes).
+  std::sort(crossings.begin(), crossings.end(), [](const Crossing& a, const Crossing& b) {
+    return a.t != b.t ? a.t < b.t : a.leaf < b.leaf;
+  });
+  const double len = glm::length(seg.dir);
+  Color tp(1.0);
+  // (object, t where the segment entered it) for bodies currently inside.
+  thread_local std::vector<std::pair<int, double>> inside;
+  inside.clear();
+  auto absorb = [&](int obj, double t0, double t1) {
+    const Material& m = scene.materials[scene.objects[obj].material];
+    if (m.absorption != Color(0.0)) tp *= beer(m.absorption, (t1 - t0) * len);
+  };
+  for (const Crossing& c : crossings) {
+    const Material& m = scene.materials[scene.objects[c.leaf].material];
+    const double cos_i = glm::dot(seg.dir, c.normal) / len;
+    const bool entering = cos_i < 0;
+    // eq. (3): (1 - r_a)(1 - r_b), straight path, refraction ignored.
+    const double r = entering ? fresnel(cos_i, 1.0, m.ior) : fresnel(cos_i, m.ior, 1.0);
+    if (r >= 1.0) return Color(0.0);
+    tp *= (1.0 - r);
+    auto it = std::find_if(inside.begin(), inside.end(),
+                           [&](const auto& e) { return e.first == c.leaf; });
+    if (entering) {
+      if (it == inside.end()) inside.emplace_back(c.leaf, c.t);
+    } else {
+      absorb(c.leaf, it == inside.end() ? 0.0 : it->second, c.t);
+      if (it != inside.end()) inside.erase(it);
+    }
+  }
+  for (const auto& [obj, t0] : inside) absorb(obj, t0, 1.0);
+  return tp;
+}
+
+Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiver,
+                            KnownShadows* known) {
   const Vec3 lp = ps_.scene.lights[light].position;
   const Vec3 origin = offset(p, ng, lp - p);
+  if (known) return known->transmittance(p, origin, light);
+  // Configuration IV: containment in shadow volumes (paper §4.1).
+  if (ps_.volumes) return volume_transmittance(ps_, origin, light, receiver, stats_);
+  ++stats_.rays_shadow;
   const Ray seg{origin, lp - origin};  // t in (0, 1) spans the segment
   thread_local std::vector<Crossing> crossings;
   crossings.clear();
@@ -86,41 +128,7 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light) {
     for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()) && !opaque; ++i) test(i);
   }
   if (opaque) return Color(0.0);
-  if (crossings.empty()) return Color(1.0);
-
-  // Sorted so the product is formed in the same order whatever the
-  // traversal (bit-identical images with and without boxes).
-  std::sort(crossings.begin(), crossings.end(), [](const Crossing& a, const Crossing& b) {
-    return a.t != b.t ? a.t < b.t : a.leaf < b.leaf;
-  });
-  const double len = glm::length(seg.dir);
-  Color tp(1.0);
-  // (object, t where the segment entered it) for bodies currently inside.
-  thread_local std::vector<std::pair<int, double>> inside;
-  inside.clear();
-  auto absorb = [&](int obj, double t0, double t1) {
-    const Material& m = ps_.scene.materials[ps_.scene.objects[obj].material];
-    if (m.absorption != Color(0.0)) tp *= beer(m.absorption, (t1 - t0) * len);
-  };
-  for (const Crossing& c : crossings) {
-    const Material& m = ps_.scene.materials[ps_.scene.objects[c.leaf].material];
-    const double cos_i = glm::dot(seg.dir, c.normal) / len;
-    const bool entering = cos_i < 0;
-    // eq. (3): (1 - r_a)(1 - r_b), straight path, refraction ignored.
-    const double r = entering ? fresnel(cos_i, 1.0, m.ior) : fresnel(cos_i, m.ior, 1.0);
-    if (r >= 1.0) return Color(0.0);
-    tp *= (1.0 - r);
-    auto it = std::find_if(inside.begin(), inside.end(),
-                           [&](const auto& e) { return e.first == c.leaf; });
-    if (entering) {
-      if (it == inside.end()) inside.emplace_back(c.leaf, c.t);
-    } else {
-      absorb(c.leaf, it == inside.end() ? 0.0 : it->second, c.t);
-      if (it != inside.end()) inside.erase(it);
-    }
-  }
-  for (const auto& [obj, t0] : inside) absorb(obj, t0, 1.0);
-  return tp;
+  return segment_transmittance(ps_.scene, seg, crossings);
 }
 
 Color Tracer::trace(const Ray& ray, double tmin, int depth, double weight, const Material* medium) {
@@ -130,7 +138,7 @@ Color Tracer::trace(const Ray& ray, double tmin, int depth, double weight, const
 }
 
 Color Tracer::shade(const Ray& ray, const SurfaceHit& hit, int depth, double weight,
-                    const Material* medium) {
+                    const Material* medium, KnownShadows* known) {
   const Scene& scene = ps_.scene;
   const Crossing& c = hit.crossing;
   const Material& m = scene.materials[scene.objects[c.leaf].material];
@@ -152,7 +160,7 @@ Color Tracer::shade(const Ray& ray, const SurfaceHit& hit, int depth, double wei
     const double ndl = glm::dot(n, l);
     if (ndl <= 0) continue;  // light behind the shaded side
     if (m.kd == 0 && m.ks == 0) continue;
-    const Color tp = transmittance(p, ng, j);
+    const Color tp = transmittance(p, ng, j, hit.prim, known);
     if (tp == Color(0.0)) continue;
     const Vec3 r = 2.0 * ndl * n - l;
     const double spec = m.ks > 0 ? m.ks * std::pow(std::max(0.0, glm::dot(r, v)), m.shine) : 0.0;

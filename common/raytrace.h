@@ -17,6 +17,24 @@ struct SurfaceHit {
   Crossing crossing;
 };
 
+// t_pj already known to the caller for the point being shaded: the local
+// method's scanline pass finds the shadows of its spans before shading
+// (paper §3.2), so shade() asks it instead of searching.
+class KnownShadows {
+ public:
+  virtual ~KnownShadows() = default;
+  // `p` is the shaded point, `origin` the start of its shadow segment (p
+  // offset off the surface towards the light's side, as a shadow ray).
+  virtual Color transmittance(const Vec3& p, const Vec3& origin, int light) = 0;
+};
+
+// Paper eqs. (2), (3): the product of (1 - r) over the crossings of the
+// segment `seg` (t in (0, 1), from the shadow-ray origin to the light) with
+// transparent surfaces, and exp(-q d) over the lengths inside them.
+// `crossings` are sorted first (by t, then object), so the product is formed
+// in the same order whoever collected them.
+Color segment_transmittance(const Scene& scene, const Ray& seg, std::vector<Crossing>& crossings);
+
 class Tracer {
  public:
   Tracer(const PreparedScene& ps, Stats& stats)
@@ -28,15 +46,20 @@ class Tracer {
 
   // Fraction of light `light` reaching p (paper eqs. (2), (3)), per channel.
   // `ng` is the outward geometric normal at p, used to offset the origin.
-  Color transmittance(const Vec3& p, const Vec3& ng, int light);
+  // `receiver` is the primitive p lies on (-1: unknown), whose list of
+  // possible occluders narrows the search with shadow volumes; `known`, if
+  // given, already knows the answer (scanline spans).
+  Color transmittance(const Vec3& p, const Vec3& ng, int light, int receiver = -1,
+                      KnownShadows* known = nullptr);
 
   // Radiance along a ray; depth 1 is the primary ray. `medium` is the
   // material whose body the ray travels in (nullptr outside).
   Color trace(const Ray& ray, double tmin, int depth, double weight, const Material* medium);
 
-  // Shading of a known hit (SHADING.md "Materials").
+  // Shading of a known hit (SHADING.md "Materials"). `known` gives t_pj of
+  // this hit, if the caller already knows it.
   Color shade(const Ray& ray, const SurfaceHit& hit, int depth, double weight,
-              const Material* medium);
+              const Material* medium, KnownShadows* known = nullptr);
 
  private:
   Vec3 offset(const Vec3& p, const Vec3& ng, const Vec3& dir) const {

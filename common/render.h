@@ -41,11 +41,14 @@ struct Stats {
   uint64_t rays_refracted = 0;
   uint64_t rays_shadow = 0;
   uint64_t tests_ray_object = 0;
+  // Configuration IV: point-in-shadow-volume and span-against-volume tests
+  // (paper §4.1; docs/shadow-volumes.md).
+  uint64_t tests_shadow_volume = 0;
   uint64_t pixels_total = 0;
   uint64_t pixels_ray_traced = 0;  // pixels where an eye, reflected or refracted ray was cast
   uint64_t spans_total = 0;        // local method: visible spans over all rows
   uint64_t spans_ray_traced = 0;   // spans whose pixels were ray traced
-  std::string shadow_method = "rays";  // how shadows were found: "rays" (or "volumes", issue #5)
+  std::string shadow_method = "rays";  // how shadows were found: "rays" or "volumes" (IV)
 
   Stats& operator+=(const Stats& o);
   std::string to_json() const;

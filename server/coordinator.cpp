@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <tuple>
 
 #include "common/animation.h"
 #include "common/image.h"
@@ -27,10 +28,12 @@ std::string lower(std::string s) {
 // The coordinator writes only under its data directory, so of the client's
 // pattern it keeps the file name alone.
 Result<std::string> output_file_pattern(const std::string& output, int frames) {
-  if (output.empty()) return InvalidArgument("output: a pattern such as out/shot_####.png is required");
+  if (output.empty())
+    return InvalidArgument("output: a pattern such as out/shot_####.png is required");
   const std::string name = fs::path(output).filename().string();
   if (name.empty() || name == "." || name == "..") {
-    return InvalidArgument("output '" + output + "': names no file; expected a pattern such as out/shot_####.png");
+    return InvalidArgument("output '" + output +
+                           "': names no file; expected a pattern such as out/shot_####.png");
   }
   const std::string ext = lower(fs::path(name).extension().string());
   if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
@@ -38,8 +41,9 @@ Result<std::string> output_file_pattern(const std::string& output, int frames) {
                            "' (expected .png, .exr, .tif)");
   }
   if (frames > 1 && !has_frame_field(name)) {
-    return InvalidArgument("output '" + output + "': " + std::to_string(frames) +
-                           " frames need a frame number field in the file name, e.g. shot_####.png");
+    return InvalidArgument(
+        "output '" + output + "': " + std::to_string(frames) +
+        " frames need a frame number field in the file name, e.g. shot_####.png");
   }
   return name;
 }
@@ -48,14 +52,16 @@ Result<std::string> output_file_pattern(const std::string& output, int frames) {
 
 Coordinator::Coordinator(CoordinatorOptions options)
     : options_(std::move(options)),
-      scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts}, options_.now) {}
+      scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts},
+                 options_.now) {}
 
 Coordinator::~Coordinator() { shutdown(); }
 
 Status Coordinator::start() {
   std::error_code ec;
   fs::create_directories(fs::path(options_.data_dir) / "jobs", ec);
-  if (ec) return FailedPrecondition("--data " + options_.data_dir + ": cannot create: " + ec.message());
+  if (ec)
+    return FailedPrecondition("--data " + options_.data_dir + ": cannot create: " + ec.message());
   std::lock_guard lk(mu_);
   if (started_) return Status::Ok();
   started_ = true;
@@ -97,10 +103,7 @@ void Coordinator::tick_loop() {
 }
 
 void Coordinator::drop_unused_scenes() {
-  std::set<std::string> used;
-  for (const JobInfo& j : scheduler_.jobs()) {
-    if (!is_terminal(j.state)) used.insert(j.spec.scene_hash);
-  }
+  const std::set<std::string> used = scheduler_.scenes_in_use();
   for (auto it = scenes_.begin(); it != scenes_.end();) {
     it = used.count(it->first) ? std::next(it) : scenes_.erase(it);
   }
@@ -121,7 +124,8 @@ void Coordinator::write_loop() {
     const fs::path tmp = dir / (".partial-" + f.file_name);
     std::error_code ec;
     fs::create_directories(dir, ec);
-    Status st = ec ? Internal(dir.string() + ": cannot create: " + ec.message()) : write_image(tmp.string(), f.image);
+    Status st = ec ? Internal(dir.string() + ": cannot create: " + ec.message())
+                   : write_image(tmp.string(), f.image);
     if (st.ok()) {
       fs::rename(tmp, final_path, ec);
       if (ec) st = Internal(final_path.string() + ": cannot rename into place: " + ec.message());
@@ -156,25 +160,28 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
   spec.scene_name = name;
   spec.width = r.width > 0 ? r.width : scene->camera.width;
   spec.height = r.height > 0 ? r.height : scene->camera.height;
-  if (r.width < 0 || r.height < 0 || spec.width < 1 || spec.height < 1 || spec.width > kMaxResolution ||
-      spec.height > kMaxResolution) {
-    return InvalidArgument("size " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
-                           ": each side must be 1.." + std::to_string(kMaxResolution));
+  if (r.width < 0 || r.height < 0 || spec.width < 1 || spec.height < 1 ||
+      spec.width > kMaxResolution || spec.height > kMaxResolution) {
+    return InvalidArgument("size " + std::to_string(spec.width) + "x" +
+                           std::to_string(spec.height) + ": each side must be 1.." +
+                           std::to_string(kMaxResolution));
   }
   spec.frame_first = r.frame_first;
   spec.frame_last = r.frame_last;
   if (r.frame_first < 0 || r.frame_last < r.frame_first) {
-    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" + std::to_string(r.frame_last) +
-                           ": expected A-B with 0 <= A <= B");
+    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
+                           std::to_string(r.frame_last) + ": expected A-B with 0 <= A <= B");
   }
   if (static_cast<int64_t>(r.frame_last) - r.frame_first + 1 > kMaxFramesPerJob) {
-    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" + std::to_string(r.frame_last) +
-                           ": at most " + std::to_string(kMaxFramesPerJob) + " frames per job");
+    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
+                           std::to_string(r.frame_last) + ": at most " +
+                           std::to_string(kMaxFramesPerJob) + " frames per job");
   }
   Result<RenderParams> params = to_render_params(r.render, 0);
   if (!params.ok()) return params.status();
   spec.render = r.render;
-  if (!std::isfinite(r.orbit_degrees)) return InvalidArgument("orbit: must be a finite number of degrees");
+  if (!std::isfinite(r.orbit_degrees))
+    return InvalidArgument("orbit: must be a finite number of degrees");
   spec.orbit_degrees = r.orbit_degrees;
   Result<std::string> pattern = output_file_pattern(r.output, spec.frames());
   if (!pattern.ok()) return pattern.status();
@@ -182,12 +189,14 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
 
   const int least = min_bands(spec.width, spec.height);
   if (r.bands < 0 || r.bands > spec.height) {
-    return InvalidArgument("bands " + std::to_string(r.bands) + ": expected 1.." + std::to_string(spec.height) +
-                           " (a band is at least one row of the " + std::to_string(spec.height) + "-row frame)");
+    return InvalidArgument("bands " + std::to_string(r.bands) + ": expected 1.." +
+                           std::to_string(spec.height) + " (a band is at least one row of the " +
+                           std::to_string(spec.height) + "-row frame)");
   }
   if (r.bands > 0 && r.bands < least) {
-    return InvalidArgument("bands " + std::to_string(r.bands) + ": a " + std::to_string(spec.width) + "x" +
-                           std::to_string(spec.height) + " frame needs at least " + std::to_string(least) +
+    return InvalidArgument("bands " + std::to_string(r.bands) + ": a " +
+                           std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                           " frame needs at least " + std::to_string(least) +
                            " bands so that each fits in one message");
   }
 
@@ -202,8 +211,9 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
                            : default_bands(spec.width, spec.height, spec.frames(),
                                            static_cast<int>(scheduler_.worker_count()));
   if (spec.bands_total() > kMaxBandsPerJob) {
-    return InvalidArgument(std::to_string(spec.frames()) + " frames x " + std::to_string(spec.bands) +
-                           " bands: at most " + std::to_string(kMaxBandsPerJob) + " bands per job");
+    return InvalidArgument(std::to_string(spec.frames()) + " frames x " +
+                           std::to_string(spec.bands) + " bands: at most " +
+                           std::to_string(kMaxBandsPerJob) + " bands per job");
   }
   scenes_.emplace(spec.scene_hash, std::move(stored));
   const std::string id = scheduler_.add_job(spec);
@@ -240,12 +250,19 @@ Status Coordinator::watch(const std::string& job_id, Millis max, const Cancelled
                           const JobSink& sink) {
   const auto end = SteadyClock::now() + std::clamp(max, Millis(0), options_.max_watch);
   std::unique_lock lk(mu_);
+  // The version is the whole scheduler's: skip updates that left this job
+  // as it was.
+  std::optional<std::tuple<JobState, int64_t, int>> sent;
   for (;;) {
     Result<JobInfo> info = scheduler_.job(job_id);
     if (!info.ok()) return info.status();
     const uint64_t seen = scheduler_.version();
     lk.unlock();
-    if (!sink(*info)) return Status::Ok();
+    const auto now = std::make_tuple(info->state, info->bands_done, info->frames_done);
+    if (sent != now) {
+      if (!sink(*info)) return Status::Ok();
+      sent = now;
+    }
     if (is_terminal(info->state)) return Status::Ok();
     const auto next = SteadyClock::now() + kWatchInterval;
     lk.lock();
@@ -266,7 +283,8 @@ Status Coordinator::watch(const std::string& job_id, Millis max, const Cancelled
   }
 }
 
-Status Coordinator::fetch(const std::string& job_id, const std::vector<int>& frames, const ChunkSink& sink) {
+Status Coordinator::fetch(const std::string& job_id, const std::vector<int>& frames,
+                          const ChunkSink& sink) {
   JobInfo info;
   {
     std::lock_guard lk(mu_);
@@ -280,8 +298,8 @@ Status Coordinator::fetch(const std::string& job_id, const std::vector<int>& fra
   for (int f : want) {
     if (!written.count(f)) {
       return NotFound("frame " + std::to_string(f) + " of job " + job_id + " is not written (job " +
-                      job_state_name(info.state) + ", " + std::to_string(info.frames_done) + " of " +
-                      std::to_string(info.spec.frames()) + " frames written)");
+                      job_state_name(info.state) + ", " + std::to_string(info.frames_done) +
+                      " of " + std::to_string(info.spec.frames()) + " frames written)");
     }
   }
   std::vector<char> buf(kChunkBytes);
@@ -313,7 +331,8 @@ Status Coordinator::fetch(const std::string& job_id, const std::vector<int>& fra
 Registration Coordinator::register_worker(const std::string& name, int threads) {
   std::lock_guard lk(mu_);
   Registration r;
-  r.worker_id = scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200), std::max(1, threads));
+  r.worker_id =
+      scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200), std::max(1, threads));
   r.heartbeat = options_.heartbeat;
   r.lease = options_.lease;
   spdlog::info("worker {} registered: {} ({} threads)", r.worker_id, name, threads);

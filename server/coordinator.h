@@ -23,12 +23,12 @@
 namespace locus::farm {
 
 struct CoordinatorOptions {
-  std::string data_dir;          // frames go to DATA/jobs/<job>/<file>
+  std::string data_dir;  // frames go to DATA/jobs/<job>/<file>
   Millis lease{5000};
-  Millis heartbeat{1000};        // asked of workers; well inside the lease
-  Millis max_poll{10000};        // longest GetTask wait
-  Millis max_watch{30000};       // longest single WatchJob stream
-  Millis tick{100};              // how often leases are checked
+  Millis heartbeat{1000};   // asked of workers; well inside the lease
+  Millis max_poll{10000};   // longest GetTask wait
+  Millis max_watch{30000};  // longest single WatchJob stream
+  Millis tick{100};         // how often leases are checked
   int max_attempts = 3;
   NowFn now = [] { return SteadyClock::now(); };
 };
@@ -38,11 +38,11 @@ struct SubmitRequest {
   v1::Scene scene;
   std::string scene_name;
   RenderSettings render;
-  int width = 0;   // 0: the scene camera's
+  int width = 0;  // 0: the scene camera's
   int height = 0;
   int frame_first = 1;
   int frame_last = 1;
-  int bands = 0;   // 0: default_bands()
+  int bands = 0;  // 0: default_bands()
   std::string output;
   double orbit_degrees = 0;
 };
@@ -87,7 +87,8 @@ class Coordinator {
   std::vector<WorkerInfo> workers();
   // Sends the job's status now, then on each change (throttled), until the
   // job ends, `max` passes, the client cancels or the sink refuses.
-  Status watch(const std::string& job_id, Millis max, const CancelledFn& cancelled, const JobSink& sink);
+  Status watch(const std::string& job_id, Millis max, const CancelledFn& cancelled,
+               const JobSink& sink);
   // Sends the written frame files; `frames` empty: all written so far.
   Status fetch(const std::string& job_id, const std::vector<int>& frames, const ChunkSink& sink);
 

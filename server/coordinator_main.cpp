@@ -1,8 +1,9 @@
 // locus-coordinator: accepts jobs from `locus`, leases bands to the workers
 // that dial in, stitches and writes the frames under --data.
-#include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
 
@@ -22,10 +23,14 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(200, 3600000));
   app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat period asked of workers")
       ->check(CLI::Range(50, 600000));
-  app.add_option("--attempts", attempts, "Leases per band before its job fails")->check(CLI::Range(1, 100));
+  app.add_option("--attempts", attempts, "Leases per band before its job fails")
+      ->check(CLI::Range(1, 100));
   CLI11_PARSE(app, argc, argv);
+  // Logs go to stderr: stdout carries what scripts read.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
   if (heartbeat_ms * 2 > lease_ms) {
-    std::fprintf(stderr, "locus-coordinator: --heartbeat-ms %d must be at most half of --lease-ms %d\n",
+    std::fprintf(stderr,
+                 "locus-coordinator: --heartbeat-ms %d must be at most half of --lease-ms %d\n",
                  heartbeat_ms, lease_ms);
     return 2;
   }

@@ -48,7 +48,8 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
     });
   }
 
-  grpc::Status GetJob(grpc::ServerContext*, const v1::GetJobRequest* req, v1::JobStatus* resp) override {
+  grpc::Status GetJob(grpc::ServerContext*, const v1::GetJobRequest* req,
+                      v1::JobStatus* resp) override {
     return guarded("GetJob", [&]() -> Status {
       if (Status s = check_id(req->job_id(), "job_id"); !s.ok()) return s;
       auto r = c_.job(req->job_id());
@@ -58,7 +59,8 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
     });
   }
 
-  grpc::Status ListJobs(grpc::ServerContext*, const v1::ListJobsRequest*, v1::ListJobsResponse* resp) override {
+  grpc::Status ListJobs(grpc::ServerContext*, const v1::ListJobsRequest*,
+                        v1::ListJobsResponse* resp) override {
     return guarded("ListJobs", [&]() -> Status {
       for (const farm::JobInfo& j : c_.jobs()) *resp->add_jobs() = ToProto(j);
       return Status::Ok();
@@ -69,7 +71,8 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
                         grpc::ServerWriter<v1::JobStatus>* writer) override {
     return guarded("WatchJob", [&]() -> Status {
       if (Status s = check_id(req->job_id(), "job_id"); !s.ok()) return s;
-      const farm::Millis max(req->max_seconds() > 0 ? static_cast<int64_t>(req->max_seconds()) * 1000 : 30000);
+      const farm::Millis max(
+          req->max_seconds() > 0 ? static_cast<int64_t>(req->max_seconds()) * 1000 : 30000);
       return c_.watch(
           req->job_id(), max, [ctx] { return ctx->IsCancelled(); },
           [writer](const farm::JobInfo& j) { return writer->Write(ToProto(j)); });
@@ -173,7 +176,8 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::Service {
                          v1::HeartbeatResponse* resp) override {
     return guarded("Heartbeat", [&]() -> Status {
       if (Status s = check_id(req->worker_id(), "worker_id"); !s.ok()) return s;
-      if (req->lease_ids_size() > kMaxLeasesPerHeartbeat) return InvalidArgument("too many lease ids");
+      if (req->lease_ids_size() > kMaxLeasesPerHeartbeat)
+        return InvalidArgument("too many lease ids");
       std::vector<std::string> leases(req->lease_ids().begin(), req->lease_ids().end());
       auto r = c_.heartbeat(req->worker_id(), leases);
       if (!r.ok()) return r.status();
@@ -203,7 +207,8 @@ Result<int> CoordinatorServer::start(const std::string& address) {
   server_ = builder.BuildAndStart();
   if (!server_ || port == 0) {
     server_.reset();
-    return Status(Code::kUnavailable, "cannot listen on " + address + " (address in use, or not local?)");
+    return Status(Code::kUnavailable,
+                  "cannot listen on " + address + " (address in use, or not local?)");
   }
   return port;
 }

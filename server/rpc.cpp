@@ -134,6 +134,9 @@ v1::RenderStats ToProto(const Stats& s) {
   p.set_tests_ray_object(s.tests_ray_object);
   p.set_pixels_total(s.pixels_total);
   p.set_pixels_ray_traced(s.pixels_ray_traced);
+  p.set_spans_total(s.spans_total);
+  p.set_spans_ray_traced(s.spans_ray_traced);
+  p.set_shadow_method(s.shadow_method);
   return p;
 }
 
@@ -148,6 +151,9 @@ Stats FromProto(const v1::RenderStats& p) {
   s.tests_ray_object = p.tests_ray_object();
   s.pixels_total = p.pixels_total();
   s.pixels_ray_traced = p.pixels_ray_traced();
+  s.spans_total = p.spans_total();
+  s.spans_ray_traced = p.spans_ray_traced();
+  if (!p.shadow_method().empty()) s.shadow_method = p.shadow_method();
   return s;
 }
 

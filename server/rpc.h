@@ -18,9 +18,9 @@
 namespace locus::rpc {
 
 // Every RPC has a deadline; these are the defaults by kind of call.
-inline constexpr farm::Millis kShortCall{10000};    // status, cancel, heartbeat, register
-inline constexpr farm::Millis kDataCall{120000};    // submit, scene, band results, fetch
-inline constexpr farm::Millis kPollSlack{5000};     // a long poll's deadline beyond its wait
+inline constexpr farm::Millis kShortCall{10000};  // status, cancel, heartbeat, register
+inline constexpr farm::Millis kDataCall{120000};  // submit, scene, band results, fetch
+inline constexpr farm::Millis kPollSlack{5000};   // a long poll's deadline beyond its wait
 
 grpc::Status ToGrpc(const Status& status);
 // `peer` names the other end in the message: "farm at 127.0.0.1:7000".

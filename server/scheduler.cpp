@@ -126,6 +126,9 @@ void Scheduler::frame_written(const std::string& job_id, int frame, const Status
   if (job->info.frames_done == job->info.spec.frames()) {
     job->info.state = JobState::kSucceeded;
     job->finished = now_();
+    spdlog::info("job {} succeeded in {:.3f} s ({} frames, {} bands)", job_id,
+                 seconds(job->finished - job->submitted), job->info.spec.frames(),
+                 job->info.spec.bands_total());
   }
   ++version_;
 }
@@ -147,7 +150,9 @@ std::string Scheduler::add_worker(const std::string& name, int threads) {
 Status Scheduler::touch(const std::string& worker_id) {
   auto it = workers_.find(worker_id);
   if (it == workers_.end()) {
-    return NotFound("worker '" + worker_id + "' is unknown (dropped after silence, or the coordinator restarted); register again");
+    return NotFound(
+        "worker '" + worker_id +
+        "' is unknown (dropped after silence, or the coordinator restarted); register again");
   }
   it->second.last_seen = now_();
   return Status::Ok();
@@ -170,6 +175,14 @@ std::vector<WorkerInfo> Scheduler::workers() const {
     out.push_back(std::move(info));
   }
   return out;
+}
+
+std::set<std::string> Scheduler::scenes_in_use() const {
+  std::set<std::string> used;
+  for (const auto& [id, job] : jobs_) {
+    if (!is_terminal(job.info.state)) used.insert(job.info.spec.scene_hash);
+  }
+  return used;
 }
 
 bool Scheduler::has_queued_bands() const {
@@ -263,8 +276,8 @@ void Scheduler::release(const std::string& lease_id, const std::string& why, boo
                        std::to_string(t.attempts) + " times; last: " + why);
     return;
   }
-  spdlog::info("job {}: band {} of frame {} back in the queue: {}", lease.job_id, lease.task % s.bands,
-               s.frame_first + lease.task / s.bands, why);
+  spdlog::info("job {}: band {} of frame {} back in the queue: {}", lease.job_id,
+               lease.task % s.bands, s.frame_first + lease.task / s.bands, why);
   job->queue.push_front(lease.task);
 }
 
@@ -274,7 +287,8 @@ Result<CompleteOutcome> Scheduler::complete_band(BandOutput out) {
   CompleteOutcome outcome;
   auto it = leases_.find(out.lease_id);
   if (it == leases_.end() || it->second.worker_id != out.worker_id) {
-    outcome.reason = "lease '" + out.lease_id + "' is not held by this worker (lapsed, re-leased or cancelled)";
+    outcome.reason =
+        "lease '" + out.lease_id + "' is not held by this worker (lapsed, re-leased or cancelled)";
     return outcome;
   }
   if (it->second.deadline < now_()) {
@@ -298,9 +312,9 @@ Result<CompleteOutcome> Scheduler::complete_band(BandOutput out) {
   const size_t expected = static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3;
   if (out.rgb.size() != expected) {
     const std::string why = "band " + std::to_string(band) + " of frame " + std::to_string(frame) +
-                            ": expected " + std::to_string(expected) + " floats (" + std::to_string(s.width) +
-                            " x " + std::to_string(rows.y1 - rows.y0) + " x 3), got " +
-                            std::to_string(out.rgb.size());
+                            ": expected " + std::to_string(expected) + " floats (" +
+                            std::to_string(s.width) + " x " + std::to_string(rows.y1 - rows.y0) +
+                            " x 3), got " + std::to_string(out.rgb.size());
     release(out.lease_id, "worker " + out.worker_id + " sent malformed pixels: " + why, true);
     return InvalidArgument(why);
   }
@@ -316,7 +330,8 @@ Result<CompleteOutcome> Scheduler::complete_band(BandOutput out) {
 
   PartialFrame& pf = job.partial[frame];
   if (pf.image.width == 0) pf.image = Image(s.width, s.height);
-  std::copy(out.rgb.begin(), out.rgb.end(), pf.image.rgb.begin() + static_cast<size_t>(rows.y0) * s.width * 3);
+  std::copy(out.rgb.begin(), out.rgb.end(),
+            pf.image.rgb.begin() + static_cast<size_t>(rows.y0) * s.width * 3);
   ++pf.bands_done;
   outcome.accepted = true;
   if (pf.bands_done == s.bands) {

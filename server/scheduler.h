@@ -67,6 +67,9 @@ class Scheduler {
   // worker_timeout; their bands go back to the queue.
   void expire();
 
+  // Content hashes of the scenes that unfinished jobs still need.
+  std::set<std::string> scenes_in_use() const;
+
   // Bumped by every change a watcher may want to see.
   uint64_t version() const { return version_; }
   bool has_queued_bands() const;
@@ -90,7 +93,7 @@ class Scheduler {
     std::vector<Task> tasks;  // frame-major: (frame - first) * bands + band
     std::deque<int> queue;    // task indices waiting for a worker
     std::map<int, PartialFrame> partial;
-    std::set<int> stitched;   // frames handed out for writing
+    std::set<int> stitched;  // frames handed out for writing
   };
   struct Lease {
     std::string job_id;

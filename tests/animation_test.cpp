@@ -56,7 +56,7 @@ TEST(Animation, CameraKeysInterpolateLinearlyAndHold) {
 
   s.animation.interpolation = Interpolation::kSmooth;
   EXPECT_DOUBLE_EQ(scene_at_frame(s, 6).camera.from.x, 5.0);  // smoothstep(1/2) = 1/2
-  EXPECT_LT(scene_at_frame(s, 3).camera.from.x, 2.0);          // eases in
+  EXPECT_LT(scene_at_frame(s, 3).camera.from.x, 2.0);         // eases in
 }
 
 TEST(Animation, ObjectKeysApplyAfterTheObjectsOwnTransform) {
@@ -96,7 +96,7 @@ TEST(Animation, OrbitTurnsFromAboutAtAroundUp) {
   const Scene s = two_objects();
   const Orbit orbit{90.0, 1, 3};
   EXPECT_EQ(scene_at_frame(s, 1, orbit).camera.from, s.camera.from);  // frame A: unchanged
-  const Vec3 mid = scene_at_frame(s, 2, orbit).camera.from;            // 45 degrees
+  const Vec3 mid = scene_at_frame(s, 2, orbit).camera.from;           // 45 degrees
   EXPECT_NEAR(mid.x, 10 * std::sqrt(0.5), 1e-9);
   EXPECT_NEAR(mid.z, 10 * std::sqrt(0.5), 1e-9);
   const Vec3 end = scene_at_frame(s, 3, orbit).camera.from;  // right-handed about +y
@@ -126,7 +126,8 @@ TEST(Animation, CheckReportsBadTracks) {
     }
     return false;
   };
-  EXPECT_TRUE(has("anim.json: animation.objects[0].object: index 7 out of range")) << ::testing::PrintToString(problems);
+  EXPECT_TRUE(has("anim.json: animation.objects[0].object: index 7 out of range"))
+      << ::testing::PrintToString(problems);
   EXPECT_TRUE(has("animation.objects[0].keys: keys must be in increasing frame order"));
   EXPECT_TRUE(has("animation.objects[0].keys[1].rotate: must list the same axes"));
   // And never crashes when rendered regardless.
@@ -163,7 +164,8 @@ TEST(Animation, ProtoRoundTrip) {
   p.mutable_camera(0)->add_from(1.0);  // 1 number where 3 are needed
   auto bad = animation_from_proto(p, "x.json");
   ASSERT_FALSE(bad.ok());
-  EXPECT_NE(bad.status().message().find("x.json: animation.camera[0].from: expected 3 numbers"), std::string::npos)
+  EXPECT_NE(bad.status().message().find("x.json: animation.camera[0].from: expected 3 numbers"),
+            std::string::npos)
       << bad.status().message();
 }
 
@@ -178,7 +180,8 @@ TEST(Animation, AnimatedExampleScenesLoadAndRoundTrip) {
     const Scene b = scene_at_frame(*back, 7, Orbit{20, 1, 12});
     EXPECT_EQ(a.camera.from, b.camera.from);
     for (size_t i = 0; i < a.objects.size(); ++i) {
-      EXPECT_EQ(a.objects[i].world_from_object, b.objects[i].world_from_object) << name << " object " << i;
+      EXPECT_EQ(a.objects[i].world_from_object, b.objects[i].world_from_object)
+          << name << " object " << i;
     }
   }
 }

@@ -42,7 +42,7 @@ glass=$src/scenes/paper/a_glass.json
   { bad "embedded farm, scenes/anim"; cat "$tmp/e.log"; }
 
 # ---- a coordinator and two workers started by hand
-"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/data" --lease-ms 1000 --heartbeat-ms 200 \
+"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/data" --lease-ms 3000 --heartbeat-ms 300 \
   >"$tmp/coord.out" 2>"$tmp/coord.log" &
 pids+=($!)
 port=
@@ -67,13 +67,18 @@ job=$(head -1 "$tmp/submit.out")
   ok "fetch $job" || bad "fetch $job"
 
 # ---- SIGKILL of a worker in the middle of a job
-"$bin/locus" render "$glass" --orbit 20 --frames 1-8 --size 96x72 --spp 6 --workers 0 -o "$tmp/r/k_####.png" 2>/dev/null
-"$bin/locus" submit "$glass" --farm "$farm" --orbit 20 --frames 1-8 --size 96x72 --spp 6 --bands 4 \
+# About 3 s of work for two workers: long enough to freeze one, see it
+# holding a band and kill it (the lease, 3 s, outlives that look).
+"$bin/locus" render "$glass" --orbit 20 --frames 1-8 --size 96x72 --spp 12 --workers 0 -o "$tmp/r/k_####.png" 2>/dev/null
+"$bin/locus" submit "$glass" --farm "$farm" --orbit 20 --frames 1-8 --size 96x72 --spp 12 --bands 4 \
   -o "$tmp/k/k_####.png" --wait >"$tmp/kill.out" 2>"$tmp/kill.log" &
 submit=$!
+for _ in $(seq 500); do
+  grep -q " running " "$tmp/kill.log" 2>/dev/null && break
+  sleep 0.02
+done
 victim=
-for _ in $(seq 20); do
-  grep -q " running " "$tmp/kill.log" 2>/dev/null || { sleep 0.02; continue; }
+for _ in $(seq 10); do
   # Freeze a worker, so that what `locus workers` says of it stays true,
   # and kill it only if it holds a band.
   kill -STOP "$w1"
@@ -82,7 +87,6 @@ for _ in $(seq 20); do
     kill -9 "$w1"
     break
   fi
-  "$bin/locus" workers --farm "$farm" >&2
   kill -CONT "$w1"
   sleep 0.03
 done

@@ -55,11 +55,13 @@ SubmitRequest request(const std::string& path, int w, int h, int first, int last
 Image reference(const SubmitRequest& r, int frame, const fs::path& dir) {
   auto scene = load_scene(r.scene_name);
   EXPECT_TRUE(scene.ok());
-  const Scene s = frame_scene(*scene, r.width, r.height, frame, r.frame_first, r.frame_last, r.orbit_degrees);
+  const Scene s =
+      frame_scene(*scene, r.width, r.height, frame, r.frame_first, r.frame_last, r.orbit_degrees);
   auto params = to_render_params(r.render, 1);
   auto img = render_image(s, *params);
   EXPECT_TRUE(img.ok()) << img.status().message();
-  const fs::path out = dir / ("ref_" + std::to_string(frame) + fs::path(r.output).extension().string());
+  const fs::path out =
+      dir / ("ref_" + std::to_string(frame) + fs::path(r.output).extension().string());
   EXPECT_TRUE(write_image(out.string(), img->pixels).ok());
   return *read_image(out.string());
 }
@@ -116,11 +118,13 @@ class FarmTest : public ::testing::Test {
   void expect_identical(const JobInfo& job, const SubmitRequest& r) {
     ASSERT_EQ(job.state, JobState::kSucceeded) << job.error;
     const fs::path got = dir_ / ("got_" + job.job_id);
-    auto files = client_->fetch(job.job_id, {}, [&](int, const std::string& name) { return (got / name).string(); });
+    auto files = client_->fetch(
+        job.job_id, {}, [&](int, const std::string& name) { return (got / name).string(); });
     ASSERT_TRUE(files.ok()) << files.status().message();
     ASSERT_EQ(files->size(), static_cast<size_t>(r.frame_last - r.frame_first + 1));
     for (int f = r.frame_first; f <= r.frame_last; ++f) {
-      auto farm = read_image((got / frame_path(fs::path(r.output).filename().string(), f)).string());
+      auto farm =
+          read_image((got / frame_path(fs::path(r.output).filename().string(), f)).string());
       ASSERT_TRUE(farm.ok()) << farm.status().message();
       const Image ref = reference(r, f, dir_);
       ASSERT_EQ(farm->width, ref.width);
@@ -152,6 +156,14 @@ TEST_F(FarmTest, StitchedFramesEqualSingleProcessForAnySplit) {
       EXPECT_EQ(job.spec.bands, bands);
       expect_identical(job, r);
     }
+  }
+  // The paper's local method keeps per-row scanline state: bands must not
+  // change it either.
+  for (int bands : {2, 7, 48}) {
+    SubmitRequest r = request(kGlass, 64, 48, 1, 1, bands, "l_####.exr");
+    r.render.method = "local";
+    r.render.boxes = "eye";
+    expect_identical(run(r), r);
   }
 }
 
@@ -265,7 +277,8 @@ TEST_F(FarmTest, BadSubmissionsGetClearErrorsAndStoreNothing) {
   SubmitRequest frames = request(kSpheres, 32, 24, 1, 5, 0, "still.png");
   auto no_field = client_->submit(frames);
   EXPECT_EQ(no_field.status().code(), Code::kInvalidArgument);
-  EXPECT_NE(no_field.status().message().find("####"), std::string::npos) << no_field.status().message();
+  EXPECT_NE(no_field.status().message().find("####"), std::string::npos)
+      << no_field.status().message();
 
   SubmitRequest rows = request(kSpheres, 32, 24, 1, 1, 25, "x.png");
   EXPECT_EQ(client_->submit(rows).status().code(), Code::kInvalidArgument);
@@ -289,7 +302,8 @@ TEST_F(FarmTest, UnknownJobsAndMalformedWorkerCallsAreRefused) {
   EXPECT_EQ(client_->job("j9999").status().code(), Code::kNotFound);
   EXPECT_NE(client_->job("j9999").status().message().find("unknown"), std::string::npos);
   EXPECT_EQ(client_->cancel("").status().code(), Code::kInvalidArgument);
-  auto fetch = client_->fetch("nope", {}, [](int, const std::string&) { return std::string("/dev/null"); });
+  auto fetch =
+      client_->fetch("nope", {}, [](int, const std::string&) { return std::string("/dev/null"); });
   EXPECT_EQ(fetch.status().code(), Code::kNotFound);
 
   auto stub = v1::WorkerService::NewStub(rpc::make_channel(address_));
@@ -306,7 +320,8 @@ TEST_F(FarmTest, UnknownJobsAndMalformedWorkerCallsAreRefused) {
     rpc::set_deadline(ctx, Millis(5000));
     v1::CompleteBandRequest req;  // no ids at all
     v1::CompleteBandResponse resp;
-    EXPECT_EQ(stub->CompleteBand(&ctx, req, &resp).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_EQ(stub->CompleteBand(&ctx, req, &resp).error_code(),
+              grpc::StatusCode::INVALID_ARGUMENT);
   }
   {
     // Pixels of the wrong size for a real lease: refused, band re-queued.
@@ -329,7 +344,8 @@ TEST_F(FarmTest, UnknownJobsAndMalformedWorkerCallsAreRefused) {
     v1::CompleteBandResponse resp;
     const grpc::Status st = stub->CompleteBand(&c3, wrong, &resp);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-    EXPECT_NE(st.error_message().find("expected 384 floats"), std::string::npos) << st.error_message();
+    EXPECT_NE(st.error_message().find("expected 384 floats"), std::string::npos)
+        << st.error_message();
   }
 }
 

@@ -31,7 +31,9 @@ JobSpec spec(int w, int h, int first, int last, int bands) {
 }
 
 // The value a test worker writes into pixel (x, y) of frame f.
-float value(int f, int x, int y, int c) { return static_cast<float>(f * 1000000 + y * 1000 + x * 3 + c); }
+float value(int f, int x, int y, int c) {
+  return static_cast<float>(f * 1000000 + y * 1000 + x * 3 + c);
+}
 
 BandOutput render(const std::string& worker, const BandTask& t) {
   BandOutput o;
@@ -80,7 +82,7 @@ TEST(DefaultBands, SeveralPerWorkerWithinLimits) {
   EXPECT_EQ(default_bands(640, 480, 1, 2), 16);
   EXPECT_EQ(default_bands(640, 480, 1, 4), 32);
   EXPECT_EQ(default_bands(640, 480, 100, 2), 1);  // the frames keep the workers busy
-  EXPECT_EQ(default_bands(64, 3, 1, 8), 3);        // never more than the rows
+  EXPECT_EQ(default_bands(64, 3, 1, 8), 3);       // never more than the rows
   EXPECT_GE(default_bands(16384, 16384, 1, 1), min_bands(16384, 16384));
   EXPECT_GT(min_bands(16384, 16384), 1);
 }
@@ -232,7 +234,8 @@ TEST_F(SchedulerTest, MalformedPixelsAreRefusedAndTheBandRequeued) {
   o.rgb.pop_back();
   auto r = s.complete_band(o);
   EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
-  EXPECT_NE(r.status().message().find("expected 48 floats"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("expected 48 floats"), std::string::npos)
+      << r.status().message();
   BandTask again = lease(w);
   EXPECT_EQ(again.band, t.band);
 }

@@ -8,8 +8,8 @@
 
 namespace locus::farm {
 
-Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first, int frame_last,
-                  double orbit_degrees) {
+Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
+                  int frame_last, double orbit_degrees) {
   Scene s = base;
   s.camera.width = width;
   s.camera.height = height;
@@ -17,9 +17,12 @@ Scene frame_scene(const Scene& base, int width, int height, int frame, int frame
 }
 
 BandRenderer::BandRenderer(int threads, size_t max_scenes, size_t max_prepared)
-    : threads_(threads), max_scenes_(std::max<size_t>(1, max_scenes)), max_prepared_(std::max<size_t>(1, max_prepared)) {}
+    : threads_(threads),
+      max_scenes_(std::max<size_t>(1, max_scenes)),
+      max_prepared_(std::max<size_t>(1, max_prepared)) {}
 
-Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto, const std::string& name) {
+Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto,
+                               const std::string& name) {
   if (scenes_.count(hash)) return Status::Ok();
   Result<Scene> scene = scene_from_proto(proto, name);
   if (!scene.ok()) return scene.status();
@@ -39,14 +42,14 @@ Result<BandOutput> BandRenderer::render(const BandTask& t) {
   if (!params.ok()) return params.status();
   if (t.width < 1 || t.height < 1 || t.y0 < 0 || t.y1 <= t.y0 || t.y1 > t.height) {
     return InvalidArgument("band rows [" + std::to_string(t.y0) + ", " + std::to_string(t.y1) +
-                           ") do not fit a " + std::to_string(t.width) + "x" + std::to_string(t.height) +
-                           " frame");
+                           ") do not fit a " + std::to_string(t.width) + "x" +
+                           std::to_string(t.height) + " frame");
   }
   // Everything prepare_scene depends on: the bands of one frame share it.
   char key[512];
-  std::snprintf(key, sizeof key, "%s|%d|%dx%d|%.17g|%d-%d|%s|%s|%d", t.scene_hash.c_str(), t.frame, t.width,
-                t.height, t.orbit_degrees, t.frame_first, t.frame_last, t.render.method.c_str(),
-                t.render.boxes.c_str(), params->spp);
+  std::snprintf(key, sizeof key, "%s|%d|%dx%d|%.17g|%d-%d|%s|%s|%d", t.scene_hash.c_str(), t.frame,
+                t.width, t.height, t.orbit_degrees, t.frame_first, t.frame_last,
+                t.render.method.c_str(), t.render.boxes.c_str(), params->spp);
   std::shared_ptr<const PreparedScene> prepared;
   double prepare_seconds = 0;
   for (auto p = prepared_.begin(); p != prepared_.end(); ++p) {
@@ -58,8 +61,8 @@ Result<BandOutput> BandRenderer::render(const BandTask& t) {
   }
   if (!prepared) {
     const auto start = SteadyClock::now();
-    const Scene s = frame_scene(*it->second, t.width, t.height, t.frame, t.frame_first, t.frame_last,
-                                t.orbit_degrees);
+    const Scene s = frame_scene(*it->second, t.width, t.height, t.frame, t.frame_first,
+                                t.frame_last, t.orbit_degrees);
     auto r = prepare_scene(s, *params);
     if (!r.ok()) return r.status();
     prepared = *r;

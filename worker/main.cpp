@@ -1,9 +1,10 @@
 // locus-worker: a stateless render worker. It dials the coordinator, takes
 // bands, renders them and returns the pixels until SIGTERM/SIGINT, after
 // which it finishes the band in hand and exits.
-#include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <csignal>
 #include <thread>
 
@@ -13,12 +14,17 @@ int main(int argc, char** argv) {
   CLI::App app{"locus-worker: renders bands for a Locus coordinator"};
   locus::farm::WorkerOptions options;
   int poll_ms = 10000;
-  app.add_option("--coordinator", options.coordinator, "Coordinator address, HOST:PORT")->required();
-  app.add_option("--threads", options.threads, "Threads per band (0 = all cores); run one worker per core by default")
+  app.add_option("--coordinator", options.coordinator, "Coordinator address, HOST:PORT")
+      ->required();
+  app.add_option("--threads", options.threads,
+                 "Threads per band (0 = all cores); run one worker per core by default")
       ->check(CLI::Range(0, 1024));
   app.add_option("--name", options.name, "Name shown by `locus workers` (default host:pid)");
-  app.add_option("--poll-ms", poll_ms, "Longest wait for a band per request")->check(CLI::Range(100, 60000));
+  app.add_option("--poll-ms", poll_ms, "Longest wait for a band per request")
+      ->check(CLI::Range(100, 60000));
   CLI11_PARSE(app, argc, argv);
+  // Logs go to stderr: stdout carries what scripts read.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
   options.poll = locus::farm::Millis(poll_ms);
 
   sigset_t signals;

@@ -66,7 +66,7 @@ class WorkerClient::Impl {
   bool stopping_ = false;
   std::string worker_id_;
   Millis heartbeat_{1000};
-  std::string lease_;    // the band in hand
+  std::string lease_;     // the band in hand
   bool revoked_ = false;  // ... which the coordinator took back
   bool sending_ = false;  // its result is on the way: a revocation now only echoes it
   grpc::ClientContext* poll_ctx_ = nullptr;
@@ -89,8 +89,8 @@ bool WorkerClient::Impl::register_worker() {
   std::lock_guard lk(mu_);
   worker_id_ = resp.worker_id();
   heartbeat_ = Millis(std::max(50, resp.heartbeat_ms()));
-  spdlog::info("registered with {} as {} ({}, {} threads per band)", o_.coordinator, worker_id_, o_.name,
-               o_.threads);
+  spdlog::info("registered with {} as {} ({}, {} threads per band)", o_.coordinator, worker_id_,
+               o_.name, o_.threads);
   return true;
 }
 
@@ -197,17 +197,20 @@ bool WorkerClient::Impl::fetch_scene(const BandTask& t) {
   if (!s.ok()) {
     // The band's lease lapses and it goes to another worker (or this one
     // again once the coordinator is back).
-    spdlog::warn("job {}: cannot fetch scene {}: {}", t.job_id, t.scene_hash.substr(0, 12), s.message());
+    spdlog::warn("job {}: cannot fetch scene {}: {}", t.job_id, t.scene_hash.substr(0, 12),
+                 s.message());
     return false;
   }
-  const Status added = renderer_.add_scene(t.scene_hash, resp.scene(), "job " + t.job_id + " scene");
+  const Status added =
+      renderer_.add_scene(t.scene_hash, resp.scene(), "job " + t.job_id + " scene");
   if (!added.ok()) {
     BandOutput o;
     o.error = added.message();
     send(std::move(o));
     return false;
   }
-  spdlog::info("job {}: scene {} fetched ({} bytes)", t.job_id, t.scene_hash.substr(0, 12), resp.ByteSizeLong());
+  spdlog::info("job {}: scene {} fetched ({} bytes)", t.job_id, t.scene_hash.substr(0, 12),
+               resp.ByteSizeLong());
   return true;
 }
 
@@ -250,7 +253,8 @@ void WorkerClient::Impl::send(BandOutput o) {
     rpc::set_deadline(ctx, rpc::kDataCall);
     const Status s = rpc::FromGrpc(stub_->CompleteBand(&ctx, req, &resp), peer_);
     if (s.ok()) {
-      if (!resp.accepted()) spdlog::info("result for lease {} dropped: {}", req.lease_id(), resp.reason());
+      if (!resp.accepted())
+        spdlog::info("result for lease {} dropped: {}", req.lease_id(), resp.reason());
       return;
     }
     if (s.code() != Code::kUnavailable && s.code() != Code::kDeadlineExceeded) {
@@ -262,7 +266,8 @@ void WorkerClient::Impl::send(BandOutput o) {
   }
 }
 
-WorkerClient::WorkerClient(WorkerOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
+WorkerClient::WorkerClient(WorkerOptions options)
+    : impl_(std::make_unique<Impl>(std::move(options))) {}
 WorkerClient::~WorkerClient() = default;
 int WorkerClient::run() { return impl_->run(); }
 void WorkerClient::stop() { impl_->stop(); }

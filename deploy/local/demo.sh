@@ -6,6 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 bash deploy/local/build.sh
 mkdir -p out
-build/bin/locus render scenes/paper/a_glass.json -o out/a_glass.png --size 512x512
+# 24 frames of a moving glass sphere and a turning mirror, on an embedded
+# farm: a coordinator inside `locus` and 2 locus-worker processes.
+build/bin/locus render scenes/anim/glass_and_mirror.json --frames 1-24 --workers 2 -o out/anim_####.png
 echo "demo: frames written to out/"
 ls -l out

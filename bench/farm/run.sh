@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# bench/farm/run.sh [BUILD_DIR]: the farm's figures, as a Markdown table in
+# bench/results/farm.md (and on stdout).
+#   - one frame on 1 worker and on 2 workers (each --threads 1), a hand-started
+#     coordinator on 127.0.0.1; times are the coordinator's, submit to last
+#     frame written (its "job ... succeeded in S s" log line);
+#   - the coordinator's overhead per band and the bytes per band
+#     (locus-farm-bench).
+# SCENE, SIZE, SPP and BANDS override the frame (default: scenes/paper/a_glass.json
+# at 512x512, spp 6: about 5.5 s on one core).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+build=${1:-$root/build}
+bin=$build/bin
+scene=${SCENE:-$root/scenes/paper/a_glass.json}
+size=${SIZE:-512x512}
+spp=${SPP:-6}
+bands=${BANDS:-16}
+tmp=$(mktemp -d)
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  rm -rf "$tmp"
+}
+trap cleanup EXIT
+
+"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/data" >"$tmp/coord.out" 2>"$tmp/coord.log" &
+pids+=($!)
+port=
+for _ in $(seq 200); do
+  port=$(sed -n 's/^listening on port //p' "$tmp/coord.out")
+  [ -n "$port" ] && break
+  sleep 0.05
+done
+farm=127.0.0.1:$port
+
+# Seconds of the job run with N workers.
+run_with() {
+  local n=$1 ws=() i
+  for i in $(seq "$n"); do
+    "$bin/locus-worker" --coordinator "$farm" --threads 1 2>>"$tmp/workers.log" &
+    ws+=($!)
+  done
+  sleep 0.5
+  local job
+  job=$("$bin/locus" submit "$scene" --farm "$farm" --size "$size" --spp "$spp" --bands "$bands" \
+    -o "$tmp/out_$n.png" --wait 2>/dev/null | head -1)
+  kill "${ws[@]}"
+  wait "${ws[@]}" 2>/dev/null || true
+  sed -n "s/.*job $job succeeded in \([0-9.]*\) s.*/\1/p" "$tmp/coord.log"
+}
+t1=$(run_with 1)
+t2=$(run_with 2)
+cmp -s "$tmp/out_1.png" "$tmp/out_2.png" && same=yes || same=NO
+ratio=$(python3 -c "print(f'{$t1 / $t2:.2f}')")
+
+bench=$("$bin/locus-farm-bench")
+get() { echo "$bench" | awk -v k="$1" '$1 == k {print $2}'; }
+
+results=$root/bench/results/farm.md
+mkdir -p "$(dirname "$results")"
+{
+  echo "# Farm figures"
+  echo
+  echo "Written by \`bench/farm/run.sh\` on $(nproc) cores ($(date -u +%Y-%m-%d)). Coordinator and"
+  echo "workers on 127.0.0.1; each worker renders with one thread."
+  echo
+  echo "| What | Figure |"
+  echo "|---|---|"
+  echo "| Frame: $(basename "$scene") ${size}, spp $spp, $bands bands | |"
+  echo "| 1 worker | ${t1} s |"
+  echo "| 2 workers | ${t2} s |"
+  echo "| Speed-up, 2 workers over 1 | **${ratio}x** (frames identical: $same) |"
+  echo "| Coordinator overhead per band, logic only (dispatch + stitch, $(get logic_bands) bands of 64x1) | $(get logic_us_per_band) us |"
+  echo "| Per band over gRPC on loopback (GetTask + CompleteBand + dispatch + stitch, no rendering) | $(get grpc_us_per_band) us |"
+  echo "| Bytes of a band task (coordinator to worker) | $(get bytes_task) B |"
+  echo "| Bytes of a band result, 64 x 1 pixels | $(get bytes_result_64x1) B |"
+  echo "| Bytes of a band result, 640 x 30 pixels (640x480 in 16 bands) | $(get bytes_result_640x30) B |"
+  echo "| Bytes of a band result, 1920 x 68 pixels (1080p in 16 bands) | $(get bytes_result_1920x68) B |"
+  echo "| Bytes of the scene a_glass.json, sent once per worker per scene | $(get bytes_scene_a_glass) B |"
+  echo
+  echo "A band's result is 12 bytes per pixel (3 linear floats, packed) plus about 30 bytes of"
+  echo "ids and counters."
+} | tee "$results"

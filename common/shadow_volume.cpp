@@ -1,0 +1,688 @@
+#include "common/shadow_volume.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "common/bounding.h"
+#include "common/polyhedron.h"
+#include "common/prepared.h"
+
+namespace locus {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+bool lex_less(const Vec3& a, const Vec3& b) {
+  if (a.x != b.x) return a.x < b.x;
+  if (a.y != b.y) return a.y < b.y;
+  return a.z < b.z;
+}
+
+// The plane through the light and the edge {a, b}, with `inner` on its
+// inner side. It is computed from the edge's ends in a fixed order, so two
+// pieces of a polygon sharing an edge get planes that are exact negations
+// of each other: a point is never outside both. False when degenerate (the
+// light on the edge's line, or `inner` on the plane).
+bool side_plane(const Vec3& light, Vec3 a, Vec3 b, const Vec3& inner, HalfSpace* out) {
+  if (lex_less(b, a)) std::swap(a, b);
+  Vec3 m = glm::cross(b - a, light - a);
+  const double len = glm::length(m);
+  if (!(len > 0)) return false;
+  m /= len;
+  double h = glm::dot(m, a);
+  const double side = glm::dot(m, inner) - h;
+  if (!(side != 0)) return false;
+  if (side > 0) m = -m, h = -h;
+  *out = HalfSpace{m, h};
+  return true;
+}
+
+Vec3 centroid(const std::vector<Vec3>& pts) {
+  Vec3 c(0.0);
+  for (const Vec3& p : pts) c += p;
+  return c / static_cast<double>(std::max<size_t>(1, pts.size()));
+}
+
+// Newell's normal of a planar outline (unit; zero if degenerate).
+Vec3 newell(const std::vector<Vec3>& pts) {
+  Vec3 n(0.0);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec3& a = pts[i];
+    const Vec3& b = pts[(i + 1) % pts.size()];
+    n.x += (a.y - b.y) * (a.z + b.z);
+    n.y += (a.z - b.z) * (a.x + b.x);
+    n.z += (a.x - b.x) * (a.y + b.y);
+  }
+  const double len = glm::length(n);
+  return len > 0 ? n / len : Vec3(0.0);
+}
+
+// A polyhedron as outlines with outward planes.
+struct Outlines {
+  std::vector<std::vector<Vec3>> faces;
+  std::vector<HalfSpace> planes;
+};
+
+Outlines outlines_of(const Polyhedron& p) {
+  Outlines o;
+  const Vec3 c = centroid(p.vertices);
+  for (const auto& face : p.faces) {
+    std::vector<Vec3> pts;
+    for (int v : face) pts.push_back(p.vertices[v]);
+    Vec3 n = newell(pts);
+    const Vec3 fc = centroid(pts);
+    if (glm::dot(n, fc - c) < 0) n = -n;
+    o.planes.push_back(HalfSpace{n, glm::dot(n, fc)});
+    o.faces.push_back(std::move(pts));
+  }
+  return o;
+}
+
+// Ear clipping of a simple polygon given in 2D (any orientation). Appends
+// index triples to `tris`; false if the outline is not simple.
+bool ear_clip(const std::vector<Vec2>& pts, std::vector<std::array<int, 3>>& tris) {
+  std::vector<int> idx(pts.size());
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
+  double area = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec2& a = pts[i];
+    const Vec2& b = pts[(i + 1) % pts.size()];
+    area += a.x * b.y - a.y * b.x;
+  }
+  if (area == 0) return false;
+  const double orient = area > 0 ? 1.0 : -1.0;
+  auto cross = [&](int i, int j, int k) {
+    const Vec2 u = pts[j] - pts[i], v = pts[k] - pts[j];
+    return orient * (u.x * v.y - u.y * v.x);
+  };
+  // p inside or on the triangle (a, b, c) wound positively.
+  auto in_triangle = [&](const Vec2& p, int a, int b, int c) {
+    auto side = [&](int i, int j) {
+      const Vec2 u = pts[j] - pts[i], v = p - pts[i];
+      return orient * (u.x * v.y - u.y * v.x);
+    };
+    return side(a, b) >= 0 && side(b, c) >= 0 && side(c, a) >= 0;
+  };
+  while (idx.size() > 3) {
+    const int n = static_cast<int>(idx.size());
+    bool cut = false;
+    for (int k = 0; k < n && !cut; ++k) {
+      const int a = idx[(k + n - 1) % n], b = idx[k], c = idx[(k + 1) % n];
+      const double turn = cross(a, b, c);
+      if (turn == 0) {
+        // b on the line through its neighbours: between them it is a
+        // redundant vertex; a spike means the outline is not simple.
+        if (glm::dot(pts[a] - pts[b], pts[c] - pts[b]) >= 0) return false;
+        idx.erase(idx.begin() + k);
+        cut = true;
+        break;
+      }
+      if (turn < 0) continue;  // reflex corner
+      bool ear = true;
+      for (int j = 0; j < n && ear; ++j) {
+        const int v = idx[j];
+        if (v == a || v == b || v == c) continue;
+        if (in_triangle(pts[v], a, b, c)) ear = false;
+      }
+      if (!ear) continue;
+      tris.push_back({a, b, c});
+      idx.erase(idx.begin() + k);
+      cut = true;
+    }
+    if (!cut) return false;
+  }
+  if (idx.size() == 3 && cross(idx[0], idx[1], idx[2]) > 0) tris.push_back({idx[0], idx[1], idx[2]});
+  return true;
+}
+
+// Is the outline (2D) convex and simple? Collinear and repeated vertices
+// are allowed.
+bool is_convex(const std::vector<Vec2>& pts) {
+  std::vector<Vec2> edges;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec2 e = pts[(i + 1) % pts.size()] - pts[i];
+    if (e != Vec2(0.0)) edges.push_back(e);
+  }
+  int sign = 0;
+  double turning = 0;
+  for (size_t i = 0; i < edges.size(); ++i) {
+    const Vec2& a = edges[i];
+    const Vec2& b = edges[(i + 1) % edges.size()];
+    const double c = a.x * b.y - a.y * b.x;
+    const int s = (c > 0) - (c < 0);
+    if (s != 0) {
+      if (sign != 0 && s != sign) return false;
+      sign = s;
+    }
+    turning += std::atan2(c, glm::dot(a, b));
+  }
+  // A star polygon turns the same way at every corner but winds twice.
+  return sign != 0 && std::abs(turning) < 2.0 * std::numbers::pi + 1e-6;
+}
+
+// Appends the volume of a convex planar piece: the cap (the plane, on the
+// far side from the light) and the planes through the light and each edge.
+void add_piece(VolumeSet& out, const std::vector<Vec3>& pts, const HalfSpace& cap,
+               const Vec3& light) {
+  ShadowVolume v{VolumeKind::kConvex, static_cast<int>(out.planes.size()), 0};
+  out.planes.push_back(cap);
+  const Vec3 inner = centroid(pts);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    HalfSpace s;
+    if (side_plane(light, pts[i], pts[(i + 1) % pts.size()], inner, &s)) out.planes.push_back(s);
+  }
+  v.count = static_cast<int>(out.planes.size()) - v.first;
+  out.volumes.push_back(v);
+}
+
+// The (conservative) test of a volume against a point set: true when no
+// point of `pts` can be in volume `v` even with `slack`.
+bool separated(const VolumeSet& set, int v, const std::vector<Vec3>& pts, double slack) {
+  const ShadowVolume& vol = set.volumes[v];
+  switch (vol.kind) {
+    case VolumeKind::kEverywhere:
+      return false;
+    case VolumeKind::kConvex:
+      for (int i = vol.first; i < vol.first + vol.count; ++i) {
+        const HalfSpace& p = set.planes[i];
+        bool all_out = true;
+        for (const Vec3& x : pts) {
+          if (!(glm::dot(p.m, x) - p.h > slack)) {
+            all_out = false;
+            break;
+          }
+        }
+        if (all_out) return true;
+      }
+      return false;
+    case VolumeKind::kOutside:
+      // Every point strictly inside the occluder: none is shadowed by it.
+      for (const Vec3& x : pts) {
+        for (int i = vol.first; i < vol.first + vol.count; ++i) {
+          if (!(glm::dot(set.planes[i].m, x) - set.planes[i].h < -slack)) return false;
+        }
+      }
+      return true;
+  }
+  return false;
+}
+
+// The points that bound a primitive: every point of it lies in their hull.
+// Curved bodies and CSG: the vertices of their bounding polyhedra.
+std::vector<Vec3> hull_points(const PreparedScene& ps, int prim,
+                              const std::vector<Outlines>& leaves) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  std::vector<Vec3> pts;
+  switch (ref.kind) {
+    case PrimKind::kPolygon:
+      pts = ps.prims.polygons[ref.index].verts;
+      break;
+    case PrimKind::kTriangle: {
+      const TrianglePrim& t = ps.prims.triangles[ref.index];
+      pts = {t.p0, t.p0 + t.e1, t.p0 + t.e2};
+      break;
+    }
+    case PrimKind::kConvex:
+      for (const auto& f : ps.prims.convexes[ref.index].faces) pts.insert(pts.end(), f.begin(), f.end());
+      break;
+    default:
+      for (const Outlines& o : leaves) {
+        for (const auto& f : o.faces) pts.insert(pts.end(), f.begin(), f.end());
+      }
+      break;
+  }
+  return pts;
+}
+
+// The plane of a flat primitive (polygon, triangle); false for others.
+bool flat_plane(const PreparedScene& ps, int prim, HalfSpace* out) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  if (ref.kind == PrimKind::kPolygon) {
+    const PolygonPrim& p = ps.prims.polygons[ref.index];
+    *out = HalfSpace{p.normal, p.offset};
+    return true;
+  }
+  if (ref.kind == PrimKind::kTriangle) {
+    const TrianglePrim& t = ps.prims.triangles[ref.index];
+    *out = HalfSpace{t.normal, glm::dot(t.normal, t.p0)};
+    return true;
+  }
+  return false;
+}
+
+bool is_opaque(const PreparedScene& ps, int prim) {
+  const Scene& s = ps.scene;
+  return s.materials[s.objects[ps.prims.prims[prim].object].material].t <= 0.0;
+}
+
+void add_occluder(const PreparedScene& ps, int prim, const std::vector<Outlines>& leaves,
+                  LightVolumes& lv) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  const Vec3& light = lv.position;
+  LightVolumes::Occluder oc;
+  oc.first = static_cast<int>(lv.set.volumes.size());
+  auto everywhere = [&] {
+    lv.set.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
+    oc.decides = false;
+  };
+  switch (ref.kind) {
+    case PrimKind::kPolygon:
+    case PrimKind::kTriangle: {
+      HalfSpace plane;
+      flat_plane(ps, prim, &plane);
+      std::vector<Vec3> verts;
+      if (ref.kind == PrimKind::kPolygon) {
+        verts = ps.prims.polygons[ref.index].verts;
+      } else {
+        const TrianglePrim& t = ps.prims.triangles[ref.index];
+        verts = {t.p0, t.p0 + t.e1, t.p0 + t.e2};
+      }
+      oc.decides = is_opaque(ps, prim);
+      if (add_polygon_volumes(lv.set, verts, plane.m, plane.h, light) < 0) everywhere();
+      break;
+    }
+    case PrimKind::kConvex: {
+      const ConvexPrim& c = ps.prims.convexes[ref.index];
+      std::vector<HalfSpace> planes;
+      for (size_t k = 0; k < c.normals.size(); ++k) planes.push_back(HalfSpace{c.normals[k], c.offsets[k]});
+      oc.decides = is_opaque(ps, prim);
+      add_polyhedron_volume(lv.set, c.faces, planes, light, oc.decides);
+      break;
+    }
+    default: {
+      // Curved bodies and CSG: their bounding polyhedra's volumes, then an
+      // exact test (paper §4.1).
+      oc.decides = false;
+      for (const Outlines& o : leaves) add_polyhedron_volume(lv.set, o.faces, o.planes, light, false);
+      break;
+    }
+  }
+  oc.count = static_cast<int>(lv.set.volumes.size()) - oc.first;
+  lv.occluders.push_back(oc);
+}
+
+}  // namespace
+
+bool VolumeSet::contains(int v, const Vec3& p, double slack) const {
+  const ShadowVolume& vol = volumes[v];
+  switch (vol.kind) {
+    case VolumeKind::kEverywhere:
+      return true;
+    case VolumeKind::kConvex:
+      for (int i = vol.first; i < vol.first + vol.count; ++i) {
+        if (glm::dot(planes[i].m, p) - planes[i].h > slack) return false;
+      }
+      return true;
+    case VolumeKind::kOutside:
+      for (int i = vol.first; i < vol.first + vol.count; ++i) {
+        if (glm::dot(planes[i].m, p) - planes[i].h > -slack) return true;
+      }
+      return false;
+  }
+  return true;
+}
+
+int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& faces,
+                          const std::vector<HalfSpace>& face_planes, const Vec3& light,
+                          bool solid) {
+  std::vector<Vec3> verts;
+  for (const auto& f : faces) verts.insert(verts.end(), f.begin(), f.end());
+  std::vector<bool> front(faces.size());
+  bool any_front = false;
+  for (size_t k = 0; k < faces.size(); ++k) {
+    front[k] = glm::dot(face_planes[k].m, light) - face_planes[k].h > 0;
+    any_front = any_front || front[k];
+  }
+  ShadowVolume v{VolumeKind::kConvex, static_cast<int>(out.planes.size()), 0};
+  if (!any_front) {
+    // The light inside (or on) the polyhedron. A ray from a point outside
+    // a solid occluder to the light crosses its surface, one from inside
+    // does not: the volume is the outside. A bounding polyhedron (the body
+    // may be anywhere inside it) gives no volume.
+    if (!solid) {
+      out.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
+      return static_cast<int>(out.volumes.size()) - 1;
+    }
+    v.kind = VolumeKind::kOutside;
+    out.planes.insert(out.planes.end(), face_planes.begin(), face_planes.end());
+  } else {
+    // Cap: the faces turned to the light; the volume lies behind all of
+    // them. Sides: the planes through the light and the silhouette edges,
+    // the edges of light-facing faces whose plane through the light leaves
+    // the whole polyhedron on one side (paper Fig. 6).
+    const Vec3 inner = centroid(verts);
+    for (size_t k = 0; k < faces.size(); ++k) {
+      if (front[k]) out.planes.push_back(face_planes[k]);
+    }
+    double scale = glm::length(light - inner);
+    for (const Vec3& p : verts) scale = std::max(scale, glm::length(p - inner));
+    const double tol = 1e-12 * scale;
+    for (size_t k = 0; k < faces.size(); ++k) {
+      if (!front[k]) continue;
+      const auto& f = faces[k];
+      for (size_t i = 0; i < f.size(); ++i) {
+        HalfSpace s;
+        if (!side_plane(light, f[i], f[(i + 1) % f.size()], inner, &s)) continue;
+        bool silhouette = true;
+        for (const Vec3& p : verts) {
+          if (glm::dot(s.m, p) - s.h > tol) {
+            silhouette = false;
+            break;
+          }
+        }
+        if (silhouette) out.planes.push_back(s);
+      }
+    }
+  }
+  v.count = static_cast<int>(out.planes.size()) - v.first;
+  out.volumes.push_back(v);
+  return static_cast<int>(out.volumes.size()) - 1;
+}
+
+int add_polygon_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Vec3& n, double d,
+                        const Vec3& light) {
+  const double s = glm::dot(n, light) - d;
+  if (s == 0 || verts.size() < 3) return 0;  // edge-on to the light: no shadow
+  // The cap keeps the side of the plane away from the light.
+  const HalfSpace cap = s > 0 ? HalfSpace{n, d} : HalfSpace{-n, -d};
+  // 2D outline on the two axes that drop the normal's dominant one.
+  const Vec3 an = glm::abs(n);
+  const int drop = an.x > an.y ? (an.x > an.z ? 0 : 2) : (an.y > an.z ? 1 : 2);
+  const int u = (drop + 1) % 3, w = (drop + 2) % 3;
+  std::vector<Vec2> pts;
+  for (const Vec3& p : verts) pts.emplace_back(p[u], p[w]);
+  if (is_convex(pts)) {
+    add_piece(out, verts, cap, light);
+    return 1;
+  }
+  // A concave outline (SPD gears): one volume per triangle.
+  std::vector<std::array<int, 3>> tris;
+  if (!ear_clip(pts, tris)) return -1;
+  for (const auto& t : tris) add_piece(out, {verts[t[0]], verts[t[1]], verts[t[2]]}, cap, light);
+  return static_cast<int>(tris.size());
+}
+
+ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
+  ShadowVolumes sv;
+  const PrimitiveSet& set = ps.prims;
+  const int n = static_cast<int>(set.prims.size());
+  // Bounding polyhedra of curved bodies, one per CSG leaf.
+  std::vector<std::vector<Outlines>> leaves(n);
+  for (int i = 0; i < n; ++i) {
+    const PrimKind k = set.prims[i].kind;
+    if (k != PrimKind::kSphere && k != PrimKind::kCone && k != PrimKind::kCsg) continue;
+    for (const Polyhedron& p : bounding_polyhedra(ps.scene, set.prims[i].object)) {
+      leaves[i].push_back(outlines_of(p));
+    }
+  }
+  std::vector<std::vector<Vec3>> hulls(n);
+  for (int i = 0; i < n; ++i) hulls[i] = hull_points(ps, i, leaves[i]);
+
+  Aabb world;
+  for (const Aabb& b : set.bounds) world.extend(b);
+  double scale = 1.0;
+  if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+
+  for (const Light& light : ps.scene.lights) {
+    LightVolumes lv;
+    lv.position = light.position;
+    // Shadow-ray origins lie ps.eps off the surface: conservative tests must
+    // reach that far, and beyond rounding.
+    lv.slack = 4.0 * ps.eps + 1e-12 * (scale + glm::length(light.position));
+    const double slack = lv.slack;
+    for (int i = 0; i < n; ++i) add_occluder(ps, i, leaves[i], lv);
+    // The hierarchy's boxes (paper §4.1): a point outside a box's volume is
+    // shadowed by nothing in the box.
+    for (const BvhNode& node : ps.bvh.nodes) {
+      const Polyhedron box = make_box(node.box.lo, node.box.hi);
+      Outlines o;
+      for (const auto& face : box.faces) {
+        std::vector<Vec3> pts;
+        for (int v : face) pts.push_back(box.vertices[v]);
+        o.faces.push_back(std::move(pts));
+      }
+      const Vec3 lo = node.box.lo, hi = node.box.hi;
+      o.planes = {{Vec3(-1, 0, 0), -lo.x}, {Vec3(1, 0, 0), hi.x}, {Vec3(0, -1, 0), -lo.y},
+                  {Vec3(0, 1, 0), hi.y},   {Vec3(0, 0, -1), -lo.z}, {Vec3(0, 0, 1), hi.z}};
+      lv.node_volume.push_back(add_polyhedron_volume(lv.set, o.faces, o.planes, lv.position, false));
+    }
+    // Front/back relations (paper §4.1): the occluders that can shadow each
+    // primitive. An occluder is dropped when its volume misses the
+    // primitive's hull, or when it lies wholly behind the plane of a flat
+    // primitive as seen from the light (a face cannot shadow itself).
+    lv.candidate_first.assign(n + 1, 0);
+    std::vector<int> stack;
+    std::vector<int> found;
+    for (int r = 0; r < n; ++r) {
+      found.clear();
+      HalfSpace rplane;
+      const bool flat = flat_plane(ps, r, &rplane);
+      const double lside = flat ? glm::dot(rplane.m, lv.position) - rplane.h : 0.0;
+      const std::vector<Vec3>& hr = hulls[r];
+      stack.assign(1, 0);
+      while (!stack.empty() && !ps.bvh.nodes.empty()) {
+        const int ni = stack.back();
+        stack.pop_back();
+        if (separated(lv.set, lv.node_volume[ni], hr, slack)) continue;
+        const BvhNode& node = ps.bvh.nodes[ni];
+        if (node.count == 0) {
+          stack.push_back(ni + 1);
+          stack.push_back(node.first);
+          continue;
+        }
+        for (int k = node.first; k < node.first + node.count; ++k) {
+          const int a = ps.bvh.order[k];
+          if (flat && a == r) continue;
+          const LightVolumes::Occluder& oc = lv.occluders[a];
+          bool reaches = false;
+          for (int v = oc.first; v < oc.first + oc.count && !reaches; ++v) {
+            reaches = !separated(lv.set, v, hr, slack);
+          }
+          if (!reaches) continue;
+          if (flat && lside != 0) {
+            // Shadow-ray origins lie eps on the light's side of the face:
+            // an occluder nowhere more than eps / 2 in front of the plane
+            // cannot meet their segments.
+            const double sgn = lside > 0 ? 1.0 : -1.0;
+            bool in_front = false;
+            for (const Vec3& x : hulls[a]) {
+              if (sgn * (glm::dot(rplane.m, x) - rplane.h) > 0.5 * ps.eps) {
+                in_front = true;
+                break;
+              }
+            }
+            if (!in_front) continue;
+          }
+          found.push_back(a);
+        }
+      }
+      std::sort(found.begin(), found.end());
+      lv.candidates.insert(lv.candidates.end(), found.begin(), found.end());
+      lv.candidate_first[r + 1] = static_cast<int>(lv.candidates.size());
+    }
+    sv.lights.push_back(std::move(lv));
+  }
+  return sv;
+}
+
+namespace {
+
+// The exact segment test of one occluder (a curved body, CSG, a
+// transparent or unformed volume): its crossings are appended; true if one
+// of them is opaque (eq. (2): t_pj = 0).
+bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<Crossing>& crossings,
+                Stats& stats) {
+  ++stats.tests_ray_object;
+  const size_t before = crossings.size();
+  intersect_all(ps.prims, prim, seg, 0.0, 1.0, crossings);
+  for (size_t i = before; i < crossings.size(); ++i) {
+    const Material& m = ps.scene.materials[ps.scene.objects[crossings[i].leaf].material];
+    if (m.t <= 0.0) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
+                           Stats& stats) {
+  const LightVolumes& lv = ps.volumes->lights[light];
+  const Ray seg{origin, lv.position - origin};
+  thread_local std::vector<Crossing> crossings;
+  crossings.clear();
+  const int* cand_begin = nullptr;
+  const int* cand_end = nullptr;
+  if (receiver >= 0) {
+    cand_begin = lv.candidates.data() + lv.candidate_first[receiver];
+    cand_end = lv.candidates.data() + lv.candidate_first[receiver + 1];
+    if (cand_begin == cand_end) return Color(1.0);
+  }
+  bool exact = false;
+  int stack[128];
+  int sp = 0;
+  if (!ps.bvh.nodes.empty()) stack[sp++] = 0;
+  while (sp) {
+    const int ni = stack[--sp];
+    ++stats.tests_shadow_volume;
+    if (!lv.set.contains(lv.node_volume[ni], origin, lv.slack)) continue;
+    const BvhNode& node = ps.bvh.nodes[ni];
+    if (node.count == 0) {
+      stack[sp++] = node.first;
+      stack[sp++] = ni + 1;
+      continue;
+    }
+    for (int k = node.first; k < node.first + node.count; ++k) {
+      const int a = ps.bvh.order[k];
+      if (cand_begin && !std::binary_search(cand_begin, cand_end, a)) continue;
+      const LightVolumes::Occluder& oc = lv.occluders[a];
+      bool inside = false;
+      for (int v = oc.first; v < oc.first + oc.count && !inside; ++v) {
+        ++stats.tests_shadow_volume;
+        inside = lv.set.contains(v, origin, oc.decides ? 0.0 : lv.slack);
+      }
+      if (!inside) continue;
+      if (oc.decides) return Color(0.0);  // opaque: no ray needed
+      if (!exact) ++stats.rays_shadow;
+      exact = true;
+      if (exact_test(ps, a, seg, crossings, stats)) return Color(0.0);
+    }
+  }
+  return segment_transmittance(ps.scene, seg, crossings);
+}
+
+SpanShadows::SpanShadows(const PreparedScene& ps, int row, Stats& stats)
+    : ps_(ps), stats_(stats) {
+  const CameraFrame& cam = ps.camera;
+  b_ = (1.0 - 2.0 * (row + 0.5) / cam.height) * cam.tan_half;
+  const size_t lights = ps.scene.lights.size();
+  done_.assign(lights, 0);
+  side_.assign(lights, 0);
+  iv_.resize(lights);
+}
+
+double SpanShadows::pixel_a(int x) const {
+  // The same expression as visible_faces() (scanline.cpp).
+  const CameraFrame& cam = ps_.camera;
+  return (2.0 * (x + 0.5) / cam.width - 1.0) * cam.tan_half * cam.aspect;
+}
+
+void SpanShadows::begin_span(int face, int x0, int x1) {
+  face_ = face;
+  x0_ = x0;
+  x1_ = x1;
+  std::fill(done_.begin(), done_.end(), 0);
+}
+
+void SpanShadows::compute_light(int j) {
+  done_[j] = 1;
+  std::vector<Interval>& out = iv_[j];
+  out.clear();
+  const ScanFace& f = ps_.scan->faces[face_];
+  const CameraFrame& cam = ps_.camera;
+  const LightVolumes& lv = ps_.volumes->lights[j];
+  const Vec3& n = f.normal;
+  // The shadow-ray origin of a point P of the face is P + delta, offset to
+  // the light's side (Tracer::offset).
+  side_[j] = glm::dot(n, lv.position) - f.offset >= 0;
+  const Vec3 delta = (side_[j] ? ps_.eps : -ps_.eps) * n;
+  // Points of the face on the scan plane: P(a) = E + s(a) D(a), with
+  // D(a) = w + a u + b v and s(a) = num / (nw + a nu) > 0 (docs/local.md).
+  const Vec3& e = cam.from;
+  const double num = f.offset - glm::dot(n, e);
+  const double sigma = num > 0 ? 1.0 : -1.0;
+  const double nw = glm::dot(n, cam.w) + b_ * glm::dot(n, cam.v);
+  const double nu = glm::dot(n, cam.u);
+  const double a_first = pixel_a(x0_), a_last = pixel_a(x1_ - 1);
+  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
+  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
+  for (const int* c = cb; c != ce; ++c) {
+    const LightVolumes::Occluder& oc = lv.occluders[*c];
+    const double slack = oc.decides ? 0.0 : lv.slack;
+    for (int v = oc.first; v < oc.first + oc.count; ++v) {
+      ++stats_.tests_shadow_volume;
+      const ShadowVolume& vol = lv.set.volumes[v];
+      if (vol.kind == VolumeKind::kEverywhere) {
+        out.push_back(Interval{*c, oc.decides, a_first, a_last, false});
+        continue;
+      }
+      // A plane m . x <= h at O(a) = P(a) + delta: multiplied by the
+      // denominator (sign sigma), alpha + beta a <= 0, linear in a. The
+      // points inside every plane form one interval [lo, hi].
+      double lo = -kInf, hi = kInf;
+      for (int i = vol.first; i < vol.first + vol.count; ++i) {
+        const HalfSpace& p = lv.set.planes[i];
+        const double c0 = glm::dot(p.m, e + delta) - (p.h + slack);
+        const double c1 = glm::dot(p.m, cam.w) + b_ * glm::dot(p.m, cam.v);
+        const double c2 = glm::dot(p.m, cam.u);
+        const double alpha = sigma * (c0 * nw + num * c1);
+        const double beta = sigma * (c0 * nu + num * c2);
+        if (beta > 0) {
+          hi = std::min(hi, -alpha / beta);
+        } else if (beta < 0) {
+          lo = std::max(lo, -alpha / beta);
+        } else if (alpha > 0) {
+          lo = kInf;
+        }
+        if (vol.kind == VolumeKind::kConvex && (lo > hi || lo > a_last || hi < a_first)) break;
+      }
+      if (vol.kind == VolumeKind::kConvex) {
+        if (lo > hi || lo > a_last || hi < a_first) continue;
+        out.push_back(Interval{*c, oc.decides, lo, hi, false});
+      } else {
+        // kOutside: shadow outside [lo, hi].
+        if (lo <= a_first && hi >= a_last) continue;
+        out.push_back(Interval{*c, oc.decides, lo, hi, true});
+      }
+    }
+  }
+}
+
+Color SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {
+  if (!done_[light]) compute_light(light);
+  const ScanFace& f = ps_.scan->faces[face_];
+  // The intervals hold for origins on the light's side of the face; a
+  // light almost in the face's plane may put a pixel's origin on the other.
+  if ((glm::dot(origin - p, f.normal) > 0) != static_cast<bool>(side_[light])) {
+    return volume_transmittance(ps_, origin, light, f.prim, stats_);
+  }
+  const double a = pixel_a(x_);
+  const Ray seg{origin, ps_.volumes->lights[light].position - origin};
+  thread_local std::vector<Crossing> crossings;
+  crossings.clear();
+  int tested = -1;
+  for (const Interval& iv : iv_[light]) {
+    const bool in = (iv.lo <= a && a <= iv.hi) != iv.outside;
+    if (!in) continue;
+    if (iv.decides) return Color(0.0);  // opaque: no ray (paper §3.2)
+    if (iv.prim == tested) continue;    // another piece of the same body
+    if (tested < 0) ++stats_.rays_shadow;
+    tested = iv.prim;
+    if (exact_test(ps_, iv.prim, seg, crossings, stats_)) return Color(0.0);
+  }
+  return segment_transmittance(ps_.scene, seg, crossings);
+}
+
+}  // namespace locus

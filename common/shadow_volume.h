@@ -1,0 +1,163 @@
+// Shadow volumes and the shadow search of configuration IV (paper §4.1,
+// Fig. 6; METHOD.md §4 step 2 and §7; docs/shadow-volumes.md).
+//
+// Per light, before any row is rendered:
+// - every occluder gets a shadow volume: the region behind it as seen from
+//   the light, bounded by the planes through the light and its silhouette
+//   edges and capped by the occluder's own light-facing faces. A point
+//   whose straight segment to the light meets a convex occluder lies in
+//   that volume, and only such points do, so an opaque polygon, triangle or
+//   convex polyhedron decides by containment alone, without a ray. Curved
+//   bodies (and CSG) get the volume of their bounding polyhedra: a point
+//   inside it gets an exact test against the body. A concave polygon is cut
+//   into triangles, one volume each;
+// - every box of the hierarchy gets the volume of the box: a point outside
+//   it is shadowed by nothing in the box;
+// - every primitive gets the list of occluders that can shadow it (the
+//   front/back relations of §4.1).
+//
+// Rows then find the shadows of their spans (SpanShadows, paper §3.2 step
+// 2), and points reached by secondary rays search the hierarchy
+// (volume_transmittance). Both give exactly what a shadow ray gives
+// (Tracer::transmittance), but at points within rounding of a shadow
+// boundary.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "common/geometry.h"
+#include "common/math.h"
+#include "common/raytrace.h"
+
+namespace locus {
+
+// The half-space m . x <= h (m unit).
+struct HalfSpace {
+  Vec3 m;
+  double h = 0;
+};
+
+enum class VolumeKind : uint8_t {
+  kConvex,      // the points inside every plane
+  kOutside,     // the light lies inside a convex occluder: the points outside it
+  kEverywhere,  // no volume could be formed: every point is a candidate
+};
+
+struct ShadowVolume {
+  VolumeKind kind = VolumeKind::kConvex;
+  int first = 0;  // planes [first, first + count) of the VolumeSet
+  int count = 0;
+};
+
+// Volumes and their planes, stored flat.
+struct VolumeSet {
+  std::vector<HalfSpace> planes;
+  std::vector<ShadowVolume> volumes;
+
+  // Is p in volume v? Every plane is moved outward by `slack` (0: the exact
+  // volume; > 0: a conservative one, for culling and candidates).
+  bool contains(int v, const Vec3& p, double slack) const;
+};
+
+// The shadow volume of a convex polyhedron (faces listed as outlines, any
+// winding, with their outward planes) seen from `light`, appended to `out`.
+// When no face faces the light (the light inside or on the polyhedron), the
+// volume is kOutside if `solid` (the points whose segment to the light
+// crosses the surface of a solid convex occluder: those outside it), else
+// kEverywhere. Returns the index of the volume.
+int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& faces,
+                          const std::vector<HalfSpace>& face_planes, const Vec3& light, bool solid);
+
+// The shadow volumes of a planar polygon (plane n . x = d) seen from
+// `light`: one if it is convex, one per triangle of an ear-clipping
+// triangulation if it is concave; none if the light lies in its plane (the
+// polygon is seen edge-on and casts nothing). Planes through an edge shared
+// by two pieces are exact negations of each other, so no point between two
+// pieces escapes both. Returns the number of volumes appended, or -1 if the
+// outline could not be cut into convex pieces (self-intersecting).
+int add_polygon_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Vec3& n, double d,
+                        const Vec3& light);
+
+// What one light's shadow search needs.
+struct LightVolumes {
+  Vec3 position;
+  VolumeSet set;
+  // Per primitive (index into PrimitiveSet::prims): its volumes
+  // set.volumes[first, first + count); `decides` when containment alone
+  // gives t_pj = 0 (an opaque polygon, triangle or convex polyhedron),
+  // otherwise a point inside needs the exact segment test (curved bodies,
+  // CSG, transparent occluders).
+  struct Occluder {
+    int first = 0, count = 0;
+    bool decides = false;
+  };
+  std::vector<Occluder> occluders;
+  std::vector<int> node_volume;  // per BVH node: index into set.volumes
+  // Per receiving primitive r: the occluders that can shadow it,
+  // candidates[candidate_first[r], candidate_first[r + 1]), increasing.
+  std::vector<int> candidate_first;
+  std::vector<int> candidates;
+  // Slack of the conservative tests (boxes, bounding polyhedra, transparent
+  // occluders, candidates): beyond the offset of shadow-ray origins
+  // (PreparedScene::eps) and far beyond rounding.
+  double slack = 0;
+};
+
+struct ShadowVolumes {
+  std::vector<LightVolumes> lights;
+};
+
+// Built at prepare time for configuration IV (--method local --boxes
+// eye+shadow). Needs ps.prims and ps.bvh.
+ShadowVolumes build_shadow_volumes(const PreparedScene& ps);
+
+// t_pj (eqs. (2), (3)) of light `light` at the shadow-ray origin `origin`
+// of a point on primitive `receiver` (-1: unknown), found by walking the
+// hierarchy with the boxes' shadow volumes, narrowing by the receiver's
+// candidate list and testing containment (paper §4.1). Equals
+// Tracer::transmittance with shadow rays.
+Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
+                           Stats& stats);
+
+// The shadows of the spans of one row (paper §3.2 step 2): for a visible
+// span of a flat face, each candidate occluder's volume meets the segment
+// the scan plane cuts from the face in an interval, found once per span and
+// light; a pixel in an opaque interval is in shadow without any ray. Inside
+// the interval of a curved body's bounding polyhedron or of a transparent
+// occluder, the exact segment test decides per pixel (t_pj by eqs. (2), (3)).
+class SpanShadows : public KnownShadows {
+ public:
+  SpanShadows(const PreparedScene& ps, int row, Stats& stats);
+
+  // The next pixels to shade are [x0, x1) of scanline face `face`
+  // (ScanScene::faces).
+  void begin_span(int face, int x0, int x1);
+  // The pixel about to be shaded.
+  void set_pixel(int x) { x_ = x; }
+
+  Color transmittance(const Vec3& p, const Vec3& origin, int light) override;
+
+ private:
+  // Where the span meets one volume: lo <= a <= hi in the image-plane
+  // coordinate a of the sample direction (outside that range for a
+  // kOutside volume).
+  struct Interval {
+    int prim;
+    bool decides;
+    double lo, hi;
+    bool outside;
+  };
+  void compute_light(int light);
+  double pixel_a(int x) const;
+
+  const PreparedScene& ps_;
+  Stats& stats_;
+  double b_ = 0;  // image-plane coordinate of the row's sample line
+  int face_ = -1, x0_ = 0, x1_ = 0, x_ = 0;
+  std::vector<char> done_;                   // per light: intervals computed
+  std::vector<char> side_;                   // per light: origins on the face's front side
+  std::vector<std::vector<Interval>> iv_;    // per light
+};
+
+}  // namespace locus
