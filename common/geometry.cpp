@@ -9,20 +9,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Newell's method: robust normal of a planar polygon, convex or not, CCW.
-Vec3 newell_normal(const std::vector<Vec3>& pts) {
-  Vec3 n(0.0);
-  for (size_t i = 0; i < pts.size(); ++i) {
-    const Vec3& a = pts[i];
-    const Vec3& b = pts[(i + 1) % pts.size()];
-    n.x += (a.y - b.y) * (a.z + b.z);
-    n.y += (a.z - b.z) * (a.x + b.x);
-    n.z += (a.x - b.x) * (a.y + b.y);
-  }
-  const double len = glm::length(n);
-  return len > 0 ? n / len : Vec3(0, 0, 1);
-}
-
 // Roots of a t^2 + b t + c = 0 in increasing order, computed without
 // catastrophic cancellation. Returns the number of real roots (0 or 2).
 int solve_quadratic(double a, double b, double c, double* t0, double* t1) {
@@ -413,6 +399,9 @@ class Builder {
             p.axis_v = (drop + 2) % 3;
             for (const Vec3& v : w) p.pts.emplace_back(v[p.axis_u], v[p.axis_v]);
             p.verts = std::move(w);
+            // A bent polygon is hit on its plane, where it can reach
+            // beyond its vertices' box.
+            for (const Vec3& v : polygon_outline(p)) b.extend(v);
             set_.polygons.push_back(std::move(p));
             push(PrimKind::kPolygon, static_cast<int>(set_.polygons.size()) - 1, obj, b);
           } else if constexpr (std::is_same_v<T, Mesh>) {
@@ -500,6 +489,31 @@ int intersect_cone(const Cone& c, const Ray& ray, double tmin, double tmax, Cros
 }
 
 PrimitiveSet build_primitives(const Scene& scene) { return Builder(scene).build(); }
+
+std::vector<Vec3> polygon_outline(const PolygonPrim& p) {
+  std::vector<Vec3> out = p.verts;
+  const int drop = 3 - p.axis_u - p.axis_v;
+  for (Vec3& v : out) {
+    const double off = glm::dot(p.normal, v) - p.offset;
+    if (std::abs(off) <= 1e-12 * std::max(1.0, max_component(glm::abs(v)))) continue;
+    v[drop] = (p.offset - p.normal[p.axis_u] * v[p.axis_u] - p.normal[p.axis_v] * v[p.axis_v]) /
+              p.normal[drop];
+  }
+  return out;
+}
+
+Vec3 newell_normal(const std::vector<Vec3>& pts) {
+  Vec3 n(0.0);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec3& a = pts[i];
+    const Vec3& b = pts[(i + 1) % pts.size()];
+    n.x += (a.y - b.y) * (a.z + b.z);
+    n.y += (a.z - b.z) * (a.x + b.x);
+    n.z += (a.x - b.x) * (a.y + b.y);
+  }
+  const double len = glm::length(n);
+  return len > 0 ? n / len : Vec3(0, 0, 1);
+}
 
 namespace {
 

@@ -133,6 +133,17 @@ struct PrimitiveSet {
   std::vector<Aabb> bounds;    // per prims[i]
 };
 
+// Newell's method: the unit normal of a planar outline, convex or not, on
+// the side from which it runs counter-clockwise; (0, 0, 1) if degenerate.
+Vec3 newell_normal(const std::vector<Vec3>& pts);
+
+// The outline of a polygon as intersect_all hits it: a point of the plane
+// is inside when, dropped on the axes (axis_u, axis_v), it falls inside the
+// vertices dropped the same way. A vertex off the plane (a bent input
+// polygon) is moved onto it along the third axis; planar input is returned
+// as it is, bit for bit.
+std::vector<Vec3> polygon_outline(const PolygonPrim& p);
+
 // Flattens the scene into primitives (transforms of polygons, meshes and
 // polyhedra are applied to their vertices; quadrics keep a frame).
 PrimitiveSet build_primitives(const Scene& scene);

@@ -98,7 +98,9 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
   const Vec3 origin = offset(p, ng, lp - p);
   if (known) return known->transmittance(p, origin, light);
   // Configuration IV: containment in shadow volumes (paper §4.1).
-  if (ps_.volumes) return volume_transmittance(ps_, origin, light, receiver, stats_);
+  if (ps_.volumes) {
+    return volume_transmittance(ps_, origin, light, receiver, stats_, &last_occluder_[light]);
+  }
   ++stats_.rays_shadow;
   const Ray seg{origin, lp - origin};  // t in (0, 1) spans the segment
   thread_local std::vector<Crossing> crossings;

@@ -97,7 +97,7 @@ ScanScene build_scan_scene(const PreparedScene& ps) {
     switch (ref.kind) {
       case PrimKind::kPolygon: {
         const PolygonPrim& p = set.polygons[ref.index];
-        add_face(p.verts, p.normal, p.offset, i, false);
+        add_face(polygon_outline(p), p.normal, p.offset, i, false);
         break;
       }
       case PrimKind::kTriangle: {

@@ -4,7 +4,9 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numbers>
+#include <optional>
 
 #include "common/bounding.h"
 #include "common/polyhedron.h"
@@ -14,6 +16,9 @@ namespace locus {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// A span tests a candidate list this long directly; a longer one through
+// the hierarchy.
+constexpr int kWalkAbove = 8;
 
 bool lex_less(const Vec3& a, const Vec3& b) {
   if (a.x != b.x) return a.x < b.x;
@@ -46,18 +51,26 @@ Vec3 centroid(const std::vector<Vec3>& pts) {
   return c / static_cast<double>(std::max<size_t>(1, pts.size()));
 }
 
-// Newell's normal of a planar outline (unit; zero if degenerate).
-Vec3 newell(const std::vector<Vec3>& pts) {
-  Vec3 n(0.0);
+// A planar outline in 2D: its points on the two axes that drop the
+// normal's dominant one (orientation kept or mirrored, never degenerate).
+std::vector<Vec2> outline_2d(const std::vector<Vec3>& verts, const Vec3& n) {
+  const Vec3 an = glm::abs(n);
+  const int drop = an.x > an.y ? (an.x > an.z ? 0 : 2) : (an.y > an.z ? 1 : 2);
+  const int u = (drop + 1) % 3, w = (drop + 2) % 3;
+  std::vector<Vec2> pts;
+  for (const Vec3& p : verts) pts.emplace_back(p[u], p[w]);
+  return pts;
+}
+
+// Twice the signed area of a 2D outline (> 0 counter-clockwise).
+double twice_area(const std::vector<Vec2>& pts) {
+  double area = 0;
   for (size_t i = 0; i < pts.size(); ++i) {
-    const Vec3& a = pts[i];
-    const Vec3& b = pts[(i + 1) % pts.size()];
-    n.x += (a.y - b.y) * (a.z + b.z);
-    n.y += (a.z - b.z) * (a.x + b.x);
-    n.z += (a.x - b.x) * (a.y + b.y);
+    const Vec2& a = pts[i];
+    const Vec2& b = pts[(i + 1) % pts.size()];
+    area += a.x * b.y - a.y * b.x;
   }
-  const double len = glm::length(n);
-  return len > 0 ? n / len : Vec3(0.0);
+  return area;
 }
 
 // A polyhedron as outlines with outward planes.
@@ -72,7 +85,7 @@ Outlines outlines_of(const Polyhedron& p) {
   for (const auto& face : p.faces) {
     std::vector<Vec3> pts;
     for (int v : face) pts.push_back(p.vertices[v]);
-    Vec3 n = newell(pts);
+    Vec3 n = newell_normal(pts);
     const Vec3 fc = centroid(pts);
     if (glm::dot(n, fc - c) < 0) n = -n;
     o.planes.push_back(HalfSpace{n, glm::dot(n, fc)});
@@ -81,17 +94,35 @@ Outlines outlines_of(const Polyhedron& p) {
   return o;
 }
 
+// Do two edges that share no vertex meet (touch or cross)?
+bool edges_meet(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
+  auto orient = [](const Vec2& p, const Vec2& q, const Vec2& r) {
+    const double v = (q.x - p.x) * (r.y - p.y) - (q.y - p.y) * (r.x - p.x);
+    return (v > 0) - (v < 0);
+  };
+  auto on = [](const Vec2& p, const Vec2& q, const Vec2& r) {  // r on segment pq, collinear
+    return std::min(p.x, q.x) <= r.x && r.x <= std::max(p.x, q.x) && std::min(p.y, q.y) <= r.y &&
+           r.y <= std::max(p.y, q.y);
+  };
+  const int o1 = orient(a, b, c), o2 = orient(a, b, d), o3 = orient(c, d, a), o4 = orient(c, d, b);
+  if (o1 != o2 && o3 != o4) return true;
+  return (o1 == 0 && on(a, b, c)) || (o2 == 0 && on(a, b, d)) || (o3 == 0 && on(c, d, a)) ||
+         (o4 == 0 && on(c, d, b));
+}
+
 // Ear clipping of a simple polygon given in 2D (any orientation). Appends
 // index triples to `tris`; false if the outline is not simple.
 bool ear_clip(const std::vector<Vec2>& pts, std::vector<std::array<int, 3>>& tris) {
+  const size_t m = pts.size();
+  for (size_t i = 0; i < m; ++i) {
+    for (size_t j = i + 2; j < m; ++j) {
+      if (i == 0 && j == m - 1) continue;  // neighbours through the closing edge
+      if (edges_meet(pts[i], pts[i + 1], pts[j], pts[(j + 1) % m])) return false;
+    }
+  }
   std::vector<int> idx(pts.size());
   for (size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
-  double area = 0;
-  for (size_t i = 0; i < pts.size(); ++i) {
-    const Vec2& a = pts[i];
-    const Vec2& b = pts[(i + 1) % pts.size()];
-    area += a.x * b.y - a.y * b.x;
-  }
+  const double area = twice_area(pts);
   if (area == 0) return false;
   const double orient = area > 0 ? 1.0 : -1.0;
   auto cross = [&](int i, int j, int k) {
@@ -134,7 +165,8 @@ bool ear_clip(const std::vector<Vec2>& pts, std::vector<std::array<int, 3>>& tri
     }
     if (!cut) return false;
   }
-  if (idx.size() == 3 && cross(idx[0], idx[1], idx[2]) > 0) tris.push_back({idx[0], idx[1], idx[2]});
+  if (idx.size() == 3 && cross(idx[0], idx[1], idx[2]) > 0)
+    tris.push_back({idx[0], idx[1], idx[2]});
   return true;
 }
 
@@ -210,31 +242,13 @@ bool separated(const VolumeSet& set, int v, const std::vector<Vec3>& pts, double
   return false;
 }
 
-// The points that bound a primitive: every point of it lies in their hull.
-// Curved bodies and CSG: the vertices of their bounding polyhedra.
-std::vector<Vec3> hull_points(const PreparedScene& ps, int prim,
-                              const std::vector<Outlines>& leaves) {
+// The outline of a flat primitive (polygon, triangle) as the ray tracer
+// hits it.
+std::vector<Vec3> flat_outline(const PreparedScene& ps, int prim) {
   const PrimRef& ref = ps.prims.prims[prim];
-  std::vector<Vec3> pts;
-  switch (ref.kind) {
-    case PrimKind::kPolygon:
-      pts = ps.prims.polygons[ref.index].verts;
-      break;
-    case PrimKind::kTriangle: {
-      const TrianglePrim& t = ps.prims.triangles[ref.index];
-      pts = {t.p0, t.p0 + t.e1, t.p0 + t.e2};
-      break;
-    }
-    case PrimKind::kConvex:
-      for (const auto& f : ps.prims.convexes[ref.index].faces) pts.insert(pts.end(), f.begin(), f.end());
-      break;
-    default:
-      for (const Outlines& o : leaves) {
-        for (const auto& f : o.faces) pts.insert(pts.end(), f.begin(), f.end());
-      }
-      break;
-  }
-  return pts;
+  if (ref.kind == PrimKind::kPolygon) return polygon_outline(ps.prims.polygons[ref.index]);
+  const TrianglePrim& t = ps.prims.triangles[ref.index];
+  return {t.p0, t.p0 + t.e1, t.p0 + t.e2};
 }
 
 // The plane of a flat primitive (polygon, triangle); false for others.
@@ -253,41 +267,113 @@ bool flat_plane(const PreparedScene& ps, int prim, HalfSpace* out) {
   return false;
 }
 
+// The points that bound a primitive: every point of it lies in their hull.
+// Curved bodies and CSG: the vertices of their bounding polyhedra.
+std::vector<Vec3> hull_points(const PreparedScene& ps, int prim,
+                              const std::vector<Outlines>& leaves) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  std::vector<Vec3> pts;
+  switch (ref.kind) {
+    case PrimKind::kPolygon:
+    case PrimKind::kTriangle:
+      pts = flat_outline(ps, prim);
+      break;
+    case PrimKind::kConvex:
+      for (const auto& f : ps.prims.convexes[ref.index].faces)
+        pts.insert(pts.end(), f.begin(), f.end());
+      break;
+    default:
+      for (const Outlines& o : leaves) {
+        for (const auto& f : o.faces) pts.insert(pts.end(), f.begin(), f.end());
+      }
+      break;
+  }
+  return pts;
+}
+
 bool is_opaque(const PreparedScene& ps, int prim) {
   const Scene& s = ps.scene;
   return s.materials[s.objects[ps.prims.prims[prim].object].material].t <= 0.0;
 }
 
+// The volume of the convex hull of a planar outline (plane `plane`).
+int add_hull_volume(VolumeSet& out, const std::vector<Vec3>& verts, const HalfSpace& plane,
+                    const Vec3& light) {
+  // Andrew's monotone chain on the 2D outline.
+  const std::vector<Vec2> p2 = outline_2d(verts, plane.m);
+  std::vector<int> idx(verts.size());
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) {
+    return p2[a].x != p2[b].x ? p2[a].x < p2[b].x : p2[a].y < p2[b].y;
+  });
+  auto turn = [&](int o, int a, int b) {
+    const Vec2 e = p2[a] - p2[o], f = p2[b] - p2[o];
+    return e.x * f.y - e.y * f.x;
+  };
+  std::vector<int> hull(2 * idx.size());
+  size_t k = 0;
+  for (size_t i = 0; i < idx.size(); ++i) {
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], idx[i]) <= 0) --k;
+    hull[k++] = idx[i];
+  }
+  for (size_t i = idx.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && turn(hull[k - 2], hull[k - 1], idx[i - 1]) <= 0) --k;
+    hull[k++] = idx[i - 1];
+  }
+  hull.resize(k > 0 ? k - 1 : 0);
+  const double s = glm::dot(plane.m, light) - plane.h;
+  if (hull.size() < 3 || s == 0) {
+    out.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
+    return static_cast<int>(out.volumes.size()) - 1;
+  }
+  std::vector<Vec3> pts;
+  for (int i : hull) pts.push_back(verts[i]);
+  add_piece(out, pts, s > 0 ? plane : HalfSpace{-plane.m, -plane.h}, light);
+  return static_cast<int>(out.volumes.size()) - 1;
+}
+
 void add_occluder(const PreparedScene& ps, int prim, const std::vector<Outlines>& leaves,
-                  LightVolumes& lv) {
+                  const std::optional<ConvexPieces>& pieces, LightVolumes& lv) {
   const PrimRef& ref = ps.prims.prims[prim];
   const Vec3& light = lv.position;
   LightVolumes::Occluder oc;
   oc.first = static_cast<int>(lv.set.volumes.size());
-  auto everywhere = [&] {
-    lv.set.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
-    oc.decides = false;
-  };
   switch (ref.kind) {
     case PrimKind::kPolygon:
     case PrimKind::kTriangle: {
       HalfSpace plane;
       flat_plane(ps, prim, &plane);
-      std::vector<Vec3> verts;
-      if (ref.kind == PrimKind::kPolygon) {
-        verts = ps.prims.polygons[ref.index].verts;
-      } else {
-        const TrianglePrim& t = ps.prims.triangles[ref.index];
-        verts = {t.p0, t.p0 + t.e1, t.p0 + t.e2};
-      }
+      const std::vector<Vec3> verts = flat_outline(ps, prim);
       oc.decides = is_opaque(ps, prim);
-      if (add_polygon_volumes(lv.set, verts, plane.m, plane.h, light) < 0) everywhere();
+      if (glm::dot(plane.m, light) == plane.h) break;  // edge-on to the light: no shadow
+      if (!pieces) {
+        // Not simple, so not cut: the hull's volume, then the exact test.
+        oc.decides = false;
+        add_hull_volume(lv.set, verts, plane, light);
+        break;
+      }
+      if (!oc.decides && pieces->size() > 1) {
+        // Transparent: the exact crossings decide anyway (eqs. (2), (3)),
+        // the hull's volume is enough to find the candidates.
+        add_hull_volume(lv.set, verts, plane, light);
+        break;
+      }
+      add_pieces_volumes(lv.set, verts, *pieces, plane.m, plane.h, light);
+      if (pieces->size() > 1) {
+        // A concave polygon's pieces: the volume of its convex hull bounds
+        // them all, and is tested first.
+        oc.count = static_cast<int>(lv.set.volumes.size()) - oc.first;
+        oc.bound = add_hull_volume(lv.set, verts, plane, light);
+        lv.occluders.push_back(oc);
+        return;
+      }
       break;
     }
     case PrimKind::kConvex: {
       const ConvexPrim& c = ps.prims.convexes[ref.index];
       std::vector<HalfSpace> planes;
-      for (size_t k = 0; k < c.normals.size(); ++k) planes.push_back(HalfSpace{c.normals[k], c.offsets[k]});
+      for (size_t k = 0; k < c.normals.size(); ++k)
+        planes.push_back(HalfSpace{c.normals[k], c.offsets[k]});
       oc.decides = is_opaque(ps, prim);
       add_polyhedron_volume(lv.set, c.faces, planes, light, oc.decides);
       break;
@@ -296,7 +382,8 @@ void add_occluder(const PreparedScene& ps, int prim, const std::vector<Outlines>
       // Curved bodies and CSG: their bounding polyhedra's volumes, then an
       // exact test (paper §4.1).
       oc.decides = false;
-      for (const Outlines& o : leaves) add_polyhedron_volume(lv.set, o.faces, o.planes, light, false);
+      for (const Outlines& o : leaves)
+        add_polyhedron_volume(lv.set, o.faces, o.planes, light, false);
       break;
     }
   }
@@ -382,27 +469,86 @@ int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& 
   return static_cast<int>(out.volumes.size()) - 1;
 }
 
+std::optional<ConvexPieces> convex_pieces(const std::vector<Vec3>& verts, const Vec3& n) {
+  ConvexPieces out;
+  if (verts.size() < 3) return out;
+  const std::vector<Vec2> pts = outline_2d(verts, n);
+  if (is_convex(pts)) {
+    out.emplace_back(verts.size());
+    for (size_t i = 0; i < verts.size(); ++i) out[0][i] = static_cast<int>(i);
+    return out;
+  }
+  // A concave outline (SPD gears): triangles, then merged across their
+  // diagonals while the union stays convex (Hertel-Mehlhorn), which leaves
+  // a few times fewer pieces.
+  std::vector<std::array<int, 3>> tris;
+  if (!ear_clip(pts, tris)) return std::nullopt;
+  // One pass over the diagonals (Hertel-Mehlhorn): drop each one whose two
+  // pieces make a convex union. Pieces keep the outline's orientation.
+  std::vector<std::vector<int>> piece;
+  for (const auto& t : tris) piece.push_back({t[0], t[1], t[2]});
+  std::vector<int> alive(piece.size(), 1);
+  std::map<std::pair<int, int>, int> owner;  // directed edge -> piece
+  for (size_t p = 0; p < piece.size(); ++p) {
+    for (size_t i = 0; i < 3; ++i)
+      owner[{piece[p][i], piece[p][(i + 1) % 3]}] = static_cast<int>(p);
+  }
+  const double orient = twice_area(pts) > 0 ? 1.0 : -1.0;
+  auto convex_corner = [&](int i, int j, int k) {
+    const Vec2 e = pts[j] - pts[i], f = pts[k] - pts[j];
+    return orient * (e.x * f.y - e.y * f.x) >= 0;
+  };
+  auto rotated = [](const std::vector<int>& v, int start) {
+    std::vector<int> r(v);
+    std::rotate(r.begin(), std::find(r.begin(), r.end(), start), r.end());
+    return r;
+  };
+  for (const auto& t : tris) {
+    for (int e = 0; e < 3; ++e) {
+      const int a = t[e], b = t[(e + 1) % 3];
+      const auto pa = owner.find({a, b}), pb = owner.find({b, a});
+      if (pa == owner.end() || pb == owner.end() || pa->second == pb->second) continue;
+      const int p = pa->second, q = pb->second;
+      std::vector<int> m = rotated(piece[p], b);        // b ... a
+      const std::vector<int> r = rotated(piece[q], a);  // a ... b
+      // The union is convex when its corners at a and b are.
+      if (!convex_corner(m[m.size() - 2], a, r[1]) || !convex_corner(r[r.size() - 2], b, m[1])) {
+        continue;
+      }
+      m.insert(m.end(), r.begin() + 1, r.end() - 1);
+      owner.erase({a, b});
+      owner.erase({b, a});
+      for (size_t i = 0; i < m.size(); ++i) owner[{m[i], m[(i + 1) % m.size()]}] = p;
+      piece[p] = std::move(m);
+      alive[q] = 0;
+    }
+  }
+  for (size_t p = 0; p < piece.size(); ++p) {
+    if (alive[p]) out.push_back(std::move(piece[p]));
+  }
+  return out;
+}
+
 int add_polygon_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Vec3& n, double d,
                         const Vec3& light) {
+  const auto pieces = convex_pieces(verts, n);
+  if (!pieces) return -1;
+  return add_pieces_volumes(out, verts, *pieces, n, d, light);
+}
+
+int add_pieces_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const ConvexPieces& pieces,
+                       const Vec3& n, double d, const Vec3& light) {
   const double s = glm::dot(n, light) - d;
-  if (s == 0 || verts.size() < 3) return 0;  // edge-on to the light: no shadow
+  if (s == 0) return 0;  // edge-on to the light: no shadow
   // The cap keeps the side of the plane away from the light.
   const HalfSpace cap = s > 0 ? HalfSpace{n, d} : HalfSpace{-n, -d};
-  // 2D outline on the two axes that drop the normal's dominant one.
-  const Vec3 an = glm::abs(n);
-  const int drop = an.x > an.y ? (an.x > an.z ? 0 : 2) : (an.y > an.z ? 1 : 2);
-  const int u = (drop + 1) % 3, w = (drop + 2) % 3;
-  std::vector<Vec2> pts;
-  for (const Vec3& p : verts) pts.emplace_back(p[u], p[w]);
-  if (is_convex(pts)) {
-    add_piece(out, verts, cap, light);
-    return 1;
+  std::vector<Vec3> pts;
+  for (const auto& piece : pieces) {
+    pts.clear();
+    for (int i : piece) pts.push_back(verts[i]);
+    add_piece(out, pts, cap, light);
   }
-  // A concave outline (SPD gears): one volume per triangle.
-  std::vector<std::array<int, 3>> tris;
-  if (!ear_clip(pts, tris)) return -1;
-  for (const auto& t : tris) add_piece(out, {verts[t[0]], verts[t[1]], verts[t[2]]}, cap, light);
-  return static_cast<int>(tris.size());
+  return static_cast<int>(pieces.size());
 }
 
 ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
@@ -420,11 +566,22 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
   }
   std::vector<std::vector<Vec3>> hulls(n);
   for (int i = 0; i < n; ++i) hulls[i] = hull_points(ps, i, leaves[i]);
+  // Convex pieces of polygons (triangles are one).
+  std::vector<std::optional<ConvexPieces>> pieces(n);
+  for (int i = 0; i < n; ++i) {
+    const PrimRef& ref = set.prims[i];
+    if (ref.kind == PrimKind::kPolygon) {
+      pieces[i] = convex_pieces(flat_outline(ps, i), set.polygons[ref.index].normal);
+    } else if (ref.kind == PrimKind::kTriangle) {
+      pieces[i] = ConvexPieces{{0, 1, 2}};
+    }
+  }
 
   Aabb world;
   for (const Aabb& b : set.bounds) world.extend(b);
   double scale = 1.0;
-  if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+  if (!world.empty())
+    scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
 
   for (const Light& light : ps.scene.lights) {
     LightVolumes lv;
@@ -433,7 +590,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
     // reach that far, and beyond rounding.
     lv.slack = 4.0 * ps.eps + 1e-12 * (scale + glm::length(light.position));
     const double slack = lv.slack;
-    for (int i = 0; i < n; ++i) add_occluder(ps, i, leaves[i], lv);
+    for (int i = 0; i < n; ++i) add_occluder(ps, i, leaves[i], pieces[i], lv);
     // The hierarchy's boxes (paper §4.1): a point outside a box's volume is
     // shadowed by nothing in the box.
     for (const BvhNode& node : ps.bvh.nodes) {
@@ -445,9 +602,10 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
         o.faces.push_back(std::move(pts));
       }
       const Vec3 lo = node.box.lo, hi = node.box.hi;
-      o.planes = {{Vec3(-1, 0, 0), -lo.x}, {Vec3(1, 0, 0), hi.x}, {Vec3(0, -1, 0), -lo.y},
+      o.planes = {{Vec3(-1, 0, 0), -lo.x}, {Vec3(1, 0, 0), hi.x},   {Vec3(0, -1, 0), -lo.y},
                   {Vec3(0, 1, 0), hi.y},   {Vec3(0, 0, -1), -lo.z}, {Vec3(0, 0, 1), hi.z}};
-      lv.node_volume.push_back(add_polyhedron_volume(lv.set, o.faces, o.planes, lv.position, false));
+      lv.node_volume.push_back(
+          add_polyhedron_volume(lv.set, o.faces, o.planes, lv.position, false));
     }
     // Front/back relations (paper §4.1): the occluders that can shadow each
     // primitive. An occluder is dropped when its volume misses the
@@ -477,6 +635,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
           const int a = ps.bvh.order[k];
           if (flat && a == r) continue;
           const LightVolumes::Occluder& oc = lv.occluders[a];
+          if (oc.bound >= 0 && separated(lv.set, oc.bound, hr, slack)) continue;
           bool reaches = false;
           for (int v = oc.first; v < oc.first + oc.count && !reaches; ++v) {
             reaches = !separated(lv.set, v, hr, slack);
@@ -528,53 +687,81 @@ bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<C
 }  // namespace
 
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
-                           Stats& stats) {
+                           Stats& stats, int* last_occluder) {
   const LightVolumes& lv = ps.volumes->lights[light];
+  // Candidates that need the exact test, run only once no opaque volume
+  // holds the point.
+  thread_local std::vector<int> exact;
+  exact.clear();
+  // Containment in one candidate's volumes; true if it decides t_pj = 0.
+  auto occluder = [&](int a) {
+    const LightVolumes::Occluder& oc = lv.occluders[a];
+    if (oc.bound >= 0) {
+      ++stats.tests_shadow_volume;
+      if (!lv.set.contains(oc.bound, origin, lv.slack)) return false;
+    }
+    bool inside = false;
+    for (int v = oc.first; v < oc.first + oc.count && !inside; ++v) {
+      ++stats.tests_shadow_volume;
+      inside = lv.set.contains(v, origin, oc.decides ? 0.0 : lv.slack);
+    }
+    if (!inside) return false;
+    if (oc.decides) {  // opaque: no ray needed
+      if (last_occluder) *last_occluder = a;
+      return true;
+    }
+    exact.push_back(a);
+    return false;
+  };
+  // The occluder that shadowed the previous point is likely to shadow this
+  // one too (neighbouring points); any opaque one gives t_pj = 0.
+  if (last_occluder && *last_occluder >= 0 && lv.occluders[*last_occluder].decides) {
+    if (occluder(*last_occluder)) return Color(0.0);
+  }
+  const int* cb = nullptr;
+  const int* ce = nullptr;
+  if (receiver >= 0) {
+    cb = lv.candidates.data() + lv.candidate_first[receiver];
+    ce = lv.candidates.data() + lv.candidate_first[receiver + 1];
+  }
+  if (cb && ce - cb <= kWalkAbove) {
+    for (const int* c = cb; c != ce; ++c) {
+      if (occluder(*c)) return Color(0.0);
+    }
+  } else if (!ps.bvh.nodes.empty()) {
+    // Top down through the hierarchy: outside a box's volume, nothing in
+    // the box shadows the point (paper §4.1).
+    int stack[128];
+    int sp = 0;
+    stack[sp++] = 0;
+    while (sp) {
+      const int ni = stack[--sp];
+      ++stats.tests_shadow_volume;
+      if (!lv.set.contains(lv.node_volume[ni], origin, lv.slack)) continue;
+      const BvhNode& node = ps.bvh.nodes[ni];
+      if (node.count == 0) {
+        stack[sp++] = node.first;
+        stack[sp++] = ni + 1;
+        continue;
+      }
+      for (int k = node.first; k < node.first + node.count; ++k) {
+        const int a = ps.bvh.order[k];
+        if (cb && !std::binary_search(cb, ce, a)) continue;
+        if (occluder(a)) return Color(0.0);
+      }
+    }
+  }
   const Ray seg{origin, lv.position - origin};
   thread_local std::vector<Crossing> crossings;
   crossings.clear();
-  const int* cand_begin = nullptr;
-  const int* cand_end = nullptr;
-  if (receiver >= 0) {
-    cand_begin = lv.candidates.data() + lv.candidate_first[receiver];
-    cand_end = lv.candidates.data() + lv.candidate_first[receiver + 1];
-    if (cand_begin == cand_end) return Color(1.0);
-  }
-  bool exact = false;
-  int stack[128];
-  int sp = 0;
-  if (!ps.bvh.nodes.empty()) stack[sp++] = 0;
-  while (sp) {
-    const int ni = stack[--sp];
-    ++stats.tests_shadow_volume;
-    if (!lv.set.contains(lv.node_volume[ni], origin, lv.slack)) continue;
-    const BvhNode& node = ps.bvh.nodes[ni];
-    if (node.count == 0) {
-      stack[sp++] = node.first;
-      stack[sp++] = ni + 1;
-      continue;
-    }
-    for (int k = node.first; k < node.first + node.count; ++k) {
-      const int a = ps.bvh.order[k];
-      if (cand_begin && !std::binary_search(cand_begin, cand_end, a)) continue;
-      const LightVolumes::Occluder& oc = lv.occluders[a];
-      bool inside = false;
-      for (int v = oc.first; v < oc.first + oc.count && !inside; ++v) {
-        ++stats.tests_shadow_volume;
-        inside = lv.set.contains(v, origin, oc.decides ? 0.0 : lv.slack);
-      }
-      if (!inside) continue;
-      if (oc.decides) return Color(0.0);  // opaque: no ray needed
-      if (!exact) ++stats.rays_shadow;
-      exact = true;
-      if (exact_test(ps, a, seg, crossings, stats)) return Color(0.0);
-    }
+  if (!exact.empty()) ++stats.rays_shadow;
+  for (int a : exact) {
+    if (exact_test(ps, a, seg, crossings, stats)) return Color(0.0);
   }
   return segment_transmittance(ps.scene, seg, crossings);
 }
 
-SpanShadows::SpanShadows(const PreparedScene& ps, int row, Stats& stats)
-    : ps_(ps), stats_(stats) {
+SpanShadows::SpanShadows(const PreparedScene& ps, int row, Stats& stats) : ps_(ps), stats_(stats) {
   const CameraFrame& cam = ps.camera;
   b_ = (1.0 - 2.0 * (row + 0.5) / cam.height) * cam.tan_half;
   const size_t lights = ps.scene.lights.size();
@@ -596,6 +783,56 @@ void SpanShadows::begin_span(int face, int x0, int x1) {
   std::fill(done_.begin(), done_.end(), 0);
 }
 
+namespace {
+
+// A span's line on the face, for intervals: the shadow-ray origins of the
+// face's points on the scan plane are O(a) = E + delta + s(a) D(a), with
+// D(a) = w + a u + b v and s(a) = num / (nw + a nu) > 0 (docs/local.md).
+struct SpanLine {
+  Vec3 eye_delta;  // E + delta
+  Vec3 w_bv;       // w + b v
+  Vec3 u;
+  double num, nw, nu, sigma;
+  double a_first, a_last;  // the span's first and last pixel
+};
+
+// The range [lo, hi] of a where O(a) lies inside every plane of volume v
+// (each moved out by `slack`). A plane m . x <= h at O(a), multiplied by
+// the denominator nw + a nu (of sign sigma), reads alpha + beta a <= 0:
+// linear in a. Stops early once the range misses the span if `clip`.
+void inside_range(const VolumeSet& set, const ShadowVolume& vol, const SpanLine& l, double slack,
+                  bool clip, double* lo_out, double* hi_out) {
+  double lo = -kInf, hi = kInf;
+  for (int i = vol.first; i < vol.first + vol.count; ++i) {
+    const HalfSpace& p = set.planes[i];
+    const double c0 = glm::dot(p.m, l.eye_delta) - (p.h + slack);
+    const double c1 = glm::dot(p.m, l.w_bv);
+    const double c2 = glm::dot(p.m, l.u);
+    const double alpha = l.sigma * (c0 * l.nw + l.num * c1);
+    const double beta = l.sigma * (c0 * l.nu + l.num * c2);
+    if (beta > 0) {
+      hi = std::min(hi, -alpha / beta);
+    } else if (beta < 0) {
+      lo = std::max(lo, -alpha / beta);
+    } else if (alpha > 0) {
+      lo = kInf;
+    }
+    if (clip && (lo > hi || lo > l.a_last || hi < l.a_first)) break;
+  }
+  *lo_out = lo;
+  *hi_out = hi;
+}
+
+bool meets_span(const VolumeSet& set, int v, const SpanLine& l, double slack) {
+  const ShadowVolume& vol = set.volumes[v];
+  if (vol.kind != VolumeKind::kConvex) return true;
+  double lo, hi;
+  inside_range(set, vol, l, slack, true, &lo, &hi);
+  return !(lo > hi || lo > l.a_last || hi < l.a_first);
+}
+
+}  // namespace
+
 void SpanShadows::compute_light(int j) {
   done_[j] = 1;
   std::vector<Interval>& out = iv_[j];
@@ -608,56 +845,75 @@ void SpanShadows::compute_light(int j) {
   // the light's side (Tracer::offset).
   side_[j] = glm::dot(n, lv.position) - f.offset >= 0;
   const Vec3 delta = (side_[j] ? ps_.eps : -ps_.eps) * n;
-  // Points of the face on the scan plane: P(a) = E + s(a) D(a), with
-  // D(a) = w + a u + b v and s(a) = num / (nw + a nu) > 0 (docs/local.md).
-  const Vec3& e = cam.from;
-  const double num = f.offset - glm::dot(n, e);
-  const double sigma = num > 0 ? 1.0 : -1.0;
-  const double nw = glm::dot(n, cam.w) + b_ * glm::dot(n, cam.v);
-  const double nu = glm::dot(n, cam.u);
-  const double a_first = pixel_a(x0_), a_last = pixel_a(x1_ - 1);
-  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
-  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
-  for (const int* c = cb; c != ce; ++c) {
-    const LightVolumes::Occluder& oc = lv.occluders[*c];
+  SpanLine l;
+  l.eye_delta = cam.from + delta;
+  l.w_bv = cam.w + b_ * cam.v;
+  l.u = cam.u;
+  l.num = f.offset - glm::dot(n, cam.from);
+  l.sigma = l.num > 0 ? 1.0 : -1.0;
+  l.nw = glm::dot(n, l.w_bv);
+  l.nu = glm::dot(n, cam.u);
+  l.a_first = pixel_a(x0_);
+  l.a_last = pixel_a(x1_ - 1);
+  // One candidate occluder: the interval of each of its volumes.
+  auto occluder = [&](int c) {
+    const LightVolumes::Occluder& oc = lv.occluders[c];
+    if (oc.bound >= 0) {
+      ++stats_.tests_shadow_volume;
+      if (!meets_span(lv.set, oc.bound, l, lv.slack)) return;
+    }
     const double slack = oc.decides ? 0.0 : lv.slack;
     for (int v = oc.first; v < oc.first + oc.count; ++v) {
       ++stats_.tests_shadow_volume;
       const ShadowVolume& vol = lv.set.volumes[v];
       if (vol.kind == VolumeKind::kEverywhere) {
-        out.push_back(Interval{*c, oc.decides, a_first, a_last, false});
+        out.push_back(Interval{c, oc.decides, l.a_first, l.a_last, false});
         continue;
       }
-      // A plane m . x <= h at O(a) = P(a) + delta: multiplied by the
-      // denominator (sign sigma), alpha + beta a <= 0, linear in a. The
-      // points inside every plane form one interval [lo, hi].
-      double lo = -kInf, hi = kInf;
-      for (int i = vol.first; i < vol.first + vol.count; ++i) {
-        const HalfSpace& p = lv.set.planes[i];
-        const double c0 = glm::dot(p.m, e + delta) - (p.h + slack);
-        const double c1 = glm::dot(p.m, cam.w) + b_ * glm::dot(p.m, cam.v);
-        const double c2 = glm::dot(p.m, cam.u);
-        const double alpha = sigma * (c0 * nw + num * c1);
-        const double beta = sigma * (c0 * nu + num * c2);
-        if (beta > 0) {
-          hi = std::min(hi, -alpha / beta);
-        } else if (beta < 0) {
-          lo = std::max(lo, -alpha / beta);
-        } else if (alpha > 0) {
-          lo = kInf;
-        }
-        if (vol.kind == VolumeKind::kConvex && (lo > hi || lo > a_last || hi < a_first)) break;
-      }
+      double lo, hi;
+      inside_range(lv.set, vol, l, slack, vol.kind == VolumeKind::kConvex, &lo, &hi);
       if (vol.kind == VolumeKind::kConvex) {
-        if (lo > hi || lo > a_last || hi < a_first) continue;
-        out.push_back(Interval{*c, oc.decides, lo, hi, false});
+        if (lo > hi || lo > l.a_last || hi < l.a_first) continue;
+        out.push_back(Interval{c, oc.decides, lo, hi, false});
       } else {
         // kOutside: shadow outside [lo, hi].
-        if (lo <= a_first && hi >= a_last) continue;
-        out.push_back(Interval{*c, oc.decides, lo, hi, true});
+        if (lo <= l.a_first && hi >= l.a_last) continue;
+        out.push_back(Interval{c, oc.decides, lo, hi, true});
       }
     }
+  };
+  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
+  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
+  // Opaque intervals first: a pixel in one needs no exact test.
+  auto opaque_first = [&] {
+    std::stable_partition(out.begin(), out.end(), [](const Interval& i) { return i.decides; });
+  };
+  if (ce - cb <= kWalkAbove) {
+    for (const int* c = cb; c != ce; ++c) occluder(*c);
+    opaque_first();
+    return;
   }
+  // A long list (a floor under many objects): walk the hierarchy with the
+  // boxes' volumes against the span, then narrow by the list (paper §4.1).
+  int stack[128];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp) {
+    const int ni = stack[--sp];
+    ++stats_.tests_shadow_volume;
+    if (!meets_span(lv.set, lv.node_volume[ni], l, lv.slack)) continue;
+    const BvhNode& node = ps_.bvh.nodes[ni];
+    if (node.count == 0) {
+      stack[sp++] = node.first;
+      stack[sp++] = ni + 1;
+      continue;
+    }
+    for (int k = node.first; k < node.first + node.count; ++k) {
+      const int a = ps_.bvh.order[k];
+      if (std::binary_search(cb, ce, a)) occluder(a);
+    }
+  }
+  opaque_first();
 }
 
 Color SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {
@@ -666,7 +922,7 @@ Color SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {
   // The intervals hold for origins on the light's side of the face; a
   // light almost in the face's plane may put a pixel's origin on the other.
   if ((glm::dot(origin - p, f.normal) > 0) != static_cast<bool>(side_[light])) {
-    return volume_transmittance(ps_, origin, light, f.prim, stats_);
+    return volume_transmittance(ps_, origin, light, f.prim, stats_, nullptr);
   }
   const double a = pixel_a(x_);
   const Ray seg{origin, ps_.volumes->lights[light].position - origin};

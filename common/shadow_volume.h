@@ -24,6 +24,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "common/geometry.h"
@@ -69,15 +70,23 @@ struct VolumeSet {
 int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& faces,
                           const std::vector<HalfSpace>& face_planes, const Vec3& light, bool solid);
 
+// A planar outline (normal n) cut into convex pieces, as index lists into
+// its vertices: itself if it is convex; else an ear-clipping triangulation
+// whose triangles are merged while they stay convex. nullopt if the outline
+// is not simple (self-intersecting), so it cannot be cut.
+using ConvexPieces = std::vector<std::vector<int>>;
+std::optional<ConvexPieces> convex_pieces(const std::vector<Vec3>& verts, const Vec3& n);
+
 // The shadow volumes of a planar polygon (plane n . x = d) seen from
-// `light`: one if it is convex, one per triangle of an ear-clipping
-// triangulation if it is concave; none if the light lies in its plane (the
+// `light`, one per convex piece; none if the light lies in its plane (the
 // polygon is seen edge-on and casts nothing). Planes through an edge shared
 // by two pieces are exact negations of each other, so no point between two
 // pieces escapes both. Returns the number of volumes appended, or -1 if the
-// outline could not be cut into convex pieces (self-intersecting).
+// outline could not be cut into convex pieces.
 int add_polygon_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Vec3& n, double d,
                         const Vec3& light);
+int add_pieces_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const ConvexPieces& pieces,
+                       const Vec3& n, double d, const Vec3& light);
 
 // What one light's shadow search needs.
 struct LightVolumes {
@@ -91,6 +100,7 @@ struct LightVolumes {
   struct Occluder {
     int first = 0, count = 0;
     bool decides = false;
+    int bound = -1;  // a volume holding all of them, tested first (concave polygons)
   };
   std::vector<Occluder> occluders;
   std::vector<int> node_volume;  // per BVH node: index into set.volumes
@@ -116,9 +126,10 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps);
 // of a point on primitive `receiver` (-1: unknown), found by walking the
 // hierarchy with the boxes' shadow volumes, narrowing by the receiver's
 // candidate list and testing containment (paper §4.1). Equals
-// Tracer::transmittance with shadow rays.
+// Tracer::transmittance with shadow rays. `last_occluder` (may be null)
+// names an opaque occluder to test first, and is updated (a shadow cache).
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
-                           Stats& stats);
+                           Stats& stats, int* last_occluder = nullptr);
 
 // The shadows of the spans of one row (paper §3.2 step 2): for a visible
 // span of a flat face, each candidate occluder's volume meets the segment
@@ -155,9 +166,9 @@ class SpanShadows : public KnownShadows {
   Stats& stats_;
   double b_ = 0;  // image-plane coordinate of the row's sample line
   int face_ = -1, x0_ = 0, x1_ = 0, x_ = 0;
-  std::vector<char> done_;                   // per light: intervals computed
-  std::vector<char> side_;                   // per light: origins on the face's front side
-  std::vector<std::vector<Interval>> iv_;    // per light
+  std::vector<char> done_;                 // per light: intervals computed
+  std::vector<char> side_;                 // per light: origins on the face's front side
+  std::vector<std::vector<Interval>> iv_;  // per light
 };
 
 }  // namespace locus

@@ -319,6 +319,11 @@ Result<CompleteOutcome> Scheduler::complete_band(BandOutput out) {
     return InvalidArgument(why);
   }
 
+  // Allocate before any state changes: if the frame's memory cannot be had,
+  // the lease stands and lapses like any other, and the job stays coherent.
+  PartialFrame& pf = job.partial[frame];
+  if (pf.image.width == 0) pf.image = Image(s.width, s.height);
+
   leases_.erase(it);
   workers_.at(out.worker_id).leases.erase(out.lease_id);
   workers_.at(out.worker_id).info.bands_done++;
@@ -328,8 +333,6 @@ Result<CompleteOutcome> Scheduler::complete_band(BandOutput out) {
   job.info.bands_done++;
   job.info.stats += out.stats;
 
-  PartialFrame& pf = job.partial[frame];
-  if (pf.image.width == 0) pf.image = Image(s.width, s.height);
   std::copy(out.rgb.begin(), out.rgb.end(),
             pf.image.rgb.begin() + static_cast<size_t>(rows.y0) * s.width * 3);
   ++pf.bands_done;

@@ -267,5 +267,36 @@ TEST(Geometry, CsgMatchesPointMembership) {
   }
 }
 
+// A bent polygon (a corner off the plane of the others) is hit on its
+// best-fit plane, inside its outline dropped on two axes. Those hits can lie
+// outside the box of its vertices, so its box must hold the outline that is
+// hit (else the hierarchy misses them), and polygon_outline() must be that
+// outline: on the plane, with the same 2D outline.
+TEST(Geometry, BentPolygonBoxHoldsItsHits) {
+  const Scene scene =
+      scene_with(Polygon{{Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(1, 1, 0), Vec3(-1, 1, 0.8)}});
+  const PrimitiveSet set = build_primitives(scene);
+  const PolygonPrim& p = set.polygons[0];
+  const Aabb& box = set.bounds[0];
+  for (const Vec3& v : polygon_outline(p)) {
+    EXPECT_NEAR(glm::dot(p.normal, v), p.offset, 1e-12);
+  }
+  std::mt19937_64 rng(5);
+  int hits = 0;
+  for (int i = 0; i < kRays; ++i) {
+    const Ray ray = random_ray(rng);
+    std::vector<Crossing> c;
+    if (!intersect_all(set, 0, ray, 0.0, 1e9, c)) continue;
+    ++hits;
+    const Vec3 x = ray.origin + c[0].t * ray.dir;
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_GE(x[a], box.lo[a] - 1e-12);
+      EXPECT_LE(x[a], box.hi[a] + 1e-12);
+    }
+  }
+  EXPECT_GT(hits, 100);
+  EXPECT_LT(box.lo.z, 0.0) << "the plane dips below the vertices' box";
+}
+
 }  // namespace
 }  // namespace locus

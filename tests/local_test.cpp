@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <cstring>
-#include <filesystem>
 #include <string>
 
 #include "common/image.h"
@@ -14,42 +13,15 @@
 #include "common/render.h"
 #include "common/scanline.h"
 #include "common/scene_io.h"
+#include "tests/render_compare.h"
 
 namespace locus {
 namespace {
 
-namespace fs = std::filesystem;
-
-// Distance from pixel centre (x, y) to the nearest projected face edge of
-// the scanline pass.
-double distance_to_edge(const ScanScene& scan, double x, double y) {
-  double best = 1e300;
-  for (const ScanFace& f : scan.faces) {
-    const size_t n = f.outline.size();
-    for (size_t k = 0; k < n; ++k) {
-      const Vec2 a = f.outline[k], b = f.outline[(k + 1) % n];
-      const Vec2 ab = b - a, ap = Vec2(x, y) - a;
-      const double len2 = glm::dot(ab, ab);
-      const double t = len2 > 0 ? std::clamp(glm::dot(ap, ab) / len2, 0.0, 1.0) : 0.0;
-      best = std::min(best, glm::length(ap - t * ab));
-    }
-  }
-  return best;
-}
-
-std::vector<std::string> agreement_scenes() {
-  std::vector<std::string> out;
-  for (const char* dir : {LOCUS_SHARED_DIR "/spd/s1", LOCUS_SHARED_DIR "/spd/s2",
-                          LOCUS_SOURCE_DIR "/scenes/paper", LOCUS_SOURCE_DIR "/scenes/simple"}) {
-    if (!fs::exists(dir)) continue;
-    for (const auto& e : fs::directory_iterator(dir)) {
-      const std::string ext = e.path().extension().string();
-      if (ext == ".nff" || ext == ".json") out.push_back(e.path().string());
-    }
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
+using testing_util::agreement_scenes;
+using testing_util::camera_scene;
+using testing_util::distance_to_edge;
+using testing_util::quad;
 
 // Every scene, point sampling: local and raytrace agree within 2/255
 // everywhere but at pixels whose centre lies within 1e-6 pixel of an edge,
@@ -183,37 +155,8 @@ TEST(Local, BandsStitchBitIdentical) {
   }
 }
 
-TEST(Local, ConfigurationIVIsRefusedUntilShadowVolumes) {
-  Scene s;
-  s.has_camera = true;
-  RenderParams p;
-  p.method = Method::kLocal;
-  p.boxes = Boxes::kEyeShadow;
-  const auto r = prepare_scene(s, p);
-  ASSERT_FALSE(r.ok());
-  EXPECT_NE(r.status().message().find("eye+shadow"), std::string::npos);
-}
-
 // The hard cases of a scanline hidden-surface pass (issue #4 item 2), each
 // rendered both ways: same 8-bit image, and no background leaking through.
-Scene camera_scene(const Vec3& from, const Vec3& at, double angle, int w, int h) {
-  Scene s;
-  s.has_camera = true;
-  s.camera.from = from;
-  s.camera.at = at;
-  s.camera.up = Vec3(0, 1, 0);
-  s.camera.angle = angle;
-  s.camera.width = w;
-  s.camera.height = h;
-  s.background = Color(0.2, 0.4, 0.9);
-  s.lights.push_back(Light{from + Vec3(1, 3, 0.5), std::nullopt});
-  Material a, b;
-  a.color = Color(0.9, 0.3, 0.2);
-  b.color = Color(0.2, 0.8, 0.3);
-  s.materials = {a, b};
-  return s;
-}
-
 // Same 8-bit image both ways, but at pixel centres within 1e-6 pixel of an
 // edge, where either side of the edge is a right answer.
 void expect_same_both_ways(const Scene& s, const char* what) {
@@ -235,13 +178,6 @@ void expect_same_both_ways(const Scene& s, const char* what) {
       }
     }
   }
-}
-
-Object quad(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, int material) {
-  Object o;
-  o.shape = Polygon{{a, b, c, d}};
-  o.material = material;
-  return o;
 }
 
 TEST(LocalScanline, InterpenetratingFacesSplitWhereDepthOrderChanges) {

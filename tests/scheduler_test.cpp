@@ -79,8 +79,9 @@ TEST(BandRows, CoverEveryRowOnce) {
 }
 
 TEST(DefaultBands, SeveralPerWorkerWithinLimits) {
-  EXPECT_EQ(default_bands(640, 480, 1, 2), 16);
-  EXPECT_EQ(default_bands(640, 480, 1, 4), 32);
+  EXPECT_EQ(default_bands(640, 480, 1, 2), 32);
+  EXPECT_EQ(default_bands(640, 480, 1, 4), 64);
+  EXPECT_EQ(default_bands(640, 480, 10, 2), 4);
   EXPECT_EQ(default_bands(640, 480, 100, 2), 1);  // the frames keep the workers busy
   EXPECT_EQ(default_bands(64, 3, 1, 8), 3);       // never more than the rows
   EXPECT_GE(default_bands(16384, 16384, 1, 1), min_bands(16384, 16384));

@@ -4,7 +4,7 @@ lights, every configuration measured side by side in one run, times
 normalised to configuration II. Writes bench/results/table1.csv and .md.
 
 Configurations: I = raytrace/none, II = local/none, III = local/eye,
-IV = local/eye+shadow (when the renderer has shadow volumes), and the
+IV = local/eye+shadow (shadow volumes, docs/shadow-volumes.md), and the
 modern baseline raytrace/eye+shadow. One thread, no farm, so the figures
 are the renderer's own.
 
@@ -72,18 +72,19 @@ def main():
         w = csv.writer(f)
         w.writerow(["lights", "config", "method", "boxes", "seconds_render", "seconds_prepare",
                     "rays_eye", "rays_reflected", "rays_shadow", "tests_ray_object",
-                    "pixels_ray_traced", "relative_to_II"])
+                    "tests_shadow_volume", "pixels_ray_traced", "relative_to_II"])
         for r in rows:
             st = r["stats"]
             if st is None:
-                w.writerow([r["lights"], r["config"], r["method"], r["boxes"]] + [""] * 8)
+                w.writerow([r["lights"], r["config"], r["method"], r["boxes"]] + [""] * 9)
                 continue
             ii = next(x["stats"] for x in rows if x["lights"] == r["lights"] and x["config"] == "II")
             rel = st["seconds"]["render"] / ii["seconds"]["render"] if ii else ""
             w.writerow([r["lights"], r["config"], r["method"], r["boxes"],
                         f"{st['seconds']['render']:.4f}", f"{st['seconds']['prepare']:.4f}",
                         st["rays"]["eye"], st["rays"]["reflected"], st["rays"]["shadow"],
-                        st["tests"]["ray_object"], st["pixels"]["ray_traced"],
+                        st["tests"]["ray_object"], st["tests"].get("shadow_volume", 0),
+                        st["pixels"]["ray_traced"],
                         f"{rel:.3f}" if rel != "" else ""])
     # Markdown, shaped like the paper's Table 1.
     md = [f"# Table 1: scene (d), {args.size}x{args.size}, 1 thread, best of {args.repeat}",
@@ -99,16 +100,19 @@ def main():
             cells.append(f"{st['seconds']['render'] / ii['seconds']['render']:.2f}" if st and ii
                          else "n/a")
         md.append(f"| {lights} | " + " | ".join(cells) + " |")
-    md += ["", "Seconds, rays and ray-object tests:", "",
-           "| lights | config | seconds | eye rays | shadow rays | ray-object tests |",
-           "|---|---|---|---|---|---|"]
+    md += ["", "Seconds (render; prepare), rays and tests:", "",
+           "| lights | config | seconds | prepare | eye rays | shadow rays | ray-object tests "
+           "| shadow-volume tests |",
+           "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         st = r["stats"]
         if st is None:
-            md.append(f"| {r['lights']} | {r['config']} | n/a ({r['note']}) | | | |")
+            md.append(f"| {r['lights']} | {r['config']} | n/a ({r['note']}) | | | | | |")
         else:
             md.append(f"| {r['lights']} | {r['config']} | {st['seconds']['render']:.3f} | "
-                      f"{st['rays']['eye']} | {st['rays']['shadow']} | {st['tests']['ray_object']} |")
+                      f"{st['seconds']['prepare']:.4f} | {st['rays']['eye']} | "
+                      f"{st['rays']['shadow']} | {st['tests']['ray_object']} | "
+                      f"{st['tests'].get('shadow_volume', 0)} |")
     with open(os.path.join(args.out, "table1.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     print("\n".join(md))
