@@ -35,6 +35,10 @@ Result<std::string> output_file_pattern(const std::string& output, int frames) {
     return InvalidArgument("output '" + output +
                            "': names no file; expected a pattern such as out/shot_####.png");
   }
+  if (std::any_of(name.begin(), name.end(),
+                  [](unsigned char c) { return c < 0x20 || c == 0x7f; })) {
+    return InvalidArgument("output: the file name contains control characters");
+  }
   const std::string ext = lower(fs::path(name).extension().string());
   if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
     return InvalidArgument("output '" + output + "': unsupported image type '" + ext +

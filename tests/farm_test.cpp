@@ -284,6 +284,8 @@ TEST_F(FarmTest, BadSubmissionsGetClearErrorsAndStoreNothing) {
   EXPECT_EQ(client_->submit(rows).status().code(), Code::kInvalidArgument);
   SubmitRequest ext = request(kSpheres, 32, 24, 1, 1, 0, "x.jpg");
   EXPECT_NE(client_->submit(ext).status().message().find(".jpg"), std::string::npos);
+  SubmitRequest control = request(kSpheres, 32, 24, 1, 1, 0, "x\x01y.png");
+  EXPECT_EQ(client_->submit(control).status().code(), Code::kInvalidArgument);
   SubmitRequest size = request(kSpheres, 99999, 24, 1, 1, 0, "x.png");
   EXPECT_EQ(client_->submit(size).status().code(), Code::kInvalidArgument);
   SubmitRequest back = request(kSpheres, 32, 24, 5, 1, 0, "x_#.png");

@@ -7,14 +7,14 @@
 #   - the coordinator's overhead per band and the bytes per band
 #     (locus-farm-bench).
 # SCENE, SIZE, SPP and BANDS override the frame (default: scenes/paper/a_glass.json
-# at 512x512, spp 6: about 5 s on one core) and REPS the runs of each (3).
+# at 512x512, spp 8: over 5 s on one core) and REPS the runs of each (3).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build}
 bin=$build/bin
 scene=${SCENE:-$root/scenes/paper/a_glass.json}
 size=${SIZE:-512x512}
-spp=${SPP:-6}
+spp=${SPP:-8}
 bands=${BANDS:-32}
 tmp=$(mktemp -d)
 pids=()
@@ -60,7 +60,10 @@ best() {
   done
   echo "$best"
 }
-load_before=$(cut -d' ' -f1 /proc/loadavg)
+# Other runnable processes now (the load average lags by a minute): the
+# mean of procs_running over a second, less this script's own sampler.
+busy=$(for _ in 1 2 3 4 5; do awk '/^procs_running/ {print $2 - 1}' /proc/stat; sleep 0.2; done |
+  awk '{s += $1} END {printf "%.1f", s / NR}')
 t1=$(best 1)
 t2=$(best 2)
 cmp -s "$tmp/out_1.png" "$tmp/out_2.png" && same=yes || same=NO
@@ -75,8 +78,8 @@ mkdir -p "$(dirname "$results")"
   echo "# Farm figures"
   echo
   echo "Written by \`bench/farm/run.sh\` on $(nproc) cores ($(date -u +%Y-%m-%d)). Coordinator and"
-  echo "workers on 127.0.0.1; each worker renders with one thread; best of $reps runs each (load"
-  echo "average $load_before before the runs)."
+  echo "workers on 127.0.0.1; each worker renders with one thread; best of $reps runs each ($busy"
+  echo "other runnable processes on average just before the runs)."
   echo
   echo "| What | Figure |"
   echo "|---|---|"
@@ -94,4 +97,10 @@ mkdir -p "$(dirname "$results")"
   echo
   echo "A band's result is 12 bytes per pixel (3 linear floats, packed) plus about 30 bytes of"
   echo "ids and counters."
+  if python3 -c "import sys; sys.exit(0 if $busy >= 1.0 else 1)"; then
+    echo
+    echo "**Warning**: other work was running ($busy runnable processes on $(nproc) cores), so the"
+    echo "workers competed for cores and the speed-up understates the farm's. Run again on an idle"
+    echo "machine."
+  fi
 } | tee "$results"
