@@ -18,6 +18,7 @@
 namespace locus {
 namespace {
 
+using testing_util::expect_bands_bit_identical;
 using testing_util::agreement_scenes;
 using testing_util::camera_scene;
 using testing_util::distance_to_edge;
@@ -132,27 +133,10 @@ TEST(Local, EyeRaysOnlyWhereBoundingPolyhedraCover) {
 }
 
 TEST(Local, BandsStitchBitIdentical) {
-  auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/c_thermometer.json");
-  ASSERT_TRUE(scene.ok()) << scene.status().message();
-  scene->camera.width = 64;
-  scene->camera.height = 50;
   RenderParams p;
   p.method = Method::kLocal;
   p.boxes = Boxes::kEye;
-  auto prepared = prepare_scene(*scene, p);
-  ASSERT_TRUE(prepared.ok());
-  const BandResult whole = render_band(**prepared, Band{0, 50}, p);
-  for (int bands : {2, 3, 7, 50}) {
-    for (int b = 0; b < bands; ++b) {
-      const Band band{b * 50 / bands, (b + 1) * 50 / bands};
-      const BandResult part = render_band(**prepared, band, p);
-      for (int y = band.y0; y < band.y1; ++y) {
-        ASSERT_EQ(0, std::memcmp(whole.pixels.pixel(0, y), part.pixels.pixel(0, y - band.y0),
-                                 sizeof(float) * 3 * 64))
-            << bands << " bands, row " << y;
-      }
-    }
-  }
+  expect_bands_bit_identical(LOCUS_SOURCE_DIR "/scenes/paper/c_thermometer.json", p);
 }
 
 // The hard cases of a scanline hidden-surface pass (issue #4 item 2), each

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -24,6 +25,29 @@ namespace testing_util {
 
 // Distance from pixel centre (x, y) to the nearest projected face edge of
 // the scanline pass.
+// Renders the scene at 64 x 50 whole and split into 2, 3, 7 and 50 bands;
+// every band's rows must be bit-identical to the same rows of the whole.
+inline void expect_bands_bit_identical(const std::string& path, const RenderParams& p) {
+  auto scene = load_scene(path);
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  scene->camera.width = 64;
+  scene->camera.height = 50;
+  auto prepared = prepare_scene(*scene, p);
+  ASSERT_TRUE(prepared.ok()) << prepared.status().message();
+  const BandResult whole = render_band(**prepared, Band{0, 50}, p);
+  for (int bands : {2, 3, 7, 50}) {
+    for (int b = 0; b < bands; ++b) {
+      const Band band{b * 50 / bands, (b + 1) * 50 / bands};
+      const BandResult part = render_band(**prepared, band, p);
+      for (int y = band.y0; y < band.y1; ++y) {
+        ASSERT_EQ(0, std::memcmp(whole.pixels.pixel(0, y), part.pixels.pixel(0, y - band.y0),
+                                 sizeof(float) * 3 * 64))
+            << path << ": " << bands << " bands, row " << y;
+      }
+    }
+  }
+}
+
 inline double distance_to_edge(const ScanScene& scan, double x, double y) {
   double best = 1e300;
   for (const ScanFace& f : scan.faces) {

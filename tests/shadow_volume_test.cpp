@@ -22,6 +22,7 @@ namespace {
 
 using testing_util::agreement_scenes;
 using testing_util::camera_scene;
+using testing_util::expect_bands_bit_identical;
 using testing_util::expect_agreement;
 using testing_util::quad;
 
@@ -429,25 +430,7 @@ TEST(ShadowVolumeScenes, AgreesWithRayTracerOnEveryScene) {
 
 TEST(ShadowVolumeScenes, BandsStitchBitIdentical) {
   for (const char* name : {"/scenes/paper/c_thermometer.json", "/scenes/paper/a_glass.json"}) {
-    auto scene = load_scene(std::string(LOCUS_SOURCE_DIR) + name);
-    ASSERT_TRUE(scene.ok()) << scene.status().message();
-    scene->camera.width = 64;
-    scene->camera.height = 50;
-    const RenderParams p = config_iv();
-    auto prepared = prepare_scene(*scene, p);
-    ASSERT_TRUE(prepared.ok());
-    const BandResult whole = render_band(**prepared, Band{0, 50}, p);
-    for (int bands : {2, 3, 7, 50}) {
-      for (int b = 0; b < bands; ++b) {
-        const Band band{b * 50 / bands, (b + 1) * 50 / bands};
-        const BandResult part = render_band(**prepared, band, p);
-        for (int y = band.y0; y < band.y1; ++y) {
-          ASSERT_EQ(0, std::memcmp(whole.pixels.pixel(0, y), part.pixels.pixel(0, y - band.y0),
-                                   sizeof(float) * 3 * 64))
-              << name << ": " << bands << " bands, row " << y;
-        }
-      }
-    }
+    expect_bands_bit_identical(std::string(LOCUS_SOURCE_DIR) + name, config_iv());
   }
 }
 
