@@ -16,8 +16,9 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
   const RowVisibility vis = visible_faces(scan, cam, cam.from, y);
   stats.spans_total += vis.spans;
   (void)params;
-  // Configuration IV: the shadows of each span come from the shadow
-  // volumes before shading (paper §3.2 step 2).
+  // The shadows of each span come from the shadow volumes before shading
+  // (paper §3.2 step 2); IV narrows the volumes by the boxes and the face's
+  // candidate list, II and III meet every occluder's volume.
   std::optional<SpanShadows> shadows;
   if (ps.volumes) shadows.emplace(ps, y, stats);
 

@@ -96,9 +96,11 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
                             KnownShadows* known) {
   const Vec3 lp = ps_.scene.lights[light].position;
   const Vec3 origin = offset(p, ng, lp - p);
-  if (known) return known->transmittance(p, origin, light);
+  if (known) {
+    if (const std::optional<Color> t = known->transmittance(p, origin, light)) return *t;
+  }
   // Configuration IV: containment in shadow volumes (paper §4.1).
-  if (ps_.volumes) {
+  if (ps_.volumes && ps_.volumes->search) {
     return volume_transmittance(ps_, origin, light, receiver, stats_, &last_occluder_[light]);
   }
   ++stats_.rays_shadow;

@@ -25,7 +25,8 @@ class KnownShadows {
   virtual ~KnownShadows() = default;
   // `p` is the shaded point, `origin` the start of its shadow segment (p
   // offset off the surface towards the light's side, as a shadow ray).
-  virtual Color transmittance(const Vec3& p, const Vec3& origin, int light) = 0;
+  // nullopt: not known here after all (the caller searches itself).
+  virtual std::optional<Color> transmittance(const Vec3& p, const Vec3& origin, int light) = 0;
 };
 
 // Paper eqs. (2), (3): the product of (1 - r) over the crossings of the

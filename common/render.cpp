@@ -41,9 +41,11 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
   eps = 1e-9 * std::min(scale, 1e7) * 100.0;
   if (params.method == Method::kLocal) scan = std::make_unique<ScanScene>(build_scan_scene(*this));
-  // Configuration IV: shadow volumes instead of shadow rays (paper §4.1).
-  if (params.method == Method::kLocal && bvh_for_shadows) {
-    volumes = std::make_shared<const ShadowVolumes>(build_shadow_volumes(*this));
+  // The scanline pass finds the shadows of its spans with shadow volumes
+  // (paper §3.2 step 2) in configurations II-IV; IV also searches the
+  // boxes' volumes for points reached by secondary rays (paper §4.1).
+  if (params.method == Method::kLocal) {
+    volumes = std::make_shared<const ShadowVolumes>(build_shadow_volumes(*this, bvh_for_shadows));
   }
 }
 
@@ -83,7 +85,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   work(0);
   for (auto& t : pool) t.join();
   for (const Stats& s : stats) result.stats += s;
-  result.stats.shadow_method = ps.volumes ? "volumes" : "rays";
+  result.stats.shadow_method = !ps.volumes ? "rays" : ps.volumes->search ? "volumes" : "volumes+rays";
   result.stats.seconds_render =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

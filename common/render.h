@@ -48,7 +48,9 @@ struct Stats {
   uint64_t pixels_ray_traced = 0;  // pixels where an eye, reflected or refracted ray was cast
   uint64_t spans_total = 0;        // local method: visible spans over all rows
   uint64_t spans_ray_traced = 0;   // spans whose pixels were ray traced
-  std::string shadow_method = "rays";  // how shadows were found: "rays" or "volumes" (IV)
+  // How shadows were found: "rays" (raytrace), "volumes+rays" (II, III:
+  // spans by volumes, secondary points by rays), "volumes" (IV).
+  std::string shadow_method = "rays";
 
   Stats& operator+=(const Stats& o);
   std::string to_json() const;

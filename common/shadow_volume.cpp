@@ -551,8 +551,9 @@ int add_pieces_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Con
   return static_cast<int>(pieces.size());
 }
 
-ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
+ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
   ShadowVolumes sv;
+  sv.search = search;
   const PrimitiveSet& set = ps.prims;
   const int n = static_cast<int>(set.prims.size());
   // Bounding polyhedra of curved bodies, one per CSG leaf.
@@ -591,6 +592,10 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps) {
     lv.slack = 4.0 * ps.eps + 1e-12 * (scale + glm::length(light.position));
     const double slack = lv.slack;
     for (int i = 0; i < n; ++i) add_occluder(ps, i, leaves[i], pieces[i], lv);
+    if (!search) {
+      sv.lights.push_back(std::move(lv));
+      continue;
+    }
     // The hierarchy's boxes (paper §4.1): a point outside a box's volume is
     // shadowed by nothing in the box.
     for (const BvhNode& node : ps.bvh.nodes) {
@@ -882,12 +887,19 @@ void SpanShadows::compute_light(int j) {
       }
     }
   };
-  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
-  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
   // Opaque intervals first: a pixel in one needs no exact test.
   auto opaque_first = [&] {
     std::stable_partition(out.begin(), out.end(), [](const Interval& i) { return i.decides; });
   };
+  if (!ps_.volumes->search) {
+    // Configurations II and III: no boxes and no front/back relations, so
+    // the span meets every occluder's volume.
+    for (int c = 0; c < static_cast<int>(lv.occluders.size()); ++c) occluder(c);
+    opaque_first();
+    return;
+  }
+  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
+  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
   if (ce - cb <= kWalkAbove) {
     for (const int* c = cb; c != ce; ++c) occluder(*c);
     opaque_first();
@@ -916,12 +928,13 @@ void SpanShadows::compute_light(int j) {
   opaque_first();
 }
 
-Color SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {
+std::optional<Color> SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {
   if (!done_[light]) compute_light(light);
   const ScanFace& f = ps_.scan->faces[face_];
   // The intervals hold for origins on the light's side of the face; a
   // light almost in the face's plane may put a pixel's origin on the other.
   if ((glm::dot(origin - p, f.normal) > 0) != static_cast<bool>(side_[light])) {
+    if (!ps_.volumes->search) return std::nullopt;  // a shadow ray decides
     return volume_transmittance(ps_, origin, light, f.prim, stats_, nullptr);
   }
   const double a = pixel_a(x_);

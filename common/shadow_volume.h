@@ -116,11 +116,18 @@ struct LightVolumes {
 
 struct ShadowVolumes {
   std::vector<LightVolumes> lights;
+  // Configuration IV: the boxes' volumes (node_volume) and the front/back
+  // relations (candidates) are built, and points reached by secondary rays
+  // search them (volume_transmittance). Otherwise (II, III) only the
+  // occluders' volumes exist: each span meets every one of them, and
+  // secondary points cast shadow rays.
+  bool search = false;
 };
 
-// Built at prepare time for configuration IV (--method local --boxes
-// eye+shadow). Needs ps.prims and ps.bvh.
-ShadowVolumes build_shadow_volumes(const PreparedScene& ps);
+// Built at prepare time for --method local: with `search` (configuration
+// IV, --boxes eye+shadow) the hierarchy's volumes and the candidate lists
+// too. Needs ps.prims, and ps.bvh if `search`.
+ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search);
 
 // t_pj (eqs. (2), (3)) of light `light` at the shadow-ray origin `origin`
 // of a point on primitive `receiver` (-1: unknown), found by walking the
@@ -147,7 +154,7 @@ class SpanShadows : public KnownShadows {
   // The pixel about to be shaded.
   void set_pixel(int x) { x_ = x; }
 
-  Color transmittance(const Vec3& p, const Vec3& origin, int light) override;
+  std::optional<Color> transmittance(const Vec3& p, const Vec3& origin, int light) override;
 
  private:
   // Where the span meets one volume: lo <= a <= hi in the image-plane

@@ -87,7 +87,10 @@ TEST(Local, NoRaysWithoutMirrorsGlassOrCurvedBodies) {
   EXPECT_EQ(r->stats.pixels_ray_traced, 0u);
   EXPECT_EQ(r->stats.spans_ray_traced, 0u);
   EXPECT_GT(r->stats.spans_total, 48u);
-  EXPECT_EQ(r->stats.shadow_method, "rays");
+  // The box's shadow on the floor comes from its volume: no shadow ray.
+  EXPECT_EQ(r->stats.rays_shadow, 0u);
+  EXPECT_GT(r->stats.tests_shadow_volume, 0u);
+  EXPECT_EQ(r->stats.shadow_method, "volumes+rays");
 }
 
 // Scene (d): eye rays only inside the spheres' bounding polyhedra.

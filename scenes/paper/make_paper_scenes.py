@@ -395,15 +395,20 @@ PRISM_COLOURS = [
 D_LIGHTS = [[-9.0, 14.0, 9.0], [11.0, 12.0, 3.0], [1.0, 15.0, -12.0]]
 
 
-def scene_d_spheres(n_lights):
+def scene_d_spheres(n_lights, radius=1.8, ring=3.2, spacing=4.4, eye=(0.0, 15.0, 13.0),
+                    angle=50.0):
     """Fig. 8(d) and Table 1: four groups of a perfectly mirroring sphere
     ringed by 16 opaque prisms, arranged 2 x 2 on a floor.
 
     Only the spheres reflect, so only their spans need ray tracing; the
     prisms and the floor are diffuse (ks = 0) and fully handled by the
     scanline pass. Lights take the SPD default intensity sqrt(L)/(2L).
+
+    The paper notes that in its examples the mirrors "occupy a considerable
+    part" of the image; here the spheres' bounding polyhedra cover about a
+    quarter of it (docs/shadow-volumes.md, Table 1).
     """
-    s = Scene(camera([0.0, 16.0, 13.0], [0.0, 0.0, 0.6], 44.0),
+    s = Scene(camera(list(eye), [0.0, 0.0, 0.6], angle),
               background=[0.25, 0.3, 0.4], ambient=0.2)
     for position in D_LIGHTS[:n_lights]:
         s.light(position)
@@ -415,16 +420,16 @@ def scene_d_spheres(n_lights):
 
     s.add("floor", "floor", box([-30, -0.2, -30], [30, 0, 30]))
     group = 0
-    for gz in (-3.6, 3.6):
-        for gx in (-3.6, 3.6):
+    for gz in (-spacing, spacing):
+        for gx in (-spacing, spacing):
             s.add("mirror sphere %d" % group, "mirror",
-                  sphere([gx, 1.0, gz], 1.0))
+                  sphere([gx, radius, gz], radius))
             # Groups 0 and 3 have square prisms, 1 and 2 hexagonal ones.
             sides = 4 if group in (0, 3) else 6
             for k in range(16):
                 a = 2 * math.pi * k / 16
-                x = gx + 2.3 * math.cos(a)
-                z = gz + 2.3 * math.sin(a)
+                x = gx + ring * math.cos(a)
+                z = gz + ring * math.sin(a)
                 height = 0.6 + 0.3 * ((k + group) % 4)  # 0.6 .. 1.5
                 s.add("group %d prism %d" % (group, k),
                       "prism %d" % ((k + 2 * group) % len(PRISM_COLOURS)),
