@@ -54,6 +54,18 @@ Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
   if (params.spp < 1 || params.spp > 64) {
     return InvalidArgument("--spp must be between 1 and 64, got " + std::to_string(params.spp));
   }
+  if (params.aa < 0 || params.aa > kMaxAa) {
+    return InvalidArgument("--aa must be between 0 and " + std::to_string(kMaxAa) + ", got " +
+                           std::to_string(params.aa));
+  }
+  if (params.method == Method::kLocal && params.spp != 1) {
+    return InvalidArgument("--spp " + std::to_string(params.spp) +
+                           ": the local method anti-aliases by multi-scanning; use --aa N");
+  }
+  if (params.method == Method::kRaytrace && params.aa != 0) {
+    return InvalidArgument("--aa " + std::to_string(params.aa) +
+                           ": multi-scanning belongs to --method local; the ray tracer uses --spp N");
+  }
   if (scene.camera.width < 1 || scene.camera.height < 1) {
     return InvalidArgument("image size must be positive");
   }

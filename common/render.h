@@ -18,10 +18,15 @@ namespace locus {
 enum class Method { kRaytrace, kLocal };
 enum class Boxes { kNone, kEye, kEyeShadow };
 
+inline constexpr int kMaxAa = 64;
+
 struct RenderParams {
   Method method = Method::kRaytrace;
   Boxes boxes = Boxes::kEyeShadow;
-  int spp = 1;       // spp x spp stratified samples per pixel; 1 = pixel centre
+  int spp = 1;       // raytrace: spp x spp stratified samples per pixel; 1 = pixel centre
+  // local: multi-scanning with `aa` sub-scanlines per pixel row (paper
+  // §3.3); 0 = point sampling at pixel centres.
+  int aa = 0;
   int threads = 0;   // 0 = all cores
 };
 

@@ -9,9 +9,9 @@ namespace locus::farm {
 
 Result<RenderParams> to_render_params(const RenderSettings& s, int threads) {
   RenderParams p;
-  if (s.method.empty() || s.method == "raytrace") {
+  if (s.method == "raytrace") {
     p.method = Method::kRaytrace;
-  } else if (s.method == "local") {
+  } else if (s.method.empty() || s.method == "local") {
     p.method = Method::kLocal;
   } else {
     return InvalidArgument("render method '" + s.method + "' is unknown; use raytrace or local");
@@ -29,6 +29,19 @@ Result<RenderParams> to_render_params(const RenderSettings& s, int threads) {
   if (p.spp < 1 || p.spp > 64) {
     return InvalidArgument("spp must be between 1 and 64, got " + std::to_string(s.spp));
   }
+  p.aa = s.aa;
+  if (p.aa < 0 || p.aa > kMaxAa) {
+    return InvalidArgument("aa must be between 0 and " + std::to_string(kMaxAa) + ", got " +
+                           std::to_string(s.aa));
+  }
+  if (p.method == Method::kLocal && p.spp != 1) {
+    return InvalidArgument("--spp " + std::to_string(p.spp) +
+                           ": the local method anti-aliases by multi-scanning; use --aa N");
+  }
+  if (p.method == Method::kRaytrace && p.aa != 0) {
+    return InvalidArgument("--aa " + std::to_string(p.aa) +
+                           ": multi-scanning needs --method local; the ray tracer uses --spp N");
+  }
   p.threads = threads;
   return p;
 }
@@ -38,6 +51,7 @@ RenderSettings from_render_params(const RenderParams& p) {
   s.method = p.method == Method::kLocal ? "local" : "raytrace";
   s.boxes = p.boxes == Boxes::kNone ? "none" : (p.boxes == Boxes::kEye ? "eye" : "eye+shadow");
   s.spp = p.spp;
+  s.aa = p.aa;
   return s;
 }
 

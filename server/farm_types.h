@@ -32,10 +32,12 @@ inline constexpr int kMaxMessageBytes = 64 << 20;
 inline constexpr int64_t kMaxBandBytes = 48 << 20;
 
 // How every pixel is computed; the names are those of the CLI flags.
+// Defaults are those of `locus render`: configuration IV.
 struct RenderSettings {
-  std::string method = "raytrace";
+  std::string method = "local";
   std::string boxes = "eye+shadow";
   int spp = 1;
+  int aa = 0;  // local only: sub-scanlines per pixel row, 0 = point sampling
 };
 
 // Checks the names and ranges; the thread count is the worker's own.

@@ -112,14 +112,16 @@ v1::RenderSettings ToProto(const farm::RenderSettings& s) {
   p.set_method(s.method);
   p.set_boxes(s.boxes);
   p.set_spp(s.spp);
+  p.set_aa(s.aa);
   return p;
 }
 
 farm::RenderSettings FromProto(const v1::RenderSettings& p) {
   farm::RenderSettings s;
-  s.method = p.method().empty() ? "raytrace" : p.method();
-  s.boxes = p.boxes().empty() ? "eye+shadow" : p.boxes();
+  s.method = p.method().empty() ? farm::RenderSettings{}.method : p.method();
+  s.boxes = p.boxes().empty() ? farm::RenderSettings{}.boxes : p.boxes();
   s.spp = p.spp() == 0 ? 1 : p.spp();
+  s.aa = p.has_aa() ? p.aa() : farm::RenderSettings{}.aa;
   return s;
 }
 
@@ -132,6 +134,7 @@ v1::RenderStats ToProto(const Stats& s) {
   p.set_rays_refracted(s.rays_refracted);
   p.set_rays_shadow(s.rays_shadow);
   p.set_tests_ray_object(s.tests_ray_object);
+  p.set_tests_shadow_volume(s.tests_shadow_volume);
   p.set_pixels_total(s.pixels_total);
   p.set_pixels_ray_traced(s.pixels_ray_traced);
   p.set_spans_total(s.spans_total);
@@ -149,6 +152,7 @@ Stats FromProto(const v1::RenderStats& p) {
   s.rays_refracted = p.rays_refracted();
   s.rays_shadow = p.rays_shadow();
   s.tests_ray_object = p.tests_ray_object();
+  s.tests_shadow_volume = p.tests_shadow_volume();
   s.pixels_total = p.pixels_total();
   s.pixels_ray_traced = p.pixels_ray_traced();
   s.spans_total = p.spans_total();

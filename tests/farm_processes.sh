@@ -69,8 +69,8 @@ job=$(head -1 "$tmp/submit.out")
 # ---- SIGKILL of a worker in the middle of a job
 # About 3 s of work for two workers: long enough to freeze one, see it
 # holding a band and kill it (the lease, 3 s, outlives that look).
-"$bin/locus" render "$glass" --orbit 20 --frames 1-8 --size 96x72 --spp 12 --workers 0 -o "$tmp/r/k_####.png" 2>/dev/null
-"$bin/locus" submit "$glass" --farm "$farm" --orbit 20 --frames 1-8 --size 96x72 --spp 12 --bands 4 \
+"$bin/locus" render "$glass" --orbit 20 --frames 1-8 --size 96x72 --method raytrace --spp 12 --workers 0 -o "$tmp/r/k_####.png" 2>/dev/null
+"$bin/locus" submit "$glass" --farm "$farm" --orbit 20 --frames 1-8 --size 96x72 --method raytrace --spp 12 --bands 4 \
   -o "$tmp/k/k_####.png" --wait >"$tmp/kill.out" 2>"$tmp/kill.log" &
 submit=$!
 for _ in $(seq 500); do
@@ -102,7 +102,7 @@ else
 fi
 
 # ---- cancel
-"$bin/locus" submit "$glass" --farm "$farm" --frames 1-400 --size 96x72 --spp 4 -o "$tmp/c/c_####.png" \
+"$bin/locus" submit "$glass" --farm "$farm" --frames 1-400 --size 96x72 --method raytrace --spp 4 -o "$tmp/c/c_####.png" \
   >"$tmp/cancel.out" 2>"$tmp/cancel.log"
 cjob=$(head -1 "$tmp/cancel.out")
 sleep 0.3

@@ -165,6 +165,25 @@ TEST_F(FarmTest, StitchedFramesEqualSingleProcessForAnySplit) {
     r.render.boxes = "eye";
     expect_identical(run(r), r);
   }
+  // Configuration IV is the default, and the job's stats are the sum of the
+  // bands', shadow-volume tests included.
+  SubmitRequest r = request(kGlass, 64, 48, 1, 1, 5, "iv_####.exr");
+  ASSERT_EQ(r.render.method, "local");
+  ASSERT_EQ(r.render.boxes, "eye+shadow");
+  const JobInfo iv = run(r);
+  expect_identical(iv, r);
+  auto params = farm::to_render_params(r.render, 1);
+  ASSERT_TRUE(params.ok());
+  auto scene = load_scene(r.scene_name);
+  ASSERT_TRUE(scene.ok());
+  scene->camera.width = r.width;
+  scene->camera.height = r.height;
+  auto single = render_image(*scene, *params);
+  ASSERT_TRUE(single.ok());
+  EXPECT_GT(single->stats.tests_shadow_volume, 0u);
+  EXPECT_EQ(iv.stats.tests_shadow_volume, single->stats.tests_shadow_volume);
+  EXPECT_EQ(iv.stats.pixels_total, single->stats.pixels_total);
+  EXPECT_EQ(iv.stats.shadow_method, "volumes");
 }
 
 TEST_F(FarmTest, TenFrameAnimationOverTwoWorkers) {
@@ -293,6 +312,17 @@ TEST_F(FarmTest, BadSubmissionsGetClearErrorsAndStoreNothing) {
   SubmitRequest obj = request(kSpheres, 32, 24, 1, 1, 0, "x.png");
   obj.scene.mutable_objects(0)->mutable_mesh()->set_obj("/etc/passwd");
   EXPECT_EQ(client_->submit(obj).status().code(), Code::kInvalidArgument);
+  // Each method's own anti-aliasing: --spp for raytrace, --aa for local.
+  SubmitRequest spp = request(kSpheres, 32, 24, 1, 1, 0, "x.png");
+  spp.render.spp = 4;
+  EXPECT_NE(client_->submit(spp).status().message().find("--spp 4"), std::string::npos);
+  SubmitRequest aa = request(kSpheres, 32, 24, 1, 1, 0, "x.png");
+  aa.render.method = "raytrace";
+  aa.render.aa = 2;
+  EXPECT_NE(client_->submit(aa).status().message().find("--aa 2"), std::string::npos);
+  aa.render.method = "local";
+  aa.render.aa = kMaxAa + 1;
+  EXPECT_EQ(client_->submit(aa).status().code(), Code::kInvalidArgument);
 
   auto jobs = client_->jobs();
   ASSERT_TRUE(jobs.ok());

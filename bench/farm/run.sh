@@ -44,7 +44,7 @@ run_with() {
   done
   sleep 0.5
   local job
-  job=$("$bin/locus" submit "$scene" --farm "$farm" --size "$size" --spp "$spp" --bands "$bands" \
+  job=$("$bin/locus" submit "$scene" --farm "$farm" --size "$size" --method raytrace --spp "$spp" --bands "$bands" \
     -o "$tmp/out_$n.png" --wait 2>/dev/null | head -1)
   kill "${ws[@]}"
   wait "${ws[@]}" 2>/dev/null || true
