@@ -20,7 +20,7 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
   // (paper §3.2 step 2); IV narrows the volumes by the boxes and the face's
   // candidate list, II and III meet every occluder's volume.
   std::optional<SpanShadows> shadows;
-  if (ps.volumes) shadows.emplace(ps, y, stats);
+  if (ps.volumes) shadows.emplace(ps, y + 0.5, stats);
 
   bool prev_traced = false;
   int prev_face = -2;

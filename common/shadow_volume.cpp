@@ -766,26 +766,102 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   return segment_transmittance(ps.scene, seg, crossings);
 }
 
-SpanShadows::SpanShadows(const PreparedScene& ps, int row, Stats& stats) : ps_(ps), stats_(stats) {
+SpanShadows::SpanShadows(const PreparedScene& ps, double y, Stats& stats) : ps_(ps), stats_(stats) {
   const CameraFrame& cam = ps.camera;
-  b_ = (1.0 - 2.0 * (row + 0.5) / cam.height) * cam.tan_half;
+  b_ = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
   const size_t lights = ps.scene.lights.size();
   done_.assign(lights, 0);
   side_.assign(lights, 0);
   iv_.resize(lights);
 }
 
-double SpanShadows::pixel_a(int x) const {
-  // The same expression as visible_faces() (scanline.cpp).
+double SpanShadows::image_a(double x) const {
+  // The same expression as visible_faces() (scanline.cpp) at x = i + 0.5.
   const CameraFrame& cam = ps_.camera;
-  return (2.0 * (x + 0.5) / cam.width - 1.0) * cam.tan_half * cam.aspect;
+  return (2.0 * x / cam.width - 1.0) * cam.tan_half * cam.aspect;
 }
 
-void SpanShadows::begin_span(int face, int x0, int x1) {
+double SpanShadows::image_x(double a) const {
+  const CameraFrame& cam = ps_.camera;
+  return 0.5 * cam.width * (1.0 + a / (cam.tan_half * cam.aspect));
+}
+
+void SpanShadows::begin_span(int face, double x_first, double x_last) {
   face_ = face;
-  x0_ = x0;
-  x1_ = x1;
+  a_first_ = image_a(x_first);
+  a_last_ = image_a(x_last);
   std::fill(done_.begin(), done_.end(), 0);
+}
+
+void SpanShadows::breakpoints(std::vector<double>& xs) {
+  for (int j = 0; j < static_cast<int>(iv_.size()); ++j) {
+    if (!done_[j]) compute_light(j);
+    for (const Interval& iv : iv_[j]) {
+      for (const double a : {iv.lo, iv.hi}) {
+        if (a > a_first_ && a < a_last_) xs.push_back(image_x(a));
+      }
+    }
+  }
+}
+
+bool SpanShadows::uncertain(double x0, double x1) {
+  const double a0 = image_a(x0), a1 = image_a(x1);
+  for (int j = 0; j < static_cast<int>(iv_.size()); ++j) {
+    if (!done_[j]) compute_light(j);
+    for (const Interval& iv : iv_[j]) {
+      if (iv.decides) continue;
+      // Where a non-deciding volume holds the points, an exact test does.
+      if (iv.outside ? (a0 < iv.lo || a1 > iv.hi) : (iv.lo < a1 && a0 < iv.hi)) return true;
+    }
+  }
+  return false;
+}
+
+LightStates SpanShadows::states(double x) {
+  LightStates st;
+  const double a = image_a(x);
+  const ScanFace& f = ps_.scan->faces[face_];
+  const CameraFrame& cam = ps_.camera;
+  const int lights = static_cast<int>(iv_.size());
+  thread_local std::vector<Crossing> crossings;
+  for (int j = 0; j < lights && j < 64; ++j) {
+    if (!done_[j]) compute_light(j);
+    // The shadow-ray origin of the face's point at a (docs/local.md).
+    const Vec3 d = cam.w + b_ * cam.v + a * cam.u;
+    const double den = glm::dot(f.normal, d);
+    const double sp = (f.offset - glm::dot(f.normal, cam.from)) / den;
+    const Vec3 p = cam.from + sp * d;
+    const Vec3 origin = p + (side_[j] ? ps_.eps : -ps_.eps) * f.normal;
+    const Ray seg{origin, ps_.volumes->lights[j].position - origin};
+    crossings.clear();
+    int tested = -1;
+    bool opaque = false;
+    for (const Interval& iv : iv_[j]) {
+      if (((iv.lo <= a && a <= iv.hi) == iv.outside)) continue;
+      if (iv.decides) {
+        opaque = true;
+        break;
+      }
+      if (iv.prim == tested) continue;
+      tested = iv.prim;
+      if (exact_test(ps_, iv.prim, seg, crossings, stats_)) {
+        opaque = true;
+        break;
+      }
+    }
+    const uint64_t bit = uint64_t{1} << j;
+    if (opaque) {
+      st.opaque |= bit;
+    } else if (!crossings.empty()) {
+      // Through transparent occluders: which ones (eqs. (2), (3) vary
+      // smoothly inside, and jump where the set changes).
+      st.partial |= bit;
+      for (const Crossing& c : crossings) {
+        st.transparent = (st.transparent ^ static_cast<uint64_t>(c.leaf + 1)) * 1099511628211ull;
+      }
+    }
+  }
+  return st;
 }
 
 namespace {
@@ -858,8 +934,8 @@ void SpanShadows::compute_light(int j) {
   l.sigma = l.num > 0 ? 1.0 : -1.0;
   l.nw = glm::dot(n, l.w_bv);
   l.nu = glm::dot(n, cam.u);
-  l.a_first = pixel_a(x0_);
-  l.a_last = pixel_a(x1_ - 1);
+  l.a_first = a_first_;
+  l.a_last = a_last_;
   // One candidate occluder: the interval of each of its volumes.
   auto occluder = [&](int c) {
     const LightVolumes::Occluder& oc = lv.occluders[c];
@@ -929,6 +1005,7 @@ void SpanShadows::compute_light(int j) {
 }
 
 std::optional<Color> SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {
+  if (light >= static_cast<int>(iv_.size())) return std::nullopt;
   if (!done_[light]) compute_light(light);
   const ScanFace& f = ps_.scan->faces[face_];
   // The intervals hold for origins on the light's side of the face; a
@@ -937,7 +1014,7 @@ std::optional<Color> SpanShadows::transmittance(const Vec3& p, const Vec3& origi
     if (!ps_.volumes->search) return std::nullopt;  // a shadow ray decides
     return volume_transmittance(ps_, origin, light, f.prim, stats_, nullptr);
   }
-  const double a = pixel_a(x_);
+  const double a = a_;
   const Ray seg{origin, ps_.volumes->lights[light].position - origin};
   thread_local std::vector<Crossing> crossings;
   crossings.clear();
