@@ -7,7 +7,6 @@
 namespace locus {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Roots of a t^2 + b t + c = 0 in increasing order, computed without
 // catastrophic cancellation. Returns the number of real roots (0 or 2).

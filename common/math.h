@@ -2,8 +2,14 @@
 #pragma once
 
 #include <glm/glm.hpp>
+#include <limits>
 
 namespace locus {
+
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
+// Relative depth difference below which two surfaces are coincident, in the
+// ray tracer's nearest() and in the scanline pass alike (docs/renderer.md).
+inline constexpr double kTieRel = 1e-9;
 
 using Vec3 = glm::dvec3;
 using Vec2 = glm::dvec2;

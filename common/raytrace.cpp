@@ -10,11 +10,9 @@
 namespace locus {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // SHADING.md "Ray tree".
 constexpr int kMaxDepth = 5;
 constexpr double kMinWeight = 1.0 / 512.0;
-constexpr double kTieRel = 1e-9;
 
 Color beer(const Color& q, double d) {
   return Color(std::exp(-q.x * d), std::exp(-q.y * d), std::exp(-q.z * d));

@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "common/local.h"
+#include "common/multiscan.h"
 #include "common/prepared.h"
 #include "common/raytrace.h"
 #include "common/shadow_volume.h"
@@ -40,7 +41,7 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   double scale = 1.0;
   if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
   eps = 1e-9 * std::min(scale, 1e7) * 100.0;
-  if (params.method == Method::kLocal) scan = std::make_unique<ScanScene>(build_scan_scene(*this));
+  if (params.method == Method::kLocal) scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
   // The scanline pass finds the shadows of its spans with shadow volumes
   // (paper §3.2 step 2) in configurations II-IV; IV also searches the
   // boxes' volumes for points reached by secondary rays (paper §4.1).
@@ -72,6 +73,12 @@ Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
   return std::shared_ptr<const PreparedScene>(std::make_shared<PreparedScene>(scene, params));
 }
 
+namespace {
+// Rows per unit of multi-scanning work: one sub-scanline in 8n is computed
+// twice (at each chunk's first row), and threads still share a band.
+constexpr int kMultiscanChunk = 8;
+}  // namespace
+
 BandResult render_band(const PreparedScene& ps, const Band& band, const RenderParams& params) {
   const auto start = std::chrono::steady_clock::now();
   const int y0 = std::clamp(band.y0, 0, ps.camera.height);
@@ -84,6 +91,15 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   std::vector<Stats> stats(threads);
   std::atomic<int> next{y0};
   auto work = [&](int id) {
+    if (ps.scan && params.aa > 0) {
+      // Multi-scanning: chunks of rows, so that inside a chunk each
+      // boundary sub-scanline is computed once (common/multiscan.h).
+      for (int y = next.fetch_add(kMultiscanChunk); y < y1; y = next.fetch_add(kMultiscanChunk)) {
+        multiscan_rows(ps, params, Band{y0, y1}, y, std::min(y1, y + kMultiscanChunk), result.pixels,
+                       stats[id]);
+      }
+      return;
+    }
     for (int y = next++; y < y1; y = next++) {
       if (ps.scan) {
         local_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);

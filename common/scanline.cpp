@@ -9,10 +9,6 @@
 namespace locus {
 namespace {
 
-// Depths within this relative distance are coincident surfaces; the same
-// rule as the ray tracer's nearest() (docs/renderer.md).
-constexpr double kTieRel = 1e-9;
-
 struct Projector {
   const CameraFrame& cam;
   double z_near;
@@ -59,7 +55,7 @@ Vec3 plane_normal(const std::vector<Vec3>& pts) {
 
 }  // namespace
 
-ScanScene build_scan_scene(const PreparedScene& ps) {
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
   ScanScene scan;
   const CameraFrame& cam = ps.camera;
   // Anything nearer than the near plane is clipped away; the near plane is
@@ -140,7 +136,32 @@ ScanScene build_scan_scene(const PreparedScene& ps) {
     const int j1 = static_cast<int>(std::min<double>(cam.height, hi));
     for (int j = j0; j < j1; ++j) scan.rows[j].push_back(f);
   }
+  if (multiscan) {
+    scan.cover.assign(cam.height, {});
+    for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
+      const ScanFace& face = scan.faces[f];
+      const int j0 = static_cast<int>(std::max(0.0, std::floor(face.ymin) - 1));
+      const int j1 = static_cast<int>(std::min<double>(cam.height, std::ceil(face.ymax) + 1));
+      for (int j = j0; j < j1; ++j) scan.cover[j].push_back(f);
+    }
+  }
   return scan;
+}
+
+LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b) {
+  // 1/s = (nw + a nu) / num with a = (2x / width - 1) tan_half aspect.
+  const double nw = glm::dot(f.normal, cam.w) + b * glm::dot(f.normal, cam.v);
+  const double nu = glm::dot(f.normal, cam.u);
+  const double num = f.offset - glm::dot(f.normal, eye);
+  const double k = cam.tan_half * cam.aspect;
+  return LineDepth{(nw - k * nu) / num, 2.0 * k * nu / (cam.width * num)};
+}
+
+bool wins_tie(const ScanScene& scan, int fi, int fj) {
+  const ScanFace& f = scan.faces[fi];
+  const ScanFace& c = scan.faces[fj];
+  return (f.curved && !c.curved) ||
+         (f.curved == c.curved && (f.prim < c.prim || (f.prim == c.prim && fi < fj)));
 }
 
 RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const Vec3& eye, int row) {
@@ -182,9 +203,7 @@ RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const
         if (!take && cur >= 0 && s <= vis.s[i] * (1.0 + kTieRel)) {
           // Coincident: a bounding polyhedron wins (its pixel is traced, and
           // the trace finds the truth); else the first-defined surface.
-          const ScanFace& c = scan.faces[cur];
-          take = (f.curved && !c.curved) ||
-                 (f.curved == c.curved && (f.prim < c.prim || (f.prim == c.prim && fi < cur)));
+          take = wins_tie(scan, fi, cur);
         }
         if (take) {
           vis.face[i] = fi;

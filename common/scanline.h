@@ -31,12 +31,30 @@ struct ScanFace {
 struct ScanScene {
   std::vector<ScanFace> faces;
   std::vector<std::vector<int>> rows;  // rows[j]: faces crossing y = j + 0.5
+  // Multi-scanning only: cover[j]: faces meeting some y in [j, j + 1].
+  std::vector<std::vector<int>> cover;
   // A curved body's bounding polyhedron contains the eye or is cut by the
   // near plane: its span is the whole screen, every pixel is traced.
   bool trace_everything = false;
 };
 
-ScanScene build_scan_scene(const PreparedScene& ps);
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan);
+
+// One face's depth along a sample line: 1/s = g0 + g1 x, with s the eye-ray
+// parameter along the unnormalised direction w + a u + b v and x the image
+// x (pixels). Planar faces make it linear in x, so depth order changes only
+// where two such lines cross.
+struct LineDepth {
+  double g0 = 0, g1 = 0;
+  double at(double x) const { return g0 + g1 * x; }
+};
+LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b);
+
+// Does face fi hide face fj where their depths are within rounding of each
+// other (coincident surfaces)? A bounding polyhedron first (its pixels are
+// traced, and the trace finds the truth), then the first-defined surface.
+bool wins_tie(const ScanScene& scan, int fi, int fj);
+
 
 // The visible face (index into ScanScene::faces, or -1 for background) at
 // each pixel centre of row j, with the eye-ray distance parameter s along

@@ -15,7 +15,6 @@
 namespace locus {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // A span tests a candidate list this long directly; a longer one through
 // the hierarchy.
 constexpr int kWalkAbove = 8;

@@ -1,0 +1,557 @@
+#include "common/multiscan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <vector>
+
+#include "common/raytrace.h"
+#include "common/scanline.h"
+#include "common/shadow_volume.h"
+
+namespace locus {
+namespace {
+
+// A visible figure's piece of one sub-scanline, inside one pixel.
+struct Piece {
+  enum Kind : uint8_t { kBackground, kTraced, kFigure };
+  double x0 = 0, x1 = 0;
+  Kind kind = kBackground;
+  int face = -1;       // kFigure: index into ScanScene::faces
+  Color colour{0.0};   // kTraced: the sample's radiance
+  LightStates lights;  // kFigure: the state of the lights on the piece
+};
+
+// One sub-scanline: its pieces in x order, and pixel i's pieces
+// [first[i], first[i + 1]).
+struct SubLine {
+  double y = 0;
+  std::vector<Piece> pieces;
+  std::vector<int> first;
+  int spans = 0, traced_spans = 0;
+};
+
+// A visible interval of one face on a sub-scanline (face -1: background).
+struct Segment {
+  double x0, x1;
+  int face;
+};
+
+// The visible segments of the sub-scanline at image y, covering [0, width)
+// (paper §3.1: hidden surfaces per scanline). Faces are resolved by depth,
+// and a segment is split where two faces' depth order changes
+// (interpenetration): their inverse depths are linear in x.
+std::vector<Segment> visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
+                                      const std::vector<int>& faces) {
+  const double b = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
+  const double width = cam.width;
+  struct Interval {
+    double xl, xr;
+    int face;
+    LineDepth d;
+  };
+  std::vector<Interval> ivs;
+  std::vector<double> xs;
+  for (int fi : faces) {
+    const ScanFace& f = scan.faces[fi];
+    if (!(f.ymin <= y && y < f.ymax)) continue;
+    // The same half-open rule as visible_faces(): shared edges give the
+    // same x in both faces, so no cracks and no double coverage.
+    xs.clear();
+    const size_t n = f.outline.size();
+    for (size_t k = 0; k < n; ++k) {
+      Vec2 p = f.outline[k], q = f.outline[(k + 1) % n];
+      if (p.y > q.y || (p.y == q.y && p.x > q.x)) std::swap(p, q);
+      if (!(p.y <= y && y < q.y)) continue;
+      xs.push_back(p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y));
+    }
+    std::sort(xs.begin(), xs.end());
+    const LineDepth d = line_depth(f, cam, cam.from, b);
+    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+      const double xl = std::max(0.0, xs[k]), xr = std::min(width, xs[k + 1]);
+      if (xr > xl) ivs.push_back(Interval{xl, xr, fi, d});
+    }
+  }
+  std::vector<double> events{0.0, width};
+  for (const Interval& iv : ivs) {
+    events.push_back(iv.xl);
+    events.push_back(iv.xr);
+  }
+  std::sort(events.begin(), events.end());
+  events.erase(std::unique(events.begin(), events.end()), events.end());
+  std::sort(ivs.begin(), ivs.end(), [](const Interval& a, const Interval& c) {
+    return a.xl < c.xl || (a.xl == c.xl && a.face < c.face);
+  });
+
+  std::vector<Segment> out;
+  auto emit = [&](double x0, double x1, int face) {
+    if (!(x1 > x0)) return;
+    if (!out.empty() && out.back().face == face && out.back().x1 == x0) {
+      out.back().x1 = x1;
+    } else {
+      out.push_back(Segment{x0, x1, face});
+    }
+  };
+  // Is a nearer than c at x? Larger 1/s is nearer; within kTieRel the
+  // surfaces coincide and the tie rule decides.
+  auto nearer = [&](const Interval& a, const Interval& c, double x) {
+    const double ga = a.d.at(x), gc = c.d.at(x);
+    if (!(gc > 0)) return ga > 0;
+    if (!(ga > 0)) return false;
+    if (ga > gc * (1.0 + kTieRel)) return true;
+    if (gc > ga * (1.0 + kTieRel)) return false;
+    return wins_tie(scan, a.face, c.face);
+  };
+  std::vector<const Interval*> active;
+  size_t next = 0;
+  struct Range {
+    double lo, hi;
+  };
+  std::vector<Range> stack;
+  for (size_t e = 0; e + 1 < events.size(); ++e) {
+    const double lo = events[e], hi = events[e + 1];
+    while (next < ivs.size() && ivs[next].xl <= lo) active.push_back(&ivs[next++]);
+    std::erase_if(active, [&](const Interval* iv) { return iv->xr <= lo; });
+    if (active.empty()) {
+      emit(lo, hi, -1);
+      continue;
+    }
+    stack.assign(1, Range{lo, hi});
+    int splits = 0;
+    while (!stack.empty()) {
+      const Range r = stack.back();
+      stack.pop_back();
+      const double mid = 0.5 * (r.lo + r.hi);
+      const Interval* top = nullptr;
+      for (const Interval* iv : active) {
+        if (iv->d.at(mid) > 0 && (!top || nearer(*iv, *top, mid))) top = iv;
+      }
+      if (!top) {
+        emit(r.lo, r.hi, -1);
+        continue;
+      }
+      // A face nearer than the top at either end crosses it inside: split
+      // there (its depth line meets the top's).
+      double split = -1;
+      if (splits < 64) {
+        for (const Interval* iv : active) {
+          if (iv == top || !(nearer(*iv, *top, r.lo) || nearer(*iv, *top, r.hi))) continue;
+          const double den = iv->d.g1 - top->d.g1;
+          if (den == 0) continue;
+          const double x = (top->d.g0 - iv->d.g0) / den;
+          if (x > r.lo && x < r.hi) {
+            split = x;
+            break;
+          }
+        }
+      }
+      if (split < 0) {
+        emit(r.lo, r.hi, top->face);
+        continue;
+      }
+      ++splits;
+      stack.push_back(Range{split, r.hi});  // popped second: x order kept
+      stack.push_back(Range{r.lo, split});
+    }
+  }
+  return out;
+}
+
+// Shadows known per figure: the state of each light on it.
+class FigureShadows : public KnownShadows {
+ public:
+  explicit FigureShadows(const LightStates& s) : s_(s) {}
+  std::optional<Color> transmittance(const Vec3&, const Vec3&, int light) override {
+    if (light >= 64) return std::nullopt;
+    const uint64_t bit = uint64_t{1} << light;
+    if (s_.opaque & bit) return Color(0.0);
+    if (s_.partial & bit) return std::nullopt;  // eqs. (2), (3) at the point itself
+    return Color(1.0);
+  }
+
+ private:
+  LightStates s_;
+};
+
+class SubLineBuilder {
+ public:
+  SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats)
+      : ps_(ps), scan_(*ps.scan), cam_(ps.camera), tracer_(tracer), stats_(stats) {}
+
+  SubLine build(double y, int row) {
+    SubLine line;
+    line.y = y;
+    y_ = y;
+    out_ = &line.pieces;
+    std::vector<Segment> segs;
+    if (scan_.trace_everything) {
+      segs.push_back(Segment{0.0, static_cast<double>(cam_.width), -2});
+    } else {
+      segs = visible_segments(scan_, cam_, y, scan_.cover[row]);
+    }
+    std::optional<SpanShadows> shadows;
+    if (ps_.volumes) shadows.emplace(ps_, y, stats_);
+    for (size_t si = 0; si < segs.size(); ++si) {
+      const Segment& s = segs[si];
+      ++line.spans;
+      if (s.face == -1) {
+        for_pixels(s.x0, s.x1, [&](double a, double b) {
+          Piece p;
+          p.x0 = a;
+          p.x1 = b;
+          out_->push_back(p);
+        });
+        continue;
+      }
+      if (is_curved(s)) {
+        // Inside curved bodies' bounding polyhedra (paper §3.2, §3.3): the
+        // run of neighbouring such spans is sampled as one.
+        ++line.traced_spans;
+        double x1 = s.x1;
+        while (si + 1 < segs.size() && is_curved(segs[si + 1])) x1 = segs[++si].x1;
+        curved(s.x0, x1);
+        continue;
+      }
+      const ScanFace& f = scan_.faces[s.face];
+      const Material& m = ps_.scene.materials[ps_.scene.objects[ps_.prims.prims[f.prim].object].material];
+      if (shadows) shadows->begin_span(s.face, s.x0, s.x1);
+      if (m.ks > 0 || m.t > 0) {
+        ++line.traced_spans;
+        mirror(s, shadows ? &*shadows : nullptr);
+      } else if (shadows) {
+        figures(s, *shadows);
+      } else {
+        mirror(s, nullptr);  // no volumes: sampled like a mirror's span
+      }
+    }
+    // Pixel i's pieces.
+    line.first.assign(cam_.width + 1, static_cast<int>(line.pieces.size()));
+    for (int k = static_cast<int>(line.pieces.size()) - 1; k >= 0; --k) {
+      const int i = std::clamp(static_cast<int>(std::floor(line.pieces[k].x0)), 0, cam_.width - 1);
+      line.first[i] = k;
+    }
+    for (int i = cam_.width - 1; i >= 0; --i) line.first[i] = std::min(line.first[i], line.first[i + 1]);
+    return line;
+  }
+
+ private:
+  // Calls fn(a, b) for the parts of [x0, x1) in each pixel, left to right.
+  template <class Fn>
+  void for_pixels(double x0, double x1, Fn&& fn) {
+    double a = x0;
+    while (a < x1) {
+      const double b = std::min(x1, std::floor(a) + 1.0);
+      fn(a, b);
+      a = b;
+    }
+  }
+
+  bool is_curved(const Segment& s) const { return s.face == -2 || (s.face >= 0 && scan_.faces[s.face].curved); }
+
+  Ray eye_ray(double x) const { return Ray{cam_.from, cam_.direction(x, y_)}; }
+
+  // The first surface along the eye ray at x, and its radiance.
+  std::pair<int, Color> sample(double x) {
+    ++stats_.rays_eye;
+    const Ray ray = eye_ray(x);
+    const auto hit = tracer_.nearest(ray, cam_.hither, kInf);
+    if (!hit) return {-1, ps_.scene.background};
+    return {hit->prim, tracer_.shade(ray, *hit, 1, 1.0, nullptr)};
+  }
+  int first_hit(double x) {
+    ++stats_.rays_eye;
+    const auto hit = tracer_.nearest(eye_ray(x), cam_.hither, kInf);
+    return hit ? hit->prim : -1;
+  }
+
+  // Where two samples at xl < xr see different things, bisection finds the
+  // boundary between them to kBisectTolerance; `same_as_left(x)` tells
+  // which side x is on.
+  template <class Fn>
+  double bisect(double xl, double xr, Fn&& same_as_left) {
+    while (xr - xl > kBisectTolerance) {
+      const double xm = 0.5 * (xl + xr);
+      if (same_as_left(xm)) {
+        xl = xm;
+      } else {
+        xr = xm;
+      }
+    }
+    return 0.5 * (xl + xr);
+  }
+
+  // Refines the pieces [begin, end) of *out_, whose keys (what the sample
+  // at each piece's midpoint found) are `keys`: where neighbours differ,
+  // and between each end of the run and the piece next to it, bisection
+  // finds where the key changes (`key_at(x)`), and the part of a piece on
+  // the other side is split off and given the other key (`fill(part,
+  // key)`). This is the paper's convergence search (§3.3); a feature that
+  // begins and ends between two samples is not seen (docs/multiscan.md).
+  template <class Key, class KeyAt, class Fill>
+  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill) {
+    const size_t n = keys.size();
+    if (n == 0) return;
+    std::vector<Piece> run(out_->begin() + static_cast<long>(begin), out_->end());
+    std::vector<Piece> res;
+    res.reserve(run.size() + 4);
+    auto mid = [](const Piece& p) { return 0.5 * (p.x0 + p.x1); };
+    auto part = [&](double x0, double x1, const Piece& like, const Key& key) {
+      Piece q = like;
+      q.x0 = x0;
+      q.x1 = x1;
+      fill(q, key);
+      res.push_back(q);
+    };
+    constexpr double kEnd = 1e-6;  // end probes, just inside the run
+    for (size_t k = 0; k < n; ++k) {
+      Piece cur = run[k];
+      const double m = mid(run[k]);
+      if (k == 0 && m - cur.x0 > 2 * kEnd) {
+        const Key kl = key_at(cur.x0 + kEnd);
+        if (!(kl == keys[0])) {
+          const double x = bisect(cur.x0 + kEnd, m, [&](double xm) { return key_at(xm) == kl; });
+          if (x > cur.x0 && x < cur.x1) {
+            part(cur.x0, x, cur, kl);
+            cur.x0 = x;
+          }
+        }
+      }
+      if (k > 0 && !(keys[k - 1] == keys[k])) {
+        const Key& left = keys[k - 1];
+        const double c = run[k].x0;
+        const double x =
+            bisect(mid(run[k - 1]), m, [&](double xm) { return key_at(xm) == left; });
+        if (x < c && x > res.back().x0) {
+          const Piece like = res.back();
+          res.back().x1 = x;
+          part(x, c, like, keys[k]);
+        } else if (x > c && x < cur.x1) {
+          part(c, x, cur, left);
+          cur.x0 = x;
+        }
+      }
+      Piece tail;
+      bool split_tail = false;
+      Key kr{};
+      if (k + 1 == n && cur.x1 - m > 2 * kEnd) {
+        kr = key_at(cur.x1 - kEnd);
+        if (!(kr == keys[k])) {
+          const Key& own = keys[k];
+          const double x = bisect(m, cur.x1 - kEnd, [&](double xm) { return key_at(xm) == own; });
+          if (x > cur.x0 && x < cur.x1) {
+            tail = cur;
+            tail.x0 = x;
+            cur.x1 = x;
+            split_tail = true;
+          }
+        }
+      }
+      res.push_back(cur);
+      if (split_tail) part(tail.x0, tail.x1, tail, kr);
+    }
+    out_->resize(begin);
+    out_->insert(out_->end(), res.begin(), res.end());
+  }
+
+  // A run of curved bodies' spans: a sample per pixel, refined where the
+  // first surface hit changes (the true silhouettes).
+  void curved(double x0, double x1) {
+    const size_t begin = out_->size();
+    std::vector<int> ids;
+    for_pixels(x0, x1, [&](double a, double b) {
+      Piece p;
+      p.x0 = a;
+      p.x1 = b;
+      p.kind = Piece::kTraced;
+      const auto [id, c] = sample(0.5 * (a + b));
+      p.colour = c;
+      out_->push_back(p);
+      ids.push_back(id);
+    });
+    refine(begin, ids, [&](double x) { return first_hit(x); },
+           [&](Piece& q, int) { q.colour = sample(0.5 * (q.x0 + q.x1)).second; });
+  }
+
+  // A mirror's or glass's flat face: the visible face is known, so each
+  // sample is a ray-plane intersection (paper §3.2), then local ray tracing.
+  void mirror(const Segment& s, SpanShadows* shadows) {
+    const ScanFace& f = scan_.faces[s.face];
+    for_pixels(s.x0, s.x1, [&](double a, double b) {
+      Piece p;
+      p.x0 = a;
+      p.x1 = b;
+      p.kind = Piece::kTraced;
+      const double x = 0.5 * (a + b);
+      const Ray ray = eye_ray(x);
+      ++stats_.tests_ray_object;
+      const auto hit = intersect_nearest(ps_.prims, f.prim, ray, cam_.hither, 1e300);
+      if (hit) {
+        if (shadows) shadows->set_x(x);
+        p.colour = tracer_.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr, shadows);
+      } else {
+        p.colour = sample(x).second;
+      }
+      out_->push_back(p);
+    });
+  }
+
+  // A diffuse face's span: cut where shadow intervals begin and end (paper
+  // §3.2 step 2) and at pixel edges. Inside the volume of a curved or
+  // transparent occluder the state of the lights comes from exact tests at
+  // the pieces' midpoints, refined where it changes.
+  void figures(const Segment& s, SpanShadows& shadows) {
+    cuts_.assign({s.x0, s.x1});
+    for (double x = std::floor(s.x0) + 1.0; x < s.x1; x += 1.0) cuts_.push_back(x);
+    shadows.breakpoints(cuts_);
+    std::sort(cuts_.begin(), cuts_.end());
+    cuts_.erase(std::unique(cuts_.begin(), cuts_.end()), cuts_.end());
+    std::vector<LightStates> keys;
+    size_t run_begin = out_->size();
+    auto end_run = [&] {
+      refine(run_begin, keys, [&](double x) { return shadows.states(x); },
+             [](Piece& q, const LightStates& st) { q.lights = st; });
+      keys.clear();
+      run_begin = out_->size();
+    };
+    for (size_t k = 0; k + 1 < cuts_.size(); ++k) {
+      const double a = cuts_[k], b = cuts_[k + 1];
+      if (!(b > a) || a < s.x0 || b > s.x1) continue;
+      Piece p;
+      p.x0 = a;
+      p.x1 = b;
+      p.kind = Piece::kFigure;
+      p.face = s.face;
+      p.lights = shadows.states(0.5 * (a + b));
+      const bool unsure = shadows.uncertain(a, b);
+      if (!unsure) end_run();
+      out_->push_back(p);
+      if (unsure) {
+        keys.push_back(p.lights);
+      } else {
+        run_begin = out_->size();
+      }
+    }
+    end_run();
+  }
+
+  const PreparedScene& ps_;
+  const ScanScene& scan_;
+  const CameraFrame& cam_;
+  Tracer& tracer_;
+  Stats& stats_;
+  double y_ = 0;
+  std::vector<Piece>* out_ = nullptr;
+  std::vector<double> cuts_;
+  std::vector<char> unsure_;
+};
+
+// One figure's share of a pixel, summed over the sub-scanlines.
+struct Figure {
+  int face;
+  LightStates lights;
+  double area = 0, cx = 0, cy = 0;
+  double rep_w = -1, rep_x = 0, rep_y = 0;  // its largest piece's midpoint
+};
+
+}  // namespace
+
+void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int r0,
+                    int r1, Image& out, Stats& stats) {
+  const CameraFrame& cam = ps.camera;
+  const int n = params.aa;
+  Tracer tracer(ps, stats);
+  SubLineBuilder builder(ps, tracer, stats);
+  // Sub-scanline g lies at y = g / n: the same double in every band.
+  auto line_at = [&](int g) {
+    const int row = std::min(g / n, cam.height - 1);
+    SubLine l = builder.build(static_cast<double>(g) / n, row);
+    stats.spans_total += l.spans;
+    stats.spans_ray_traced += l.traced_spans;
+    return l;
+  };
+  std::vector<SubLine> lines;
+  std::vector<Figure> figs;
+  for (int row = r0; row < r1; ++row) {
+    // Sub-scanlines k = 0..n of this row; k = 0 is the previous row's k = n.
+    if (lines.empty()) {
+      lines.push_back(line_at(row * n));
+    } else {
+      std::swap(lines.front(), lines.back());
+      lines.resize(1);
+    }
+    for (int k = 1; k <= n; ++k) lines.push_back(line_at(row * n + k));
+
+    for (int i = 0; i < cam.width; ++i) {
+      Color acc(0.0);
+      bool traced = false;
+      figs.clear();
+      for (int k = 0; k <= n; ++k) {
+        // Trapezoidal rule over the sub-scanlines.
+        const double wk = (k == 0 || k == n) ? 0.5 / n : 1.0 / n;
+        const SubLine& l = lines[k];
+        for (int p = l.first[i]; p < l.first[i + 1]; ++p) {
+          const Piece& pc = l.pieces[p];
+          const double w = (pc.x1 - pc.x0) * wk;
+          switch (pc.kind) {
+            case Piece::kBackground:
+              acc += w * ps.scene.background;
+              break;
+            case Piece::kTraced:
+              acc += w * pc.colour;
+              traced = true;
+              break;
+            case Piece::kFigure: {
+              auto it = std::find_if(figs.begin(), figs.end(), [&](const Figure& f) {
+                return f.face == pc.face && f.lights == pc.lights;
+              });
+              if (it == figs.end()) it = figs.insert(figs.end(), Figure{pc.face, pc.lights});
+              const double xm = 0.5 * (pc.x0 + pc.x1);
+              it->area += w;
+              it->cx += w * xm;
+              it->cy += w * l.y;
+              if (w > it->rep_w) {
+                it->rep_w = w;
+                it->rep_x = xm;
+                it->rep_y = l.y;
+              }
+              break;
+            }
+          }
+        }
+      }
+      // Each figure shaded once, at the centroid of its area in the pixel
+      // (its largest piece if the centroid falls off the face).
+      for (const Figure& f : figs) {
+        if (!(f.area > 0)) continue;
+        const ScanFace& face = ps.scan->faces[f.face];
+        FigureShadows known(f.lights);
+        Ray ray{cam.from, cam.direction(f.cx / f.area, f.cy / f.area)};
+        ++stats.tests_ray_object;
+        auto hit = intersect_nearest(ps.prims, face.prim, ray, cam.hither, 1e300);
+        if (!hit) {
+          ray.dir = cam.direction(f.rep_x, f.rep_y);
+          ++stats.tests_ray_object;
+          hit = intersect_nearest(ps.prims, face.prim, ray, cam.hither, 1e300);
+        }
+        Color c;
+        if (hit) {
+          c = tracer.shade(ray, SurfaceHit{hit->t, face.prim, *hit}, 1, 1.0, nullptr, &known);
+        } else {
+          // A sliver grazing the face, or inside hither's sphere.
+          ++stats.rays_eye;
+          traced = true;
+          c = tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
+        }
+        acc += f.area * c;
+      }
+      if (traced) ++stats.pixels_ray_traced;
+      float* px = out.pixel(i, row - band.y0);
+      px[0] = static_cast<float>(acc.x);
+      px[1] = static_cast<float>(acc.y);
+      px[2] = static_cast<float>(acc.z);
+    }
+    stats.pixels_total += cam.width;
+  }
+}
+
+}  // namespace locus
