@@ -12,6 +12,12 @@
 namespace locus {
 namespace {
 
+// Adaptive refinement inside ray-traced spans (issue #6 item 3): radiance
+// steps above kContrast between neighbouring samples get kContrastSamples
+// samples in each of the two pieces.
+constexpr double kContrast = 0.05;
+constexpr int kContrastSamples = 4;
+
 // A visible figure's piece of one sub-scanline, inside one pixel.
 struct Piece {
   enum Kind : uint8_t { kBackground, kTraced, kFigure };
@@ -41,17 +47,29 @@ struct Segment {
 // (paper §3.1: hidden surfaces per scanline). Faces are resolved by depth,
 // and a segment is split where two faces' depth order changes
 // (interpenetration): their inverse depths are linear in x.
-std::vector<Segment> visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
-                                      const std::vector<int>& faces) {
+struct DepthInterval {
+  double xl, xr;
+  int face;
+  LineDepth d;
+};
+
+// Buffers of visible_segments(), kept between calls.
+struct VisibleScratch {
+  std::vector<DepthInterval> ivs;
+  std::vector<double> xs, events;
+  std::vector<const DepthInterval*> active;
+};
+
+void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
+                      const std::vector<int>& faces, VisibleScratch& scratch,
+                      std::vector<Segment>& out) {
+  using Interval = DepthInterval;
   const double b = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
   const double width = cam.width;
-  struct Interval {
-    double xl, xr;
-    int face;
-    LineDepth d;
-  };
-  std::vector<Interval> ivs;
-  std::vector<double> xs;
+  std::vector<Interval>& ivs = scratch.ivs;
+  std::vector<double>& xs = scratch.xs;
+  ivs.clear();
+  out.clear();
   for (int fi : faces) {
     const ScanFace& f = scan.faces[fi];
     if (!(f.ymin <= y && y < f.ymax)) continue;
@@ -72,7 +90,8 @@ std::vector<Segment> visible_segments(const ScanScene& scan, const CameraFrame& 
       if (xr > xl) ivs.push_back(Interval{xl, xr, fi, d});
     }
   }
-  std::vector<double> events{0.0, width};
+  std::vector<double>& events = scratch.events;
+  events.assign({0.0, width});
   for (const Interval& iv : ivs) {
     events.push_back(iv.xl);
     events.push_back(iv.xr);
@@ -83,7 +102,6 @@ std::vector<Segment> visible_segments(const ScanScene& scan, const CameraFrame& 
     return a.xl < c.xl || (a.xl == c.xl && a.face < c.face);
   });
 
-  std::vector<Segment> out;
   auto emit = [&](double x0, double x1, int face) {
     if (!(x1 > x0)) return;
     if (!out.empty() && out.back().face == face && out.back().x1 == x0) {
@@ -102,7 +120,8 @@ std::vector<Segment> visible_segments(const ScanScene& scan, const CameraFrame& 
     if (gc > ga * (1.0 + kTieRel)) return false;
     return wins_tie(scan, a.face, c.face);
   };
-  std::vector<const Interval*> active;
+  std::vector<const Interval*>& active = scratch.active;
+  active.clear();
   size_t next = 0;
   struct Range {
     double lo, hi;
@@ -154,7 +173,6 @@ std::vector<Segment> visible_segments(const ScanScene& scan, const CameraFrame& 
       stack.push_back(Range{r.lo, split});
     }
   }
-  return out;
 }
 
 // Shadows known per figure: the state of each light on it.
@@ -178,19 +196,27 @@ class SubLineBuilder {
   SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats)
       : ps_(ps), scan_(*ps.scan), cam_(ps.camera), tracer_(tracer), stats_(stats) {}
 
-  SubLine build(double y, int row) {
-    SubLine line;
+  // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
+  void build(double y, int row, SubLine& line) {
     line.y = y;
+    line.pieces.clear();
+    line.spans = line.traced_spans = 0;
     y_ = y;
     out_ = &line.pieces;
-    std::vector<Segment> segs;
+    std::vector<Segment>& segs = segs_;
     if (scan_.trace_everything) {
-      segs.push_back(Segment{0.0, static_cast<double>(cam_.width), -2});
+      segs.assign(1, Segment{0.0, static_cast<double>(cam_.width), -2});
     } else {
-      segs = visible_segments(scan_, cam_, y, scan_.cover[row]);
+      visible_segments(scan_, cam_, y, scan_.cover[row], vis_, segs);
     }
-    std::optional<SpanShadows> shadows;
-    if (ps_.volumes) shadows.emplace(ps_, y, stats_);
+    std::optional<SpanShadows>& shadows = shadows_;
+    if (ps_.volumes) {
+      if (!shadows) {
+        shadows.emplace(ps_, y, stats_);
+      } else {
+        shadows->set_line(y);
+      }
+    }
     for (size_t si = 0; si < segs.size(); ++si) {
       const Segment& s = segs[si];
       ++line.spans;
@@ -231,7 +257,6 @@ class SubLineBuilder {
       line.first[i] = k;
     }
     for (int i = cam_.width - 1; i >= 0; --i) line.first[i] = std::min(line.first[i], line.first[i + 1]);
-    return line;
   }
 
  private:
@@ -370,29 +395,54 @@ class SubLineBuilder {
     });
     refine(begin, ids, [&](double x) { return first_hit(x); },
            [&](Piece& q, int) { q.colour = sample(0.5 * (q.x0 + q.x1)).second; });
+    contrast_refine(begin, [&](double x) { return sample(x).second; });
   }
 
   // A mirror's or glass's flat face: the visible face is known, so each
   // sample is a ray-plane intersection (paper §3.2), then local ray tracing.
   void mirror(const Segment& s, SpanShadows* shadows) {
     const ScanFace& f = scan_.faces[s.face];
+    auto colour_at = [&](double x) {
+      const Ray ray = eye_ray(x);
+      ++stats_.tests_ray_object;
+      const auto hit = intersect_nearest(ps_.prims, f.prim, ray, cam_.hither, 1e300);
+      if (!hit) return sample(x).second;
+      if (shadows) shadows->set_x(x);
+      return tracer_.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr, shadows);
+    };
+    const size_t begin = out_->size();
     for_pixels(s.x0, s.x1, [&](double a, double b) {
       Piece p;
       p.x0 = a;
       p.x1 = b;
       p.kind = Piece::kTraced;
-      const double x = 0.5 * (a + b);
-      const Ray ray = eye_ray(x);
-      ++stats_.tests_ray_object;
-      const auto hit = intersect_nearest(ps_.prims, f.prim, ray, cam_.hither, 1e300);
-      if (hit) {
-        if (shadows) shadows->set_x(x);
-        p.colour = tracer_.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr, shadows);
-      } else {
-        p.colour = sample(x).second;
-      }
+      p.colour = colour_at(0.5 * (a + b));
       out_->push_back(p);
     });
+    contrast_refine(begin, colour_at);
+  }
+
+  // Inside ray-traced spans the reflected or refracted image has edges of
+  // its own: a piece whose sample differs from a neighbour's by more than
+  // kContrast is sampled kContrastSamples times instead of once.
+  template <class ColourAt>
+  void contrast_refine(size_t begin, ColourAt&& colour_at) {
+    const size_t end = out_->size();
+    if (end - begin < 2) return;
+    std::vector<char> busy(end - begin, 0);
+    for (size_t k = begin + 1; k < end; ++k) {
+      if (max_component(glm::abs((*out_)[k].colour - (*out_)[k - 1].colour)) > kContrast) {
+        busy[k - begin] = busy[k - 1 - begin] = 1;
+      }
+    }
+    for (size_t k = begin; k < end; ++k) {
+      if (!busy[k - begin]) continue;
+      Piece& p = (*out_)[k];
+      Color sum(0.0);
+      const double w = (p.x1 - p.x0) / kContrastSamples;
+      for (int q = 0; q < kContrastSamples; ++q) sum += colour_at(p.x0 + (q + 0.5) * w);
+      p.colour = sum / static_cast<double>(kContrastSamples);
+    }
   }
 
   // A diffuse face's span: cut where shadow intervals begin and end (paper
@@ -441,6 +491,9 @@ class SubLineBuilder {
   Stats& stats_;
   double y_ = 0;
   std::vector<Piece>* out_ = nullptr;
+  std::vector<Segment> segs_;
+  VisibleScratch vis_;
+  std::optional<SpanShadows> shadows_;
   std::vector<double> cuts_;
   std::vector<char> unsure_;
 };
@@ -462,24 +515,22 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
   Tracer tracer(ps, stats);
   SubLineBuilder builder(ps, tracer, stats);
   // Sub-scanline g lies at y = g / n: the same double in every band.
-  auto line_at = [&](int g) {
+  auto line_at = [&](int g, SubLine& l) {
     const int row = std::min(g / n, cam.height - 1);
-    SubLine l = builder.build(static_cast<double>(g) / n, row);
+    builder.build(static_cast<double>(g) / n, row, l);
     stats.spans_total += l.spans;
     stats.spans_ray_traced += l.traced_spans;
-    return l;
   };
-  std::vector<SubLine> lines;
+  std::vector<SubLine> lines(n + 1);
   std::vector<Figure> figs;
   for (int row = r0; row < r1; ++row) {
     // Sub-scanlines k = 0..n of this row; k = 0 is the previous row's k = n.
-    if (lines.empty()) {
-      lines.push_back(line_at(row * n));
+    if (row == r0) {
+      line_at(row * n, lines[0]);
     } else {
       std::swap(lines.front(), lines.back());
-      lines.resize(1);
     }
-    for (int k = 1; k <= n; ++k) lines.push_back(line_at(row * n + k));
+    for (int k = 1; k <= n; ++k) line_at(row * n + k, lines[k]);
 
     for (int i = 0; i < cam.width; ++i) {
       Color acc(0.0);

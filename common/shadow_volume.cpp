@@ -766,12 +766,18 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
 }
 
 SpanShadows::SpanShadows(const PreparedScene& ps, double y, Stats& stats) : ps_(ps), stats_(stats) {
-  const CameraFrame& cam = ps.camera;
-  b_ = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
   const size_t lights = ps.scene.lights.size();
   done_.assign(lights, 0);
   side_.assign(lights, 0);
   iv_.resize(lights);
+  set_line(y);
+}
+
+void SpanShadows::set_line(double y) {
+  const CameraFrame& cam = ps_.camera;
+  b_ = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
+  face_ = -1;
+  std::fill(done_.begin(), done_.end(), 0);
 }
 
 double SpanShadows::image_a(double x) const {

@@ -159,6 +159,8 @@ class SpanShadows : public KnownShadows {
   // Spans on the sample line at image row coordinate y (row j's pixel
   // centres: y = j + 0.5; multi-scanning: any sub-scanline).
   SpanShadows(const PreparedScene& ps, double y, Stats& stats);
+  // Moves to another sample line, keeping the allocations.
+  void set_line(double y);
 
   // The next samples to shade lie on scanline face `face` (ScanScene::faces)
   // at image x in [x_first, x_last]; intervals are clipped to that range.
