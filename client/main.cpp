@@ -28,9 +28,6 @@ namespace {
 using namespace locus;
 namespace fs = std::filesystem;
 
-// `--aa` of `locus render` and `submit` with the local method.
-constexpr int kDefaultAa = 0;
-
 // Flags shared by `render` and `submit`: what to render and how.
 struct JobArgs {
   std::string scene;
@@ -129,7 +126,7 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
   r.render.method = a.method;
   r.render.boxes = a.boxes;
   r.render.spp = a.spp;
-  r.render.aa = a.aa >= 0 ? a.aa : (a.method == "local" ? kDefaultAa : 0);
+  r.render.aa = a.aa;  // -1: the method's default
   r.width = job.scene.camera.width;
   r.height = job.scene.camera.height;
   r.bands = a.bands;
@@ -406,8 +403,8 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
   cmd->add_option("--spp", a.spp, "raytrace: N x N stratified samples per pixel")
       ->check(CLI::Range(1, 64));
   cmd->add_option("--aa", a.aa,
-                  "local: N sub-scanlines per pixel row (multi-scanning, paper §3.3); 0 = point "
-                  "sampling at pixel centres")
+                  "local: N sub-scanlines per pixel row (multi-scanning, paper §3.3; default 4); "
+                  "0 = point sampling at pixel centres")
       ->check(CLI::Range(0, kMaxAa));
   cmd->add_option("--frames", a.frames, "Frames A-B of the animation (default 1)");
   cmd->add_option("--orbit", a.orbit,

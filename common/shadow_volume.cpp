@@ -765,11 +765,11 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   return segment_transmittance(ps.scene, seg, crossings);
 }
 
-SpanShadows::SpanShadows(const PreparedScene& ps, double y, Stats& stats) : ps_(ps), stats_(stats) {
-  const size_t lights = ps.scene.lights.size();
-  done_.assign(lights, 0);
-  side_.assign(lights, 0);
-  iv_.resize(lights);
+SpanShadows::SpanShadows(const PreparedScene& ps, double y, Stats& stats)
+    : ps_(ps), stats_(stats), lights_(static_cast<int>(ps.scene.lights.size())) {
+  const CameraFrame& cam = ps.camera;
+  a_line_lo_ = image_a(0.0);
+  a_line_hi_ = image_a(cam.width);
   set_line(y);
 }
 
@@ -777,7 +777,8 @@ void SpanShadows::set_line(double y) {
   const CameraFrame& cam = ps_.camera;
   b_ = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
   face_ = -1;
-  std::fill(done_.begin(), done_.end(), 0);
+  used_ = 0;
+  s_ = nullptr;
 }
 
 double SpanShadows::image_a(double x) const {
@@ -795,13 +796,26 @@ void SpanShadows::begin_span(int face, double x_first, double x_last) {
   face_ = face;
   a_first_ = image_a(x_first);
   a_last_ = image_a(x_last);
-  std::fill(done_.begin(), done_.end(), 0);
+  // A face visible in several spans of the line (a floor between objects)
+  // has its intervals found once per line, over the whole line.
+  for (int k = 0; k < used_; ++k) {
+    if (slots_[k].face == face) {
+      s_ = &slots_[k];
+      return;
+    }
+  }
+  if (used_ == static_cast<int>(slots_.size())) slots_.emplace_back();
+  s_ = &slots_[used_++];
+  s_->face = face;
+  s_->done.assign(lights_, 0);
+  s_->side.assign(lights_, 0);
+  s_->iv.resize(lights_);
 }
 
 void SpanShadows::breakpoints(std::vector<double>& xs) {
-  for (int j = 0; j < static_cast<int>(iv_.size()); ++j) {
-    if (!done_[j]) compute_light(j);
-    for (const Interval& iv : iv_[j]) {
+  for (int j = 0; j < lights_; ++j) {
+    if (!s_->done[j]) compute_light(j);
+    for (const Interval& iv : s_->iv[j]) {
       for (const double a : {iv.lo, iv.hi}) {
         if (a > a_first_ && a < a_last_) xs.push_back(image_x(a));
       }
@@ -811,9 +825,9 @@ void SpanShadows::breakpoints(std::vector<double>& xs) {
 
 bool SpanShadows::uncertain(double x0, double x1) {
   const double a0 = image_a(x0), a1 = image_a(x1);
-  for (int j = 0; j < static_cast<int>(iv_.size()); ++j) {
-    if (!done_[j]) compute_light(j);
-    for (const Interval& iv : iv_[j]) {
+  for (int j = 0; j < lights_; ++j) {
+    if (!s_->done[j]) compute_light(j);
+    for (const Interval& iv : s_->iv[j]) {
       if (iv.decides) continue;
       // Where a non-deciding volume holds the points, an exact test does.
       if (iv.outside ? (a0 < iv.lo || a1 > iv.hi) : (iv.lo < a1 && a0 < iv.hi)) return true;
@@ -827,21 +841,16 @@ LightStates SpanShadows::states(double x) {
   const double a = image_a(x);
   const ScanFace& f = ps_.scan->faces[face_];
   const CameraFrame& cam = ps_.camera;
-  const int lights = static_cast<int>(iv_.size());
   thread_local std::vector<Crossing> crossings;
-  for (int j = 0; j < lights && j < 64; ++j) {
-    if (!done_[j]) compute_light(j);
-    // The shadow-ray origin of the face's point at a (docs/local.md).
-    const Vec3 d = cam.w + b_ * cam.v + a * cam.u;
-    const double den = glm::dot(f.normal, d);
-    const double sp = (f.offset - glm::dot(f.normal, cam.from)) / den;
-    const Vec3 p = cam.from + sp * d;
-    const Vec3 origin = p + (side_[j] ? ps_.eps : -ps_.eps) * f.normal;
-    const Ray seg{origin, ps_.volumes->lights[j].position - origin};
+  // The face's point at a (docs/local.md), found only if an exact test
+  // needs it.
+  std::optional<Vec3> p;
+  for (int j = 0; j < lights_ && j < 64; ++j) {
+    if (!s_->done[j]) compute_light(j);
     crossings.clear();
     int tested = -1;
     bool opaque = false;
-    for (const Interval& iv : iv_[j]) {
+    for (const Interval& iv : s_->iv[j]) {  // opaque intervals first
       if (((iv.lo <= a && a <= iv.hi) == iv.outside)) continue;
       if (iv.decides) {
         opaque = true;
@@ -849,6 +858,12 @@ LightStates SpanShadows::states(double x) {
       }
       if (iv.prim == tested) continue;
       tested = iv.prim;
+      if (!p) {
+        const Vec3 d = cam.w + b_ * cam.v + a * cam.u;
+        p = cam.from + ((f.offset - glm::dot(f.normal, cam.from)) / glm::dot(f.normal, d)) * d;
+      }
+      const Vec3 origin = *p + (s_->side[j] ? ps_.eps : -ps_.eps) * f.normal;
+      const Ray seg{origin, ps_.volumes->lights[j].position - origin};
       if (exact_test(ps_, iv.prim, seg, crossings, stats_)) {
         opaque = true;
         break;
@@ -920,8 +935,8 @@ bool meets_span(const VolumeSet& set, int v, const SpanLine& l, double slack) {
 }  // namespace
 
 void SpanShadows::compute_light(int j) {
-  done_[j] = 1;
-  std::vector<Interval>& out = iv_[j];
+  s_->done[j] = 1;
+  std::vector<Interval>& out = s_->iv[j];
   out.clear();
   const ScanFace& f = ps_.scan->faces[face_];
   const CameraFrame& cam = ps_.camera;
@@ -929,8 +944,8 @@ void SpanShadows::compute_light(int j) {
   const Vec3& n = f.normal;
   // The shadow-ray origin of a point P of the face is P + delta, offset to
   // the light's side (Tracer::offset).
-  side_[j] = glm::dot(n, lv.position) - f.offset >= 0;
-  const Vec3 delta = (side_[j] ? ps_.eps : -ps_.eps) * n;
+  s_->side[j] = glm::dot(n, lv.position) - f.offset >= 0;
+  const Vec3 delta = (s_->side[j] ? ps_.eps : -ps_.eps) * n;
   SpanLine l;
   l.eye_delta = cam.from + delta;
   l.w_bv = cam.w + b_ * cam.v;
@@ -939,8 +954,8 @@ void SpanShadows::compute_light(int j) {
   l.sigma = l.num > 0 ? 1.0 : -1.0;
   l.nw = glm::dot(n, l.w_bv);
   l.nu = glm::dot(n, cam.u);
-  l.a_first = a_first_;
-  l.a_last = a_last_;
+  l.a_first = a_line_lo_;
+  l.a_last = a_line_hi_;
   // One candidate occluder: the interval of each of its volumes.
   auto occluder = [&](int c) {
     const LightVolumes::Occluder& oc = lv.occluders[c];
@@ -1010,12 +1025,12 @@ void SpanShadows::compute_light(int j) {
 }
 
 std::optional<Color> SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {
-  if (light >= static_cast<int>(iv_.size())) return std::nullopt;
-  if (!done_[light]) compute_light(light);
+  if (light >= lights_) return std::nullopt;
+  if (!s_->done[light]) compute_light(light);
   const ScanFace& f = ps_.scan->faces[face_];
   // The intervals hold for origins on the light's side of the face; a
   // light almost in the face's plane may put a pixel's origin on the other.
-  if ((glm::dot(origin - p, f.normal) > 0) != static_cast<bool>(side_[light])) {
+  if ((glm::dot(origin - p, f.normal) > 0) != static_cast<bool>(s_->side[light])) {
     if (!ps_.volumes->search) return std::nullopt;  // a shadow ray decides
     return volume_transmittance(ps_, origin, light, f.prim, stats_, nullptr);
   }
@@ -1024,7 +1039,7 @@ std::optional<Color> SpanShadows::transmittance(const Vec3& p, const Vec3& origi
   thread_local std::vector<Crossing> crossings;
   crossings.clear();
   int tested = -1;
-  for (const Interval& iv : iv_[light]) {
+  for (const Interval& iv : s_->iv[light]) {
     const bool in = (iv.lo <= a && a <= iv.hi) != iv.outside;
     if (!in) continue;
     if (iv.decides) return Color(0.0);  // opaque: no ray (paper §3.2)

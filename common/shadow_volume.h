@@ -199,11 +199,22 @@ class SpanShadows : public KnownShadows {
   const PreparedScene& ps_;
   Stats& stats_;
   double b_ = 0;  // image-plane coordinate of the sample line
+  int lights_ = 0;
   int face_ = -1;
   double a_first_ = 0, a_last_ = 0, a_ = 0;
-  std::vector<char> done_;                 // per light: intervals computed
-  std::vector<char> side_;                 // per light: origins on the face's front side
-  std::vector<std::vector<Interval>> iv_;  // per light
+  double a_line_lo_ = 0, a_line_hi_ = 0;  // the whole sample line
+  // Per face met on this line: per light, whether its intervals are
+  // computed, whether shadow-ray origins lie on the face's front side, and
+  // the intervals.
+  struct Slot {
+    int face = -1;
+    std::vector<char> done;
+    std::vector<char> side;
+    std::vector<std::vector<Interval>> iv;
+  };
+  std::vector<Slot> slots_;
+  int used_ = 0;
+  Slot* s_ = nullptr;
 };
 
 }  // namespace locus

@@ -183,7 +183,7 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
   }
   Result<RenderParams> params = to_render_params(r.render, 0);
   if (!params.ok()) return params.status();
-  spec.render = r.render;
+  spec.render = from_render_params(*params);  // defaults resolved, as workers will
   if (!std::isfinite(r.orbit_degrees))
     return InvalidArgument("orbit: must be a finite number of degrees");
   spec.orbit_degrees = r.orbit_degrees;

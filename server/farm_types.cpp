@@ -29,8 +29,8 @@ Result<RenderParams> to_render_params(const RenderSettings& s, int threads) {
   if (p.spp < 1 || p.spp > 64) {
     return InvalidArgument("spp must be between 1 and 64, got " + std::to_string(s.spp));
   }
-  p.aa = s.aa;
-  if (p.aa < 0 || p.aa > kMaxAa) {
+  p.aa = s.aa >= 0 ? s.aa : (p.method == Method::kLocal ? kDefaultAa : 0);
+  if (s.aa < -1 || p.aa > kMaxAa) {
     return InvalidArgument("aa must be between 0 and " + std::to_string(kMaxAa) + ", got " +
                            std::to_string(s.aa));
   }

@@ -32,12 +32,18 @@ inline constexpr int kMaxMessageBytes = 64 << 20;
 inline constexpr int64_t kMaxBandBytes = 48 << 20;
 
 // How every pixel is computed; the names are those of the CLI flags.
+// `--aa` of `locus render` and of jobs that do not say: multi-scanning
+// with 4 sub-scanlines per pixel row (issue #6).
+inline constexpr int kDefaultAa = 4;
+
 // Defaults are those of `locus render`: configuration IV.
 struct RenderSettings {
   std::string method = "local";
   std::string boxes = "eye+shadow";
   int spp = 1;
-  int aa = 0;  // local only: sub-scanlines per pixel row, 0 = point sampling
+  // local only: sub-scanlines per pixel row, 0 = point sampling; -1: the
+  // method's default (kDefaultAa for local).
+  int aa = -1;
 };
 
 // Checks the names and ranges; the thread count is the worker's own.

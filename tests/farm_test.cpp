@@ -165,11 +165,20 @@ TEST_F(FarmTest, StitchedFramesEqualSingleProcessForAnySplit) {
     r.render.boxes = "eye";
     expect_identical(run(r), r);
   }
-  // Configuration IV is the default, and the job's stats are the sum of the
-  // bands', shadow-volume tests included.
+  // Configuration IV with multi-scanning is the default.
+  SubmitRequest aa = request(kGlass, 64, 48, 1, 1, 5, "aa_####.exr");
+  ASSERT_EQ(aa.render.method, "local");
+  ASSERT_EQ(aa.render.boxes, "eye+shadow");
+  const JobInfo with_aa = run(aa);
+  expect_identical(with_aa, aa);
+  auto resolved = farm::to_render_params(aa.render, 1);
+  ASSERT_TRUE(resolved.ok());
+  EXPECT_EQ(resolved->aa, farm::kDefaultAa);
+  // Point sampled, the job's stats are the sum of the bands' (with
+  // multi-scanning each band computes its first sub-scanline again),
+  // shadow-volume tests included.
   SubmitRequest r = request(kGlass, 64, 48, 1, 1, 5, "iv_####.exr");
-  ASSERT_EQ(r.render.method, "local");
-  ASSERT_EQ(r.render.boxes, "eye+shadow");
+  r.render.aa = 0;
   const JobInfo iv = run(r);
   expect_identical(iv, r);
   auto params = farm::to_render_params(r.render, 1);
