@@ -24,6 +24,7 @@ struct Piece {
   double x0 = 0, x1 = 0;
   Kind kind = kBackground;
   int face = -1;       // kFigure: index into ScanScene::faces
+  int hit = -1;        // kTraced: the first surface the sample met (-1: none)
   Color colour{0.0};   // kTraced: the sample's radiance
   LightStates lights;  // kFigure: the state of the lights on the piece
 };
@@ -390,11 +391,15 @@ class SubLineBuilder {
       p.kind = Piece::kTraced;
       const auto [id, c] = sample(0.5 * (a + b));
       p.colour = c;
+      p.hit = id;
       out_->push_back(p);
       ids.push_back(id);
     });
-    refine(begin, ids, [&](double x) { return first_hit(x); },
-           [&](Piece& q, int) { q.colour = sample(0.5 * (q.x0 + q.x1)).second; });
+    refine(begin, ids, [&](double x) { return first_hit(x); }, [&](Piece& q, int id) {
+      const auto [got, c] = sample(0.5 * (q.x0 + q.x1));
+      q.colour = c;
+      q.hit = got >= 0 ? got : id;
+    });
     contrast_refine(begin, [&](double x) { return sample(x).second; });
   }
 
@@ -416,6 +421,7 @@ class SubLineBuilder {
       p.x0 = a;
       p.x1 = b;
       p.kind = Piece::kTraced;
+      p.hit = f.prim;
       p.colour = colour_at(0.5 * (a + b));
       out_->push_back(p);
     });
@@ -423,15 +429,19 @@ class SubLineBuilder {
   }
 
   // Inside ray-traced spans the reflected or refracted image has edges of
-  // its own: a piece whose sample differs from a neighbour's by more than
-  // kContrast is sampled kContrastSamples times instead of once.
+  // its own: a piece whose sample differs from a neighbour's on the same
+  // surface by more than kContrast is sampled kContrastSamples times
+  // instead of once. (Between different surfaces the silhouette is already
+  // located by bisection.)
   template <class ColourAt>
   void contrast_refine(size_t begin, ColourAt&& colour_at) {
     const size_t end = out_->size();
     if (end - begin < 2) return;
     std::vector<char> busy(end - begin, 0);
     for (size_t k = begin + 1; k < end; ++k) {
-      if (max_component(glm::abs((*out_)[k].colour - (*out_)[k - 1].colour)) > kContrast) {
+      const Piece& a = (*out_)[k - 1];
+      const Piece& b = (*out_)[k];
+      if (a.hit == b.hit && max_component(glm::abs(b.colour - a.colour)) > kContrast) {
         busy[k - begin] = busy[k - 1 - begin] = 1;
       }
     }
