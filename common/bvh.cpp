@@ -100,9 +100,21 @@ Bvh build_bvh(const std::vector<Aabb>& bounds) {
   if (bounds.empty()) return bvh;
   bvh.order.resize(bounds.size());
   std::iota(bvh.order.begin(), bvh.order.end(), 0);
-  BuildCtx ctx{bounds, {}, bvh};
+  // Boxes grow by a relative 1e-9 of their coordinates: a ray lying exactly
+  // in the plane of a flat primitive's box (a triangle of a mesh seen along
+  // a shared edge) must not miss it by the last bit of the slab test's
+  // rounding.
+  std::vector<Aabb> padded(bounds);
+  for (Aabb& b : padded) {
+    if (b.empty()) continue;
+    const double m = std::max(max_component(glm::abs(b.lo)), max_component(glm::abs(b.hi)));
+    const Vec3 pad(1e-9 * m + 1e-300);
+    b.lo -= pad;
+    b.hi += pad;
+  }
+  BuildCtx ctx{padded, {}, bvh};
   ctx.centres.reserve(bounds.size());
-  for (const Aabb& b : bounds) ctx.centres.push_back(b.centre());
+  for (const Aabb& b : padded) ctx.centres.push_back(b.centre());
   bvh.nodes.reserve(2 * bounds.size());
   build_node(ctx, 0, static_cast<int>(bounds.size()), 0);
   return bvh;

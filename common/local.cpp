@@ -34,7 +34,7 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
     const Ray ray{cam.from, cam.direction(x + 0.5, y + 0.5)};
     Color c = ps.scene.background;
     bool traced = false;
-    if (scan.trace_everything || (fi >= 0 && scan.faces[fi].curved)) {
+    if (scan.trace_everything || (fi >= 0 && (scan.faces[fi].curved || scan.faces[fi].near_hither))) {
       // Inside a curved body's bounding polyhedron: the ray finds the true
       // surface, or whatever lies behind it (paper §3.2).
       ++stats.rays_eye;
@@ -45,7 +45,8 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
       // with that one surface, no eye-ray search.
       const ScanFace& f = scan.faces[fi];
       ++stats.tests_ray_object;
-      const auto hit = intersect_nearest(ps.prims, f.prim, ray, cam.hither, 1e300);
+      auto hit = intersect_nearest(ps.prims, f.prim, ray, cam.hither, 1e300);
+      if (hit && !on_face(f, ray.origin, ray.dir, hit->t)) hit.reset();
       if (!hit) {
         // The sample grazes the face's edge, or the surface lies inside
         // hither's sphere: let a ray decide.

@@ -272,7 +272,10 @@ class SubLineBuilder {
     }
   }
 
-  bool is_curved(const Segment& s) const { return s.face == -2 || (s.face >= 0 && scan_.faces[s.face].curved); }
+  // Sampled with bisection: curved bodies' spans, and faces cut by hither.
+  bool is_curved(const Segment& s) const {
+    return s.face == -2 || (s.face >= 0 && (scan_.faces[s.face].curved || scan_.faces[s.face].near_hither));
+  }
 
   Ray eye_ray(double x) const { return Ray{cam_.from, cam_.direction(x, y_)}; }
 
@@ -410,7 +413,8 @@ class SubLineBuilder {
     auto colour_at = [&](double x) {
       const Ray ray = eye_ray(x);
       ++stats_.tests_ray_object;
-      const auto hit = intersect_nearest(ps_.prims, f.prim, ray, cam_.hither, 1e300);
+      auto hit = intersect_nearest(ps_.prims, f.prim, ray, cam_.hither, 1e300);
+      if (hit && !on_face(f, ray.origin, ray.dir, hit->t)) hit.reset();
       if (!hit) return sample(x).second;
       if (shadows) shadows->set_x(x);
       return tracer_.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr, shadows);
@@ -436,8 +440,19 @@ class SubLineBuilder {
   template <class ColourAt>
   void contrast_refine(size_t begin, ColourAt&& colour_at) {
     const size_t end = out_->size();
-    if (end - begin < 2) return;
+    if (end == begin) return;
     std::vector<char> busy(end - begin, 0);
+    // At the image's border a piece has one neighbour only: a probe at the
+    // border stands in for the other.
+    const Piece& first = (*out_)[begin];
+    const Piece& last = (*out_)[end - 1];
+    if (first.x0 == 0.0 && max_component(glm::abs(colour_at(first.x0 + 1e-6) - first.colour)) > kContrast) {
+      busy[0] = 1;
+    }
+    if (last.x1 == cam_.width &&
+        max_component(glm::abs(colour_at(last.x1 - 1e-6) - last.colour)) > kContrast) {
+      busy[end - 1 - begin] = 1;
+    }
     for (size_t k = begin + 1; k < end; ++k) {
       const Piece& a = (*out_)[k - 1];
       const Piece& b = (*out_)[k];
@@ -589,10 +604,12 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
         Ray ray{cam.from, cam.direction(f.cx / f.area, f.cy / f.area)};
         ++stats.tests_ray_object;
         auto hit = intersect_nearest(ps.prims, face.prim, ray, cam.hither, 1e300);
+        if (hit && !on_face(face, ray.origin, ray.dir, hit->t)) hit.reset();
         if (!hit) {
           ray.dir = cam.direction(f.rep_x, f.rep_y);
           ++stats.tests_ray_object;
           hit = intersect_nearest(ps.prims, face.prim, ray, cam.hither, 1e300);
+          if (hit && !on_face(face, ray.origin, ray.dir, hit->t)) hit.reset();
         }
         Color c;
         if (hit) {

@@ -76,6 +76,17 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
     f.offset = offset;
     f.prim = prim;
     f.curved = curved;
+    if (!curved && cam.hither > 0) {
+      // Conservative: the plane passes within hither of the eye and the
+      // face's bounding sphere reaches into hither's sphere.
+      Vec3 c(0.0);
+      for (const Vec3& p : kept) c += p;
+      c /= static_cast<double>(kept.size());
+      double r = 0;
+      for (const Vec3& p : kept) r = std::max(r, glm::length(p - c));
+      f.near_hither = std::abs(glm::dot(normal, cam.from) - offset) < cam.hither &&
+                      glm::length(c - cam.from) - r < cam.hither;
+    }
     f.ymin = 1e300;
     f.ymax = -1e300;
     for (const Vec3& p : kept) {
@@ -155,6 +166,13 @@ LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye,
   const double num = f.offset - glm::dot(f.normal, eye);
   const double k = cam.tan_half * cam.aspect;
   return LineDepth{(nw - k * nu) / num, 2.0 * k * nu / (cam.width * num)};
+}
+
+bool on_face(const ScanFace& f, const Vec3& origin, const Vec3& dir, double t) {
+  const double den = glm::dot(f.normal, dir);
+  if (den == 0) return false;
+  const double tp = (f.offset - glm::dot(f.normal, origin)) / den;
+  return std::abs(tp - t) <= 1e-7 * std::max(std::abs(tp), std::abs(t));
 }
 
 bool wins_tie(const ScanScene& scan, int fi, int fj) {

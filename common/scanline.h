@@ -21,6 +21,10 @@ struct ScanFace {
   double offset = 0;
   int prim = -1;        // index into PrimitiveSet::prims (the surface it belongs to)
   bool curved = false;  // a face of a curved body's bounding polyhedron
+  // Part of the face lies within hither's sphere, so it is cut by a curved
+  // edge no scanline computation sees: its pixels are traced like a curved
+  // body's.
+  bool near_hither = false;
   std::vector<Vec2> outline;  // projected, after clipping at the near plane
   double ymin = 0, ymax = 0;
 };
@@ -54,6 +58,12 @@ LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye,
 // other (coincident surfaces)? A bounding polyhedron first (its pixels are
 // traced, and the trace finds the truth), then the first-defined surface.
 bool wins_tie(const ScanScene& scan, int fi, int fj);
+
+// Is the hit at ray parameter t on face f's plane? A convex body's face
+// seen inside hither's sphere is not where the body's nearest crossing
+// beyond hither lies (that is another of its faces): such a sample needs a
+// ray of its own, and the face's shadows do not hold for it.
+bool on_face(const ScanFace& f, const Vec3& origin, const Vec3& dir, double t);
 
 
 // The visible face (index into ScanScene::faces, or -1 for background) at

@@ -850,6 +850,7 @@ LightStates SpanShadows::states(double x) {
     crossings.clear();
     int tested = -1;
     bool opaque = false;
+    Ray seg;
     for (const Interval& iv : s_->iv[j]) {  // opaque intervals first
       if (((iv.lo <= a && a <= iv.hi) == iv.outside)) continue;
       if (iv.decides) {
@@ -863,11 +864,18 @@ LightStates SpanShadows::states(double x) {
         p = cam.from + ((f.offset - glm::dot(f.normal, cam.from)) / glm::dot(f.normal, d)) * d;
       }
       const Vec3 origin = *p + (s_->side[j] ? ps_.eps : -ps_.eps) * f.normal;
-      const Ray seg{origin, ps_.volumes->lights[j].position - origin};
+      seg = Ray{origin, ps_.volumes->lights[j].position - origin};
       if (exact_test(ps_, iv.prim, seg, crossings, stats_)) {
         opaque = true;
         break;
       }
+    }
+    // Through glass beyond the critical angle nothing arrives (the dark
+    // core of paper Fig. 8a): as dark as an opaque shadow, and its edge is
+    // a change of state that bisection finds.
+    if (!opaque && !crossings.empty() &&
+        segment_transmittance(ps_.scene, seg, crossings) == Color(0.0)) {
+      opaque = true;
     }
     const uint64_t bit = uint64_t{1} << j;
     if (opaque) {
