@@ -207,6 +207,9 @@ v1::JobStatus ToProto(const farm::JobInfo& j) {
   p.set_seconds_elapsed(j.seconds_elapsed);
   *p.mutable_stats() = ToProto(j.stats);
   for (int f : j.frames_written) p.add_frames_written(f);
+  p.set_results_discarded(j.results_discarded);
+  p.set_speculative_leases(j.speculative_leases);
+  for (const std::string& w : j.quarantined) p.add_quarantined_workers(w);
   return p;
 }
 
@@ -227,6 +230,9 @@ farm::JobInfo FromProto(const v1::JobStatus& p) {
   j.seconds_elapsed = p.seconds_elapsed();
   j.stats = FromProto(p.stats());
   j.frames_written.assign(p.frames_written().begin(), p.frames_written().end());
+  j.results_discarded = p.results_discarded();
+  j.speculative_leases = p.speculative_leases();
+  j.quarantined.assign(p.quarantined_workers().begin(), p.quarantined_workers().end());
   return j;
 }
 
@@ -335,6 +341,7 @@ v1::CompleteBandRequest ToProto(farm::BandOutput&& o) {
   o.rgb.shrink_to_fit();
   *p.mutable_stats() = ToProto(o.stats);
   p.set_error(o.error);
+  p.set_handed_back(o.handed_back);
   return p;
 }
 
@@ -345,6 +352,7 @@ farm::BandOutput FromProto(const v1::CompleteBandRequest& p) {
   o.rgb.assign(p.rgb().begin(), p.rgb().end());
   o.stats = FromProto(p.stats());
   o.error = p.error();
+  o.handed_back = p.handed_back();
   return o;
 }
 
