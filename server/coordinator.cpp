@@ -136,7 +136,7 @@ Status Coordinator::recover() {
 
 Status Coordinator::persist() {
   const std::vector<Event> events = scheduler_.take_events();
-  if (crashed_) return Status::Ok();
+  if (crashed_) return Status(Code::kAborted, "crashed (test)");
   Status s = store_ ? store_->apply(events) : Status::Ok();
   if (!s.ok()) spdlog::error("{} ({} changes not recorded)", s.message(), events.size());
   return s;
