@@ -59,7 +59,7 @@ Result<farm::JobInfo> FarmClient::submit(const farm::SubmitRequest& request) {
     if (s.ok()) return rpc::FromProto(resp.status());
     if (!transient(s) || std::chrono::steady_clock::now() + backoff > give_up) return s;
     std::this_thread::sleep_for(backoff);
-    backoff = std::min(backoff * 2, farm::Millis(4000));
+    backoff = std::min(backoff * 2, farm::Millis(1000));
   }
 }
 
@@ -135,7 +135,7 @@ Result<farm::JobInfo> FarmClient::watch(
       if (!reached || !transient(s) || std::chrono::steady_clock::now() + backoff > give_up)
         return s;
       std::this_thread::sleep_for(backoff);
-      backoff = std::min(backoff * 2, farm::Millis(4000));
+      backoff = std::min(backoff * 2, farm::Millis(1000));
       continue;
     }
     if (last && farm::is_terminal(last->state)) return *last;

@@ -1,8 +1,13 @@
 #include "server/coordinator.h"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -79,6 +84,18 @@ Status Coordinator::start() {
 }
 
 Status Coordinator::recover() {
+  // One coordinator per data directory: a second one would resume the same
+  // jobs and hand out the same bands. The lock goes with the process, so a
+  // killed coordinator never leaves it behind.
+  const std::string lock = (fs::path(options_.data_dir) / "coordinator.lock").string();
+  lock_fd_ = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock_fd_ < 0) return FailedPrecondition(lock + ": cannot open: " + std::strerror(errno));
+  if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+    return FailedPrecondition("--data " + options_.data_dir +
+                              " is in use by another coordinator; give each its own directory");
+  }
   const std::string db = (fs::path(options_.data_dir) / "locus.db").string();
   auto store = JobStore::open(db);
   if (!store.ok()) return store.status();
@@ -165,6 +182,8 @@ void Coordinator::shutdown() {
   }
   persist();
   store_.reset();
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+  lock_fd_ = -1;
 }
 
 void Coordinator::crash_for_test() {
@@ -184,6 +203,8 @@ void Coordinator::crash_for_test() {
   // recover from the WAL anyway.
   std::lock_guard lk(mu_);
   store_.reset();
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+  lock_fd_ = -1;
 }
 
 std::string Coordinator::job_dir(const std::string& job_id) const {

@@ -139,6 +139,7 @@ class Coordinator {
   std::mutex mu_;
   std::condition_variable changed_;  // scheduler version moved, or stopping
   Scheduler scheduler_;
+  int lock_fd_ = -1;  // flock on DATA/coordinator.lock
   std::unique_ptr<JobStore> store_;
   std::map<std::string, std::shared_ptr<const v1::Scene>> scenes_;  // by content hash
   std::set<std::string> scenes_stored_;  // the store's scenes, as last trimmed

@@ -88,10 +88,15 @@ std::shared_ptr<grpc::Channel> make_channel(const std::string& address) {
   // Reconnect quickly after a coordinator restart rather than backing off
   // for minutes.
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 200);
   return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
 }
 
 void configure_server(grpc::ServerBuilder& builder) {
+  // A second server on a port in use must fail, not share it (gRPC sets
+  // SO_REUSEPORT by default): two coordinators would split the workers.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.SetMaxReceiveMessageSize(farm::kMaxMessageBytes);
   builder.SetMaxSendMessageSize(farm::kMaxMessageBytes);
   // Long polls and watches each hold a thread of the synchronous server;

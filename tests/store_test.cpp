@@ -414,6 +414,20 @@ TEST(CoordinatorRestart, CrashAtRandomMomentsLosesAndDuplicatesNothing) {
   }
 }
 
+TEST(CoordinatorRestart, ADataDirectoryServesOneCoordinatorAtATime) {
+  TempDir dir;
+  Coordinator a(options(dir.path));
+  ASSERT_TRUE(a.start().ok());
+  Coordinator b(options(dir.path));
+  const Status busy = b.start();
+  EXPECT_EQ(busy.code(), Code::kFailedPrecondition);
+  EXPECT_NE(busy.message().find("in use by another coordinator"), std::string::npos)
+      << busy.message();
+  a.crash_for_test();  // a dead coordinator leaves no lock behind
+  Coordinator c(options(dir.path));
+  EXPECT_TRUE(c.start().ok());
+}
+
 TEST(CoordinatorRestart, ARetriedSubmissionCreatesNoSecondJobEvenAcrossARestart) {
   TempDir dir;
   std::string job;
