@@ -63,8 +63,8 @@ Status fsync_path(const std::string& path, bool directory) {
 }  // namespace
 
 std::string band_file_path(const std::string& job_dir, int frame, int band) {
-  return (fs::path(job_dir) / "bands" / (std::to_string(frame) + "-" + std::to_string(band) +
-                                         ".band"))
+  return (fs::path(job_dir) / "bands" /
+          (std::to_string(frame) + "-" + std::to_string(band) + ".band"))
       .string();
 }
 
@@ -146,7 +146,8 @@ Result<Image> stitch_frame(const std::string& job_dir, const FrameReady& f) {
     const Band rows = band_rows(f.height, f.bands, b);
     auto px = read_band_file(band_file_path(job_dir, f.frame, b), {f.width, rows.y0, rows.y1});
     if (!px.ok()) return px.status();
-    std::copy(px->begin(), px->end(), image.rgb.begin() + static_cast<size_t>(rows.y0) * f.width * 3);
+    std::copy(px->begin(), px->end(),
+              image.rgb.begin() + static_cast<size_t>(rows.y0) * f.width * 3);
   }
   return image;
 }

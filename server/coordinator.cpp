@@ -7,8 +7,8 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -126,8 +126,7 @@ Status Coordinator::recover() {
       } else {
         spdlog::warn("job {}: band {} of frame {} has no complete band file; rendering it again",
                      j.record.job_id, b.band, b.frame);
-        if (Status st = store_->forget_band(j.record.job_id, b.frame, b.band); !st.ok())
-          return st;
+        if (Status st = store_->forget_band(j.record.job_id, b.frame, b.band); !st.ok()) return st;
         --j.bands_done;
       }
     }
@@ -256,8 +255,7 @@ void Coordinator::write_loop() {
     Status st;
     {
       auto image = stitch_frame(dir, f);
-      st = image.ok() ? write_frame_file(dir, f.file_name, *image, options_.fsync)
-                      : image.status();
+      st = image.ok() ? write_frame_file(dir, f.file_name, *image, options_.fsync) : image.status();
     }
     lk.lock();
     scheduler_.frame_written(f.job_id, f.frame, st);
@@ -345,20 +343,21 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
   stored->SerializeToString(&bytes);
   spec.scene_hash = content_hash(bytes);
   // What makes a retry a retry: the same scene and the same request.
-  const std::string fingerprint = content_hash(
-      spec.scene_hash + "|" + spec.render.method + "|" + spec.render.boxes + "|" +
-      std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
-      std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
-      std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" + r.output + "|" +
-      std::to_string(r.orbit_degrees));
+  const std::string fingerprint =
+      content_hash(spec.scene_hash + "|" + spec.render.method + "|" + spec.render.boxes + "|" +
+                   std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
+                   std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
+                   std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" + r.output +
+                   "|" + std::to_string(r.orbit_degrees));
 
   std::lock_guard lk(mu_);
   if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");
   if (auto earlier = scheduler_.job_for_request(r.request_id)) {
     if (earlier->fingerprint != fingerprint) {
-      return Status(Code::kAlreadyExists,
-                    "request id '" + r.request_id + "' was already used for another submission (job " +
-                        earlier->job_id + "); a new submission needs a new request id");
+      return Status(Code::kAlreadyExists, "request id '" + r.request_id +
+                                              "' was already used for another submission (job " +
+                                              earlier->job_id +
+                                              "); a new submission needs a new request id");
     }
     spdlog::info("job {}: submission retried (request id {})", earlier->job_id, r.request_id);
     return scheduler_.job(earlier->job_id);
@@ -551,16 +550,15 @@ Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {
     // The pixels go to disk (and to the platter when fsync is on) outside
     // the lock; only the rename and the store's record happen under it.
     lk.unlock();
-    auto written =
-        write_band_temp(job_dir(target->job_id), target->frame, target->band,
-                        {target->width, target->y0, target->y1}, output.rgb, output.lease_id,
-                        options_.fsync);
+    auto written = write_band_temp(job_dir(target->job_id), target->frame, target->band,
+                                   {target->width, target->y0, target->y1}, output.rgb,
+                                   output.lease_id, options_.fsync);
     lk.lock();
     if (!written.ok()) {
       // Not the worker's fault: its lease stands, and lapses if this lasts.
       spdlog::error("{}", written.status().message());
-      return Status(Code::kUnavailable, "the coordinator cannot store the band: " +
-                                            written.status().message());
+      return Status(Code::kUnavailable,
+                    "the coordinator cannot store the band: " + written.status().message());
     }
     temp = *written;
     // The lease may have lapsed, or another copy won, while the file was

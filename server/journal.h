@@ -82,9 +82,9 @@ struct WorkerAdded {
 };
 }  // namespace event
 
-using Event = std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted,
-                           event::LeaseEnded, event::BandDone, event::FrameWritten,
-                           event::WorkerAdded>;
+using Event =
+    std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted, event::LeaseEnded,
+                 event::BandDone, event::FrameWritten, event::WorkerAdded>;
 
 // A job as the store remembers it, for Scheduler::restore().
 struct RecoveredJob {

@@ -135,9 +135,8 @@ std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
       }
       for (auto it = job.frame_bands.begin(); it != job.frame_bands.end();) {
         if (it->second == s.bands) {
-          ready.push_back(
-              FrameReady{info.job_id, it->first, frame_path(s.output, it->first), s.width, s.height,
-                         s.bands});
+          ready.push_back(FrameReady{info.job_id, it->first, frame_path(s.output, it->first),
+                                     s.width, s.height, s.bands});
           it = job.frame_bands.erase(it);
         } else {
           ++it;
@@ -235,10 +234,9 @@ void Scheduler::drop_leases_of(Job& job) {
     if (it->second.job_id == job.info.job_id) {
       auto w = workers_.find(it->second.worker_id);
       if (w != workers_.end()) w->second.leases.erase(it->first);
-      events_.push_back(event::LeaseEnded{it->first, job.info.job_id,
-                                          frame_of(job, it->second.task),
-                                          band_of(job, it->second.task), LeaseOutcome::kRevoked,
-                                          std::string("job ") + job_state_name(job.info.state)});
+      events_.push_back(event::LeaseEnded{
+          it->first, job.info.job_id, frame_of(job, it->second.task), band_of(job, it->second.task),
+          LeaseOutcome::kRevoked, std::string("job ") + job_state_name(job.info.state)});
       it = leases_.erase(it);
     } else {
       ++it;
@@ -279,8 +277,7 @@ void Scheduler::frame_written(const std::string& job_id, int frame, const Status
   }
   ++job->info.frames_done;
   job->info.frames_written.push_back(frame);
-  events_.push_back(
-      event::FrameWritten{job_id, frame, frame_path(job->info.spec.output, frame)});
+  events_.push_back(event::FrameWritten{job_id, frame, frame_path(job->info.spec.output, frame)});
   ++version_;
   if (job->info.frames_done == job->info.spec.frames()) {
     end_job(*job, JobState::kSucceeded, "");
@@ -455,8 +452,8 @@ Result<std::optional<BandTask>> Scheduler::grant(Job& job, int task, Worker& wor
   }
   const std::string id = lease_prefix_ + std::to_string(next_lease_++);
   const TimePoint now = now_();
-  Lease lease{job.info.job_id, task,   worker.info.worker_id, worker.info.name,
-              now,             now + options_.lease, speculative};
+  Lease lease{job.info.job_id,      task,       worker.info.worker_id, worker.info.name, now,
+              now + options_.lease, speculative};
   leases_.emplace(id, lease);
   worker.leases.insert(id);
   if (job.info.state == JobState::kQueued) {
@@ -464,8 +461,8 @@ Result<std::optional<BandTask>> Scheduler::grant(Job& job, int task, Worker& wor
     events_.push_back(event::JobStateChanged{job.info.job_id, JobState::kRunning, ""});
   }
   events_.push_back(event::LeaseGranted{id, job.info.job_id, frame_of(job, task),
-                                        band_of(job, task), worker.info.worker_id,
-                                        worker.info.name, speculative});
+                                        band_of(job, task), worker.info.worker_id, worker.info.name,
+                                        speculative});
   ++version_;
   return std::optional<BandTask>(make_task(job, task, lease, id));
 }
@@ -532,8 +529,8 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
     const int n = ++job->worker_failures[lease.worker_name];
     if (options_.quarantine_after > 0 && n == options_.quarantine_after) {
       job->info.quarantined.push_back(lease.worker_name);
-      spdlog::warn("job {}: worker {} ({}) failed {} times: quarantined for this job",
-                   lease.job_id, lease.worker_id, lease.worker_name, n);
+      spdlog::warn("job {}: worker {} ({}) failed {} times: quarantined for this job", lease.job_id,
+                   lease.worker_id, lease.worker_name, n);
     }
   }
   if (t.state == TaskState::kDone || t.leases > 0) return;  // the other lease goes on

@@ -130,13 +130,13 @@ class Scheduler {
     JobRecord record;
     TimePoint submitted;
     TimePoint finished;
-    std::vector<Task> tasks;  // frame-major: (frame - first) * bands + band
-    int next_fresh = 0;       // tasks from here on were never leased
-    std::deque<int> retry;    // tasks back in the queue, served first
-    std::map<int, int> frame_bands;         // bands done of the frames in progress
-    std::map<int, Failures> failures;       // by task
+    std::vector<Task> tasks;                     // frame-major: (frame - first) * bands + band
+    int next_fresh = 0;                          // tasks from here on were never leased
+    std::deque<int> retry;                       // tasks back in the queue, served first
+    std::map<int, int> frame_bands;              // bands done of the frames in progress
+    std::map<int, Failures> failures;            // by task
     std::map<std::string, int> worker_failures;  // by worker name
-    std::deque<double> durations;           // seconds of the last accepted bands
+    std::deque<double> durations;                // seconds of the last accepted bands
   };
   struct Lease {
     std::string job_id;

@@ -61,8 +61,7 @@ INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '1');
 )sql";
 
 double wall_now() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
 // Stats as one line of text: the fields in declaration order, then the
@@ -89,8 +88,8 @@ Stats decode_stats(const std::string& text) {
 }
 
 JobState state_from_name(const std::string& n) {
-  for (JobState s : {JobState::kQueued, JobState::kRunning, JobState::kSucceeded,
-                     JobState::kFailed, JobState::kCancelled}) {
+  for (JobState s : {JobState::kQueued, JobState::kRunning, JobState::kSucceeded, JobState::kFailed,
+                     JobState::kCancelled}) {
     if (n == job_state_name(s)) return s;
   }
   return JobState::kFailed;
@@ -162,9 +161,8 @@ class JobStore::Statement {
 
 Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   sqlite3* db = nullptr;
-  const int rc = sqlite3_open_v2(path.c_str(), &db,
-                                 SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
-                                 nullptr);
+  const int rc = sqlite3_open_v2(
+      path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
     const std::string why = db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
     sqlite3_close(db);
@@ -224,10 +222,11 @@ Status JobStore::apply_one(const Event& e) {
   if (const auto* a = std::get_if<event::JobAdded>(&e)) {
     const JobRecord& r = a->job;
     const JobSpec& s = r.spec;
-    Statement ins(*this,
-                  "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
-                  "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
-                  "spp, state, submitted_at) VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    Statement ins(
+        *this,
+        "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
+        "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
+        "spp, state, submitted_at) VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now);
@@ -244,8 +243,8 @@ Status JobStore::apply_one(const Event& e) {
     Statement st(*this,
                  "INSERT INTO attempts(lease_id, job_id, frame, band, worker_id, worker_name, "
                  "speculative, started_at) VALUES(?,?,?,?,?,?,?,?)");
-    st.bind(g->lease_id, g->job_id, g->frame, g->band, g->worker_id, g->worker_name,
-            g->speculative, now);
+    st.bind(g->lease_id, g->job_id, g->frame, g->band, g->worker_id, g->worker_name, g->speculative,
+            now);
     return st.run();
   }
   if (const auto* l = std::get_if<event::LeaseEnded>(&e)) {
@@ -309,10 +308,11 @@ Result<RecoveredState> JobStore::recover() {
     if (st.step() == SQLITE_ROW) state.next_worker = std::stoull("0" + st.text(0));
     if (state.next_worker == 0) state.next_worker = 1;
   }
-  Statement jobs(*this,
-                 "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
-                 "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
-                 "state, error, submitted_at, finished_at, stats FROM jobs ORDER BY seq");
+  Statement jobs(
+      *this,
+      "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
+      "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
+      "state, error, submitted_at, finished_at, stats FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -370,8 +370,7 @@ Result<RecoveredState> JobStore::recover() {
       Statement st(*this, "SELECT frame, band FROM bands WHERE job_id = ? AND done = 1");
       st.bind(id);
       while (st.step() == SQLITE_ROW) {
-        j.done_bands.push_back(
-            {static_cast<int>(st.integer(0)), static_cast<int>(st.integer(1))});
+        j.done_bands.push_back({static_cast<int>(st.integer(0)), static_cast<int>(st.integer(1))});
       }
       j.bands_done = static_cast<int64_t>(j.done_bands.size());
     }

@@ -198,7 +198,8 @@ TEST(BandFiles, StitchAFrameFromItsBands) {
   for (size_t i = 0; i < expected.rgb.size(); ++i) expected.rgb[i] = static_cast<float>(i);
   for (int b = 0; b < 3; ++b) {
     const Band rows = band_rows(7, 3, b);
-    std::vector<float> rgb(expected.rgb.begin() + rows.y0 * 15, expected.rgb.begin() + rows.y1 * 15);
+    std::vector<float> rgb(expected.rgb.begin() + rows.y0 * 15,
+                           expected.rgb.begin() + rows.y1 * 15);
     auto t = write_band_temp(dir.path.string(), 4, b, {5, rows.y0, rows.y1}, rgb, "t", false);
     ASSERT_TRUE(t.ok());
     ASSERT_TRUE(commit_band_file(*t, band_file_path(dir.path.string(), 4, b)).ok());
@@ -292,8 +293,8 @@ void expect_frames_identical(Coordinator& c, const JobInfo& job, const SubmitReq
   ASSERT_EQ(job.frames_done, r.frame_last - r.frame_first + 1);
   auto scene = load_scene(kSpheres);
   for (int f = r.frame_first; f <= r.frame_last; ++f) {
-    const Scene s = frame_scene(*scene, r.width, r.height, f, r.frame_first, r.frame_last,
-                                r.orbit_degrees);
+    const Scene s =
+        frame_scene(*scene, r.width, r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
     auto ref = render_image(s, *to_render_params(r.render, 1));
     ASSERT_TRUE(ref.ok());
     auto got = read_image((fs::path(c.job_dir(job.job_id)) / frame_path("f_####.exr", f)).string());

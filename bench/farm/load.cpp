@@ -122,11 +122,11 @@ int main(int argc, char** argv) {
           ++ok;
         } else {
           ++bad;
-          std::fprintf(stderr, "job %s: %s\n", id.c_str(),
-                       end.ok() ? (std::string(locus::farm::job_state_name(end->state)) + " " +
-                                   end->error)
-                                      .c_str()
-                                : end.status().message().c_str());
+          std::fprintf(
+              stderr, "job %s: %s\n", id.c_str(),
+              end.ok() ? (std::string(locus::farm::job_state_name(end->state)) + " " + end->error)
+                             .c_str()
+                       : end.status().message().c_str());
         }
       }
     });

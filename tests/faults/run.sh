@@ -201,6 +201,7 @@ done
 submit worker-sigkill
 wait_bands "$job" 6
 signal_busy KILL "$wa" "$wb"
+wait "$victim" 2>/dev/null  # reaped here, quietly
 if [ "$victim" = "$wa" ]; then start_worker $A; wa=$last_worker; else start_worker $B; wb=$last_worker; fi
 check worker-sigkill "$job" "$out" "$submit" \
   '[ "$(outcomes "$job" "'"'lapsed','silent'"'")" -ge 1 ] || echo "no lease lapsed: the kill hit no band"' \
@@ -262,6 +263,7 @@ sleep 2
 ip -n $C link set va up
 wait_bands "$job" 24
 signal_busy KILL "$wb" "$wa"
+wait "$victim" 2>/dev/null
 if [ "$victim" = "$wa" ]; then start_worker $A; wa=$last_worker; else start_worker $B; wb=$last_worker; fi
 check combined "$job" "$out" "$submit"
 
