@@ -1,12 +1,34 @@
 #include "client/farm_client.h"
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
+#include <thread>
 
 #include "server/rpc.h"
 
 namespace locus::client {
 namespace fs = std::filesystem;
+namespace {
+
+// How long a watch that lost its farm waits for it (a coordinator's
+// restart), and how long a submission is retried.
+constexpr farm::Millis kRetryFor{60000};
+constexpr farm::Millis kSubmitRetryFor{10000};
+
+bool transient(const Status& s) {
+  return s.code() == Code::kUnavailable || s.code() == Code::kDeadlineExceeded;
+}
+
+std::string new_request_id() {
+  std::random_device rd;
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%08x%08x%08x%08x", rd(), rd(), rd(), rd());
+  return buf;
+}
+
+}  // namespace
 
 class FarmClient::Impl {
  public:
@@ -24,11 +46,21 @@ FarmClient::~FarmClient() = default;
 Result<farm::JobInfo> FarmClient::submit(const farm::SubmitRequest& request) {
   v1::SubmitJobRequest req;
   *req.mutable_spec() = rpc::ToProto(request);
-  v1::SubmitJobResponse resp;
-  grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kDataCall);
-  if (Status s = impl_->check(impl_->stub->SubmitJob(&ctx, req, &resp)); !s.ok()) return s;
-  return rpc::FromProto(resp.status());
+  // One id per submission, the same on every retry: the coordinator then
+  // creates the job once however many of the attempts reached it.
+  req.set_request_id(request.request_id.empty() ? new_request_id() : request.request_id);
+  const auto give_up = std::chrono::steady_clock::now() + kSubmitRetryFor;
+  farm::Millis backoff{250};
+  for (;;) {
+    v1::SubmitJobResponse resp;
+    grpc::ClientContext ctx;
+    rpc::set_deadline(ctx, rpc::kDataCall);
+    const Status s = impl_->check(impl_->stub->SubmitJob(&ctx, req, &resp));
+    if (s.ok()) return rpc::FromProto(resp.status());
+    if (!transient(s) || std::chrono::steady_clock::now() + backoff > give_up) return s;
+    std::this_thread::sleep_for(backoff);
+    backoff = std::min(backoff * 2, farm::Millis(1000));
+  }
 }
 
 Result<farm::JobInfo> FarmClient::job(const std::string& job_id) {
@@ -78,6 +110,11 @@ Result<std::vector<farm::WorkerInfo>> FarmClient::workers() {
 Result<farm::JobInfo> FarmClient::watch(
     const std::string& job_id, const std::function<void(const farm::JobInfo&)>& on_update) {
   constexpr int kStreamSeconds = 30;
+  // A farm that goes away (a coordinator restarting) is waited for: the job
+  // is in its store, and the watch goes on once it is back.
+  auto give_up = std::chrono::steady_clock::now() + kRetryFor;
+  farm::Millis backoff{250};
+  bool reached = false;
   for (;;) {
     v1::WatchJobRequest req;
     req.set_job_id(job_id);
@@ -91,8 +128,20 @@ Result<farm::JobInfo> FarmClient::watch(
       last = rpc::FromProto(status);
       on_update(*last);
     }
-    if (Status s = impl_->check(reader->Finish()); !s.ok()) return s;
+    if (Status s = impl_->check(reader->Finish()); !s.ok()) {
+      // Only a farm that knew the job is waited for; an address that never
+      // answered is an error at once.
+      if (last) reached = true;
+      if (!reached || !transient(s) || std::chrono::steady_clock::now() + backoff > give_up)
+        return s;
+      std::this_thread::sleep_for(backoff);
+      backoff = std::min(backoff * 2, farm::Millis(1000));
+      continue;
+    }
     if (last && farm::is_terminal(last->state)) return *last;
+    reached = true;
+    give_up = std::chrono::steady_clock::now() + kRetryFor;
+    backoff = farm::Millis(250);
   }
 }
 

@@ -71,6 +71,9 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   co.data_dir = farm->dir_;
   co.lease = o.lease;
   co.heartbeat = std::max(farm::Millis(50), o.lease / 5);
+  // Its data directory is a temporary one, deleted at exit: nothing there
+  // needs to outlive a power loss.
+  co.fsync = false;
   farm->coordinator_ = std::make_unique<farm::Coordinator>(co);
   if (Status s = farm->coordinator_->start(); !s.ok()) return s;
   farm->server_ = std::make_unique<rpc::CoordinatorServer>(*farm->coordinator_);

@@ -300,6 +300,12 @@ void print_job(const farm::JobInfo& j) {
   std::printf("  output   %s (fetch with `locus fetch %s DIR`)\n", j.spec.output.c_str(),
               j.job_id.c_str());
   if (!j.error.empty()) std::printf("  error    %s\n", j.error.c_str());
+  if (j.results_discarded > 0 || j.speculative_leases > 0) {
+    std::printf("  races    %lld speculative leases, %lld late results discarded\n",
+                static_cast<long long>(j.speculative_leases),
+                static_cast<long long>(j.results_discarded));
+  }
+  for (const std::string& w : j.quarantined) std::printf("  quarantined worker %s\n", w.c_str());
 }
 
 int run_status(const std::string& address, const std::string& job_id) {

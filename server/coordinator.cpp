@@ -1,9 +1,14 @@
 #include "server/coordinator.h"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -12,6 +17,7 @@
 #include "common/animation.h"
 #include "common/image.h"
 #include "common/scene_io.h"
+#include "server/band_files.h"
 
 namespace locus::farm {
 namespace fs = std::filesystem;
@@ -56,7 +62,9 @@ Result<std::string> output_file_pattern(const std::string& output, int frames) {
 
 Coordinator::Coordinator(CoordinatorOptions options)
     : options_(std::move(options)),
-      scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts},
+      scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts,
+                                  options_.quarantine_after, options_.speculate_factor,
+                                  options_.speculate_min},
                  options_.now) {}
 
 Coordinator::~Coordinator() { shutdown(); }
@@ -68,10 +76,91 @@ Status Coordinator::start() {
     return FailedPrecondition("--data " + options_.data_dir + ": cannot create: " + ec.message());
   std::lock_guard lk(mu_);
   if (started_) return Status::Ok();
+  if (Status s = recover(); !s.ok()) return s;
   started_ = true;
   ticker_ = std::thread([this] { tick_loop(); });
   writer_ = std::thread([this] { write_loop(); });
   return Status::Ok();
+}
+
+Status Coordinator::recover() {
+  // One coordinator per data directory: a second one would resume the same
+  // jobs and hand out the same bands. The lock goes with the process, so a
+  // killed coordinator never leaves it behind.
+  const std::string lock = (fs::path(options_.data_dir) / "coordinator.lock").string();
+  lock_fd_ = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock_fd_ < 0) return FailedPrecondition(lock + ": cannot open: " + std::strerror(errno));
+  if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+    return FailedPrecondition("--data " + options_.data_dir +
+                              " is in use by another coordinator; give each its own directory");
+  }
+  const std::string db = (fs::path(options_.data_dir) / "locus.db").string();
+  auto store = JobStore::open(db);
+  if (!store.ok()) return store.status();
+  store_ = std::move(*store);
+  auto state = store_->recover();
+  if (!state.ok()) return Status(Code::kFailedPrecondition, db + ": " + state.status().message());
+  std::error_code ec;
+  for (RecoveredJob& j : state->jobs) {
+    const std::string dir = job_dir(j.record.job_id);
+    const JobSpec& s = j.record.spec;
+    if (is_terminal(j.state)) {
+      // Bands of a finished job are of no more use (left by a crash).
+      fs::remove_all(fs::path(dir) / "bands", ec);
+      continue;
+    }
+    remove_band_temporaries(dir);
+    const std::set<int> written(j.frames_written.begin(), j.frames_written.end());
+    for (int f : written) remove_band_files(dir, f, s.bands);
+    // A band is done only if its file is there, whole: after a power loss
+    // the store may be ahead of the disk. Such a band is rendered again.
+    std::vector<RecoveredJob::BandRef> kept;
+    for (const RecoveredJob::BandRef& b : j.done_bands) {
+      if (written.count(b.frame)) continue;
+      const Band rows = band_rows(s.height, s.bands, b.band);
+      const uintmax_t want = 32 + static_cast<uintmax_t>(s.width) * (rows.y1 - rows.y0) * 12 + 8;
+      if (fs::file_size(band_file_path(dir, b.frame, b.band), ec) == want && !ec) {
+        kept.push_back(b);
+      } else {
+        spdlog::warn("job {}: band {} of frame {} has no complete band file; rendering it again",
+                     j.record.job_id, b.band, b.frame);
+        if (Status st = store_->forget_band(j.record.job_id, b.frame, b.band); !st.ok()) return st;
+        --j.bands_done;
+      }
+    }
+    j.done_bands = std::move(kept);
+    if (!scenes_.count(s.scene_hash)) {
+      auto bytes = store_->scene(s.scene_hash);
+      auto scene = std::make_shared<v1::Scene>();
+      if (!bytes.ok() || !scene->ParseFromString(*bytes)) {
+        return FailedPrecondition(db + ": the scene of job " + j.record.job_id +
+                                  " is missing or unreadable");
+      }
+      scenes_.emplace(s.scene_hash, std::move(scene));
+    }
+  }
+  for (FrameReady& f : scheduler_.restore(*state)) to_write_.push_back(std::move(f));
+  for (const auto& [hash, scene] : scenes_) scenes_stored_.insert(hash);
+  if (!state->jobs.empty()) {
+    spdlog::info("job store {}: {} jobs, {} leases of the previous run voided, {} frames to write",
+                 db, state->jobs.size(), state->leases_voided, to_write_.size());
+  }
+  return Status::Ok();
+}
+
+Status Coordinator::persist() {
+  const std::vector<Event> events = scheduler_.take_events();
+  if (crashed_) return Status(Code::kAborted, "crashed (test)");
+  Status s = store_ ? store_->apply(events) : Status::Ok();
+  if (!s.ok()) spdlog::error("{} ({} changes not recorded)", s.message(), events.size());
+  return s;
+}
+
+LatencySummary Coordinator::dispatch_latency() {
+  std::lock_guard lk(mu_);
+  return dispatch_.summary();
 }
 
 void Coordinator::shutdown() {
@@ -84,6 +173,37 @@ void Coordinator::shutdown() {
   write_ready_.notify_all();
   if (ticker_.joinable()) ticker_.join();
   if (writer_.joinable()) writer_.join();
+  std::lock_guard lk(mu_);
+  const LatencySummary d = dispatch_.summary();
+  if (d.count > 0) {
+    spdlog::info("dispatch latency: {} bands, p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us", d.count,
+                 d.p50_us, d.p99_us, d.max_us);
+  }
+  persist();
+  store_.reset();
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+  lock_fd_ = -1;
+}
+
+void Coordinator::crash_for_test() {
+  {
+    std::lock_guard lk(mu_);
+    if (stopping_) return;
+    stopping_ = true;
+    crashed_ = true;
+    to_write_.clear();
+    scheduler_.take_events();
+  }
+  changed_.notify_all();
+  write_ready_.notify_all();
+  if (ticker_.joinable()) ticker_.join();
+  if (writer_.joinable()) writer_.join();
+  // Closing the connection checkpoints nothing that a reopen would not
+  // recover from the WAL anyway.
+  std::lock_guard lk(mu_);
+  store_.reset();
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+  lock_fd_ = -1;
 }
 
 std::string Coordinator::job_dir(const std::string& job_id) const {
@@ -98,6 +218,7 @@ void Coordinator::tick_loop() {
   while (!stopping_) {
     changed_.wait_for(lk, options_.tick);
     scheduler_.expire();
+    persist();
     if (scheduler_.version() != seen) {
       seen = scheduler_.version();
       drop_unused_scenes();
@@ -111,6 +232,13 @@ void Coordinator::drop_unused_scenes() {
   for (auto it = scenes_.begin(); it != scenes_.end();) {
     it = used.count(it->first) ? std::next(it) : scenes_.erase(it);
   }
+  if (store_ && used != scenes_stored_) {
+    if (Status s = store_->keep_scenes(used); s.ok()) {
+      scenes_stored_ = used;
+    } else {
+      spdlog::error("{}", s.message());
+    }
+  }
 }
 
 void Coordinator::write_loop() {
@@ -118,27 +246,27 @@ void Coordinator::write_loop() {
   for (;;) {
     write_ready_.wait(lk, [&] { return stopping_ || !to_write_.empty(); });
     if (to_write_.empty()) return;  // stopping, and nothing left
-    FrameImage f = std::move(to_write_.front());
+    const FrameReady f = std::move(to_write_.front());
     to_write_.pop_front();
     lk.unlock();
-    // Atomic: a reader (fetch) sees the whole file or none. The temporary
-    // keeps the extension, by which OpenImageIO picks the format.
-    const fs::path dir = job_dir(f.job_id);
-    const fs::path final_path = dir / f.file_name;
-    const fs::path tmp = dir / (".partial-" + f.file_name);
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    Status st = ec ? Internal(dir.string() + ": cannot create: " + ec.message())
-                   : write_image(tmp.string(), f.image);
-    if (st.ok()) {
-      fs::rename(tmp, final_path, ec);
-      if (ec) st = Internal(final_path.string() + ": cannot rename into place: " + ec.message());
+    // Bounded memory: this is the only frame image the coordinator holds;
+    // it is stitched from the band files and freed before the next.
+    const std::string dir = job_dir(f.job_id);
+    Status st;
+    {
+      auto image = stitch_frame(dir, f);
+      st = image.ok() ? write_frame_file(dir, f.file_name, *image, options_.fsync) : image.status();
     }
-    if (!st.ok()) fs::remove(tmp, ec);
-    f.image = Image();  // bounded memory: the frame is gone before the next one is taken
     lk.lock();
     scheduler_.frame_written(f.job_id, f.frame, st);
+    const bool recorded = persist().ok();
     changed_.notify_all();
+    // Once the store says "written", the frame's bands are of no more use.
+    if (st.ok() && recorded) {
+      lk.unlock();
+      remove_band_files(dir, f.frame, f.bands);
+      lk.lock();
+    }
   }
 }
 
@@ -204,13 +332,36 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
                            " bands so that each fits in one message");
   }
 
+  if (r.request_id.size() > 128 ||
+      std::any_of(r.request_id.begin(), r.request_id.end(),
+                  [](unsigned char c) { return c <= 0x20 || c >= 0x7f; })) {
+    return InvalidArgument("request_id: at most 128 printable characters without spaces");
+  }
+
   auto stored = std::make_shared<v1::Scene>(r.scene);
   std::string bytes;
   stored->SerializeToString(&bytes);
   spec.scene_hash = content_hash(bytes);
+  // What makes a retry a retry: the same scene and the same request.
+  const std::string fingerprint =
+      content_hash(spec.scene_hash + "|" + spec.render.method + "|" + spec.render.boxes + "|" +
+                   std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
+                   std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
+                   std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" + r.output +
+                   "|" + std::to_string(r.orbit_degrees));
 
   std::lock_guard lk(mu_);
   if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");
+  if (auto earlier = scheduler_.job_for_request(r.request_id)) {
+    if (earlier->fingerprint != fingerprint) {
+      return Status(Code::kAlreadyExists, "request id '" + r.request_id +
+                                              "' was already used for another submission (job " +
+                                              earlier->job_id +
+                                              "); a new submission needs a new request id");
+    }
+    spdlog::info("job {}: submission retried (request id {})", earlier->job_id, r.request_id);
+    return scheduler_.job(earlier->job_id);
+  }
   spec.bands = r.bands > 0 ? r.bands
                            : default_bands(spec.width, spec.height, spec.frames(),
                                            static_cast<int>(scheduler_.worker_count()));
@@ -219,8 +370,18 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
                            std::to_string(spec.bands) + " bands: at most " +
                            std::to_string(kMaxBandsPerJob) + " bands per job");
   }
+  // Recorded before the client hears of the job: an id the client was
+  // given survives any restart.
+  if (Status st = store_->put_scene(spec.scene_hash, bytes); !st.ok()) {
+    return Status(Code::kUnavailable, "cannot record the job: " + st.message());
+  }
+  scenes_stored_.insert(spec.scene_hash);
+  const std::string id = scheduler_.add_job(spec, r.request_id, fingerprint);
+  if (Status st = persist(); !st.ok()) {
+    scheduler_.forget_job(id);
+    return Status(Code::kUnavailable, "cannot record the job: " + st.message());
+  }
   scenes_.emplace(spec.scene_hash, std::move(stored));
-  const std::string id = scheduler_.add_job(spec);
   spdlog::info("job {}: {} {}x{} frames {}-{} x {} bands -> {}", id, name, spec.width, spec.height,
                spec.frame_first, spec.frame_last, spec.bands, spec.output);
   changed_.notify_all();
@@ -241,6 +402,7 @@ Result<JobInfo> Coordinator::cancel(const std::string& job_id) {
   std::lock_guard lk(mu_);
   auto r = scheduler_.cancel(job_id);
   if (r.ok()) spdlog::info("job {}: cancelled", job_id);
+  persist();
   changed_.notify_all();
   return r;
 }
@@ -339,6 +501,7 @@ Registration Coordinator::register_worker(const std::string& name, int threads) 
       scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200), std::max(1, threads));
   r.heartbeat = options_.heartbeat;
   r.lease = options_.lease;
+  persist();
   spdlog::info("worker {} registered: {} ({} threads)", r.worker_id, name, threads);
   changed_.notify_all();
   return r;
@@ -346,7 +509,8 @@ Registration Coordinator::register_worker(const std::string& name, int threads) 
 
 Result<std::optional<BandTask>> Coordinator::get_task(const std::string& worker_id, Millis wait,
                                                       const CancelledFn& cancelled) {
-  const auto end = SteadyClock::now() + std::clamp(wait, Millis(0), options_.max_poll);
+  auto since = SteadyClock::now();
+  const auto end = since + std::clamp(wait, Millis(0), options_.max_poll);
   std::unique_lock lk(mu_);
   for (;;) {
     // Checked before leasing: a band leased to a poll whose worker has gone
@@ -354,11 +518,17 @@ Result<std::optional<BandTask>> Coordinator::get_task(const std::string& worker_
     if (stopping_ || (cancelled && cancelled())) return std::optional<BandTask>();
     auto r = scheduler_.next_task(worker_id);
     if (!r.ok() || r->has_value()) {
-      if (r.ok()) changed_.notify_all();
+      if (r.ok()) {
+        persist();
+        // From the call (or the wake-up that found the band) to the lease.
+        dispatch_.add(SteadyClock::now() - since);
+        changed_.notify_all();
+      }
       return r;
     }
     if (SteadyClock::now() >= end) return r;
     changed_.wait_until(lk, std::min(end, SteadyClock::now() + Millis(200)));
+    since = SteadyClock::now();
   }
 }
 
@@ -373,8 +543,41 @@ Result<std::shared_ptr<const v1::Scene>> Coordinator::get_scene(const std::strin
 }
 
 Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {
-  std::lock_guard lk(mu_);
-  auto r = scheduler_.complete_band(std::move(output));
+  std::unique_lock lk(mu_);
+  std::optional<BandTarget> target = scheduler_.result_target(output);
+  std::string temp;
+  if (target) {
+    // The pixels go to disk (and to the platter when fsync is on) outside
+    // the lock; only the rename and the store's record happen under it.
+    lk.unlock();
+    auto written = write_band_temp(job_dir(target->job_id), target->frame, target->band,
+                                   {target->width, target->y0, target->y1}, output.rgb,
+                                   output.lease_id, options_.fsync);
+    lk.lock();
+    if (!written.ok()) {
+      // Not the worker's fault: its lease stands, and lapses if this lasts.
+      spdlog::error("{}", written.status().message());
+      return Status(Code::kUnavailable,
+                    "the coordinator cannot store the band: " + written.status().message());
+    }
+    temp = *written;
+    // The lease may have lapsed, or another copy won, while the file was
+    // written: then complete_band() below drops the result.
+    target = scheduler_.result_target(output);
+  }
+  std::error_code ec;
+  if (target) {
+    const std::string path = band_file_path(job_dir(target->job_id), target->frame, target->band);
+    if (Status st = commit_band_file(temp, path); !st.ok()) {
+      fs::remove(temp, ec);
+      spdlog::error("{}", st.message());
+      return Status(Code::kUnavailable, "the coordinator cannot store the band: " + st.message());
+    }
+  } else if (!temp.empty()) {
+    fs::remove(temp, ec);
+  }
+  auto r = scheduler_.complete_band(output);
+  persist();
   if (r.ok() && r->frame) {
     to_write_.push_back(std::move(*r->frame));
     r->frame.reset();

@@ -12,24 +12,35 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "proto/scene.pb.h"
 #include "server/farm_types.h"
+#include "server/latency.h"
 #include "server/scheduler.h"
+#include "server/store.h"
 
 namespace locus::farm {
 
 struct CoordinatorOptions {
-  std::string data_dir;  // frames go to DATA/jobs/<job>/<file>
+  // The job store (DATA/locus.db) and the pixels: DATA/jobs/<job>/<file>
+  // for frames, DATA/jobs/<job>/bands/ for bands of frames in progress.
+  std::string data_dir;
   Millis lease{5000};
   Millis heartbeat{1000};   // asked of workers; well inside the lease
   Millis max_poll{10000};   // longest GetTask wait
   Millis max_watch{30000};  // longest single WatchJob stream
   Millis tick{100};         // how often leases are checked
   int max_attempts = 3;
+  int quarantine_after = 2;
+  double speculate_factor = 3.0;
+  Millis speculate_min{1000};
+  // fsync band files, frames and their directory before the store names
+  // them (survives a power loss); without it a kill -9 is still survived.
+  bool fsync = true;
   NowFn now = [] { return SteadyClock::now(); };
 };
 
@@ -45,6 +56,9 @@ struct SubmitRequest {
   int bands = 0;  // 0: default_bands()
   std::string output;
   double orbit_degrees = 0;
+  // The client's token for this submission, reused on retries: a second
+  // submission with the same id returns the first one's job.
+  std::string request_id;
 };
 
 struct Registration {
@@ -73,10 +87,15 @@ class Coordinator {
   Coordinator(const Coordinator&) = delete;
   Coordinator& operator=(const Coordinator&) = delete;
 
-  // Creates the data directory and starts the ticker and writer threads.
+  // Opens the job store in the data directory, resumes the jobs it holds
+  // and starts the ticker and writer threads.
   Status start();
-  // Ends long polls and watches, writes the frames already stitched, joins.
+  // Ends long polls and watches, writes the frames already complete, joins.
   void shutdown();
+  // Tests only: stops like a kill -9 would, as far as the data directory
+  // can tell: frames waiting to be written are dropped, nothing more is
+  // recorded, the store is left as it is.
+  void crash_for_test();
 
   // ---- ClientService ----
   // InvalidArgument naming the scene and the problem; nothing is stored then.
@@ -104,20 +123,31 @@ class Coordinator {
 
   // The directory holding a job's frames.
   std::string job_dir(const std::string& job_id) const;
+  // Time from a band being available to a worker to its lease, over the
+  // coordinator's life (GetTask calls that returned a band).
+  LatencySummary dispatch_latency();
 
  private:
+  Status recover();          // start(), before the threads
   void tick_loop();
   void write_loop();
   void drop_unused_scenes();  // mu_ held
+  // Hands the Scheduler's events to the store in one transaction; mu_ held.
+  Status persist();
 
   CoordinatorOptions options_;
   std::mutex mu_;
   std::condition_variable changed_;  // scheduler version moved, or stopping
   Scheduler scheduler_;
+  int lock_fd_ = -1;  // flock on DATA/coordinator.lock
+  std::unique_ptr<JobStore> store_;
   std::map<std::string, std::shared_ptr<const v1::Scene>> scenes_;  // by content hash
-  std::deque<FrameImage> to_write_;
+  std::set<std::string> scenes_stored_;  // the store's scenes, as last trimmed
+  std::deque<FrameReady> to_write_;
+  LatencyHistogram dispatch_;
   std::condition_variable write_ready_;
   bool stopping_ = false;
+  bool crashed_ = false;  // crash_for_test()
   bool started_ = false;
   std::thread ticker_;
   std::thread writer_;

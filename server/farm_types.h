@@ -113,6 +113,7 @@ struct BandOutput {
   std::vector<float> rgb;
   Stats stats;
   std::string error;
+  bool handed_back = false;  // the worker is stopping and gives the band back unrendered
 };
 
 struct JobInfo {
@@ -125,6 +126,9 @@ struct JobInfo {
   std::string error;
   double seconds_elapsed = 0;
   Stats stats;
+  int64_t results_discarded = 0;   // results that lost a race to another lease of their band
+  int64_t speculative_leases = 0;  // second leases of bands running far longer than their peers
+  std::vector<std::string> quarantined;  // worker names that get no more bands of this job
 };
 
 struct WorkerInfo {
@@ -139,12 +143,15 @@ struct WorkerInfo {
   double seconds_since_seen = 0;
 };
 
-// A frame whose bands are all in, ready to be written.
-struct FrameImage {
+// A frame whose bands are all in their band files, ready to be stitched
+// and written (server/band_files.h).
+struct FrameReady {
   std::string job_id;
   int frame = 0;
   std::string file_name;
-  Image image;
+  int width = 0;
+  int height = 0;
+  int bands = 0;
 };
 
 // Hex SHA-256: scenes are addressed by the hash of their serialized form.

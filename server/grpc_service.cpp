@@ -40,7 +40,9 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
   grpc::Status SubmitJob(grpc::ServerContext*, const v1::SubmitJobRequest* req,
                          v1::SubmitJobResponse* resp) override {
     return guarded("SubmitJob", [&]() -> Status {
-      auto r = c_.submit(FromProto(req->spec()));
+      farm::SubmitRequest submit = FromProto(req->spec());
+      submit.request_id = req->request_id();
+      auto r = c_.submit(submit);
       if (!r.ok()) return r.status();
       resp->set_job_id(r->job_id);
       *resp->mutable_status() = ToProto(*r);

@@ -88,10 +88,15 @@ std::shared_ptr<grpc::Channel> make_channel(const std::string& address) {
   // Reconnect quickly after a coordinator restart rather than backing off
   // for minutes.
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 200);
   return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
 }
 
 void configure_server(grpc::ServerBuilder& builder) {
+  // A second server on a port in use must fail, not share it (gRPC sets
+  // SO_REUSEPORT by default): two coordinators would split the workers.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.SetMaxReceiveMessageSize(farm::kMaxMessageBytes);
   builder.SetMaxSendMessageSize(farm::kMaxMessageBytes);
   // Long polls and watches each hold a thread of the synchronous server;
@@ -211,6 +216,9 @@ v1::JobStatus ToProto(const farm::JobInfo& j) {
   p.set_seconds_elapsed(j.seconds_elapsed);
   *p.mutable_stats() = ToProto(j.stats);
   for (int f : j.frames_written) p.add_frames_written(f);
+  p.set_results_discarded(j.results_discarded);
+  p.set_speculative_leases(j.speculative_leases);
+  for (const std::string& w : j.quarantined) p.add_quarantined_workers(w);
   return p;
 }
 
@@ -231,6 +239,9 @@ farm::JobInfo FromProto(const v1::JobStatus& p) {
   j.seconds_elapsed = p.seconds_elapsed();
   j.stats = FromProto(p.stats());
   j.frames_written.assign(p.frames_written().begin(), p.frames_written().end());
+  j.results_discarded = p.results_discarded();
+  j.speculative_leases = p.speculative_leases();
+  j.quarantined.assign(p.quarantined_workers().begin(), p.quarantined_workers().end());
   return j;
 }
 
@@ -339,6 +350,7 @@ v1::CompleteBandRequest ToProto(farm::BandOutput&& o) {
   o.rgb.shrink_to_fit();
   *p.mutable_stats() = ToProto(o.stats);
   p.set_error(o.error);
+  p.set_handed_back(o.handed_back);
   return p;
 }
 
@@ -349,6 +361,7 @@ farm::BandOutput FromProto(const v1::CompleteBandRequest& p) {
   o.rgb.assign(p.rgb().begin(), p.rgb().end());
   o.stats = FromProto(p.stats());
   o.error = p.error();
+  o.handed_back = p.handed_back();
   return o;
 }
 

@@ -20,7 +20,36 @@ std::string numbered(const char* prefix, uint64_t n) {
   return buf;
 }
 
+constexpr size_t kDurationsKept = 64;  // per job, for the speculation threshold
+
 }  // namespace
+
+const char* lease_outcome_name(LeaseOutcome o) {
+  switch (o) {
+    case LeaseOutcome::kDone:
+      return "done";
+    case LeaseOutcome::kFailed:
+      return "failed";
+    case LeaseOutcome::kMalformed:
+      return "malformed";
+    case LeaseOutcome::kLapsed:
+      return "lapsed";
+    case LeaseOutcome::kSilent:
+      return "silent";
+    case LeaseOutcome::kHandedBack:
+      return "handed back";
+    case LeaseOutcome::kDiscarded:
+      return "discarded";
+    case LeaseOutcome::kRevoked:
+      return "revoked";
+  }
+  return "unknown";
+}
+
+bool is_charged(LeaseOutcome o) {
+  return o == LeaseOutcome::kFailed || o == LeaseOutcome::kMalformed ||
+         o == LeaseOutcome::kLapsed || o == LeaseOutcome::kSilent;
+}
 
 Scheduler::Scheduler(SchedulerOptions options, NowFn now)
     : options_(options), now_(std::move(now)) {
@@ -32,21 +61,138 @@ Scheduler::Scheduler(SchedulerOptions options, NowFn now)
   lease_prefix_ = buf;
 }
 
+// ---------------------------------------------------------------- restart
+
+std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
+  std::vector<FrameReady> ready;
+  const TimePoint now = now_();
+  next_worker_ = std::max<uint64_t>(next_worker_, state.next_worker);
+  for (const RecoveredJob& r : state.jobs) {
+    Job job;
+    job.record = r.record;
+    JobInfo& info = job.info;
+    info.job_id = r.record.job_id;
+    info.spec = r.record.spec;
+    info.state = r.state;
+    info.error = r.error;
+    info.stats = r.stats;
+    info.results_discarded = r.results_discarded;
+    info.speculative_leases = r.speculative_leases;
+    info.frames_written = r.frames_written;
+    std::sort(info.frames_written.begin(), info.frames_written.end());
+    info.frames_done = static_cast<int>(info.frames_written.size());
+    info.bands_done = r.bands_done;
+    job.submitted = now - std::chrono::duration_cast<SteadyClock::duration>(
+                              std::chrono::duration<double>(std::max(0.0, r.seconds_elapsed)));
+    job.finished = now;
+    const JobSpec& s = info.spec;
+    if (!is_terminal(r.state)) {
+      job.tasks.resize(s.bands_total());
+      auto index = [&](int frame, int band) {
+        return static_cast<int64_t>(frame - s.frame_first) * s.bands + band;
+      };
+      auto valid = [&](int frame, int band) {
+        return frame >= s.frame_first && frame <= s.frame_last && band >= 0 && band < s.bands;
+      };
+      for (int f : info.frames_written) {
+        if (f < s.frame_first || f > s.frame_last) continue;
+        for (int b = 0; b < s.bands; ++b) job.tasks[index(f, b)].state = TaskState::kDone;
+      }
+      for (const RecoveredJob::BandRef& b : r.done_bands) {
+        if (!valid(b.frame, b.band)) continue;
+        Task& t = job.tasks[index(b.frame, b.band)];
+        if (t.state == TaskState::kDone) continue;  // its frame is written
+        t.state = TaskState::kDone;
+        ++job.frame_bands[b.frame];
+      }
+      for (const RecoveredJob::Failure& f : r.failures) {
+        if (!valid(f.frame, f.band)) continue;
+        const int i = static_cast<int>(index(f.frame, f.band));
+        Task& t = job.tasks[i];
+        if (t.failures < 255) ++t.failures;
+        job.failures[i].workers.insert(f.worker_name);
+        job.failures[i].last_error = f.error;
+        ++job.worker_failures[f.worker_name];
+      }
+      for (const auto& [name, n] : job.worker_failures) {
+        if (options_.quarantine_after > 0 && n >= options_.quarantine_after)
+          info.quarantined.push_back(name);
+      }
+      int64_t done = 0;
+      int last_touched = -1;
+      for (int i = 0; i < static_cast<int>(job.tasks.size()); ++i) {
+        if (job.tasks[i].state == TaskState::kDone) {
+          ++done;
+          last_touched = i;
+        } else if (job.failures.count(i)) {
+          last_touched = i;
+        }
+      }
+      info.bands_done = done;
+      job.next_fresh = last_touched + 1;
+      for (int i = 0; i < job.next_fresh; ++i) {
+        if (job.tasks[i].state != TaskState::kDone) job.retry.push_back(i);
+      }
+      for (auto it = job.frame_bands.begin(); it != job.frame_bands.end();) {
+        if (it->second == s.bands) {
+          ready.push_back(FrameReady{info.job_id, it->first, frame_path(s.output, it->first),
+                                     s.width, s.height, s.bands});
+          it = job.frame_bands.erase(it);
+        } else {
+          ++it;
+        }
+      }
+      spdlog::info("job {} resumed: {}/{} bands done, {}/{} frames written", info.job_id, done,
+                   s.bands_total(), info.frames_done, s.frames());
+    }
+    next_job_ = std::max<uint64_t>(next_job_, static_cast<uint64_t>(r.record.seq) + 1);
+    if (!r.record.request_id.empty()) requests_[r.record.request_id] = info.job_id;
+    order_.push_back(info.job_id);
+    jobs_.emplace(info.job_id, std::move(job));
+  }
+  ++version_;
+  return ready;
+}
+
 // ---------------------------------------------------------------- jobs
 
-std::string Scheduler::add_job(JobSpec spec) {
-  const std::string id = numbered("j", next_job_++);
+std::string Scheduler::add_job(JobSpec spec, const std::string& request_id,
+                               const std::string& fingerprint) {
+  const uint64_t seq = next_job_++;
+  const std::string id = numbered("j", seq);
   Job job;
   job.info.job_id = id;
   job.info.state = JobState::kQueued;
   job.info.spec = std::move(spec);
+  job.record.job_id = id;
+  job.record.seq = static_cast<int64_t>(seq);
+  job.record.request_id = request_id;
+  job.record.fingerprint = fingerprint;
+  job.record.spec = job.info.spec;
   job.submitted = now_();
   job.tasks.resize(job.info.spec.bands_total());
-  for (int i = 0; i < static_cast<int>(job.tasks.size()); ++i) job.queue.push_back(i);
+  events_.push_back(event::JobAdded{job.record});
+  if (!request_id.empty()) requests_[request_id] = id;
   jobs_.emplace(id, std::move(job));
   order_.push_back(id);
   ++version_;
   return id;
+}
+
+void Scheduler::forget_job(const std::string& job_id) {
+  Job* job = find_job(job_id);
+  if (!job) return;
+  drop_leases_of(*job);
+  if (!job->record.request_id.empty()) requests_.erase(job->record.request_id);
+  order_.erase(std::remove(order_.begin(), order_.end(), job_id), order_.end());
+  jobs_.erase(job_id);
+  ++version_;
+}
+
+std::optional<JobRecord> Scheduler::job_for_request(const std::string& request_id) const {
+  auto it = requests_.find(request_id);
+  if (request_id.empty() || it == requests_.end()) return std::nullopt;
+  return jobs_.at(it->second).record;
 }
 
 Scheduler::Job* Scheduler::find_job(const std::string& id) {
@@ -57,6 +203,11 @@ Scheduler::Job* Scheduler::find_job(const std::string& id) {
 const Scheduler::Job* Scheduler::find_job(const std::string& id) const {
   auto it = jobs_.find(id);
   return it == jobs_.end() ? nullptr : &it->second;
+}
+
+std::string Scheduler::band_name(const Job& job, int task) const {
+  return "band " + std::to_string(band_of(job, task)) + " of frame " +
+         std::to_string(frame_of(job, task));
 }
 
 JobInfo Scheduler::snapshot(const Job& job) const {
@@ -83,34 +234,37 @@ void Scheduler::drop_leases_of(Job& job) {
     if (it->second.job_id == job.info.job_id) {
       auto w = workers_.find(it->second.worker_id);
       if (w != workers_.end()) w->second.leases.erase(it->first);
+      events_.push_back(event::LeaseEnded{
+          it->first, job.info.job_id, frame_of(job, it->second.task), band_of(job, it->second.task),
+          LeaseOutcome::kRevoked, std::string("job ") + job_state_name(job.info.state)});
       it = leases_.erase(it);
     } else {
       ++it;
     }
   }
-  job.queue.clear();
-  job.partial.clear();
 }
 
-void Scheduler::fail_job(Job& job, const std::string& error) {
+void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   if (is_terminal(job.info.state)) return;
-  spdlog::warn("job {} failed: {}", job.info.job_id, error);
-  job.info.state = JobState::kFailed;
+  job.info.state = state;
   job.info.error = error;
   job.finished = now_();
+  events_.push_back(event::JobStateChanged{job.info.job_id, state, error});
   drop_leases_of(job);
+  // A finished job keeps only its JobInfo in memory; the store has the rest.
+  job.tasks = {};
+  job.retry = {};
+  job.frame_bands.clear();
+  job.failures.clear();
+  job.durations.clear();
+  if (state == JobState::kFailed) spdlog::warn("job {} failed: {}", job.info.job_id, error);
   ++version_;
 }
 
 Result<JobInfo> Scheduler::cancel(const std::string& job_id) {
   Job* job = find_job(job_id);
   if (!job) return NotFound("job '" + job_id + "' is unknown; `locus status` lists the jobs");
-  if (!is_terminal(job->info.state)) {
-    job->info.state = JobState::kCancelled;
-    job->finished = now_();
-    drop_leases_of(*job);
-    ++version_;
-  }
+  end_job(*job, JobState::kCancelled, "");
   return snapshot(*job);
 }
 
@@ -118,19 +272,19 @@ void Scheduler::frame_written(const std::string& job_id, int frame, const Status
   Job* job = find_job(job_id);
   if (!job || is_terminal(job->info.state)) return;
   if (!status.ok()) {
-    fail_job(*job, "frame " + std::to_string(frame) + ": " + status.message());
+    end_job(*job, JobState::kFailed, "frame " + std::to_string(frame) + ": " + status.message());
     return;
   }
   ++job->info.frames_done;
   job->info.frames_written.push_back(frame);
+  events_.push_back(event::FrameWritten{job_id, frame, frame_path(job->info.spec.output, frame)});
+  ++version_;
   if (job->info.frames_done == job->info.spec.frames()) {
-    job->info.state = JobState::kSucceeded;
-    job->finished = now_();
+    end_job(*job, JobState::kSucceeded, "");
     spdlog::info("job {} succeeded in {:.3f} s ({} frames, {} bands)", job_id,
                  seconds(job->finished - job->submitted), job->info.spec.frames(),
                  job->info.spec.bands_total());
   }
-  ++version_;
 }
 
 // ---------------------------------------------------------------- workers
@@ -143,6 +297,7 @@ std::string Scheduler::add_worker(const std::string& name, int threads) {
   w.info.threads = threads;
   w.last_seen = now_();
   workers_.emplace(id, std::move(w));
+  events_.push_back(event::WorkerAdded{next_worker_});
   ++version_;
   return id;
 }
@@ -168,8 +323,8 @@ std::vector<WorkerInfo> Scheduler::workers() const {
       const Lease& l = leases_.at(*w.leases.begin());
       const Job& job = jobs_.at(l.job_id);
       info.job_id = l.job_id;
-      info.frame = job.info.spec.frame_first + l.task / job.info.spec.bands;
-      info.band = l.task % job.info.spec.bands;
+      info.frame = frame_of(job, l.task);
+      info.band = band_of(job, l.task);
     }
     info.seconds_since_seen = seconds(now - w.last_seen);
     out.push_back(std::move(info));
@@ -187,20 +342,91 @@ std::set<std::string> Scheduler::scenes_in_use() const {
 
 bool Scheduler::has_queued_bands() const {
   for (const auto& [id, job] : jobs_) {
-    if (!is_terminal(job.info.state) && !job.queue.empty()) return true;
+    if (!is_terminal(job.info.state) && queued(job)) return true;
   }
   return false;
 }
 
-BandTask Scheduler::make_task(const Job& job, int task, const Lease& lease) const {
+// ---------------------------------------------------------------- dispatch
+
+bool Scheduler::quarantined(const Job& job, const std::string& worker_name) const {
+  if (options_.quarantine_after <= 0) return false;
+  auto it = job.worker_failures.find(worker_name);
+  return it != job.worker_failures.end() && it->second >= options_.quarantine_after;
+}
+
+bool Scheduler::another_worker_for(const Job& job, int task, const std::string& worker_name) const {
+  const Failures* f = nullptr;
+  if (task >= 0) {
+    auto it = job.failures.find(task);
+    if (it != job.failures.end()) f = &it->second;
+  }
+  for (const auto& [id, w] : workers_) {
+    if (w.info.name == worker_name || quarantined(job, w.info.name)) continue;
+    if (f && f->workers.count(w.info.name)) continue;
+    return true;
+  }
+  return false;
+}
+
+int Scheduler::pick_task(Job& job, const std::string& worker_name) {
+  // Bands back in the queue first, each on a worker it has not failed on
+  // where another can take it.
+  for (auto it = job.retry.begin(); it != job.retry.end(); ++it) {
+    const int t = *it;
+    auto f = job.failures.find(t);
+    if (f == job.failures.end() || !f->second.workers.count(worker_name) ||
+        !another_worker_for(job, t, worker_name)) {
+      job.retry.erase(it);
+      return t;
+    }
+  }
+  if (job.next_fresh < static_cast<int>(job.tasks.size())) return job.next_fresh++;
+  return -1;
+}
+
+double Scheduler::speculate_after(const Job& job) const {
+  // "Far longer than its peers": a multiple of the median of the job's
+  // finished bands; no peers yet, no speculation.
+  if (options_.speculate_factor <= 0 || job.durations.size() < 3) return -1;
+  std::vector<double> d(job.durations.begin(), job.durations.end());
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return std::max(options_.speculate_factor * d[d.size() / 2],
+                  std::chrono::duration<double>(options_.speculate_min).count());
+}
+
+const Scheduler::Lease* Scheduler::speculation_candidate(const std::string& worker_name) const {
+  if (options_.speculate_factor <= 0) return nullptr;
+  const TimePoint now = now_();
+  const Lease* best = nullptr;
+  double best_ratio = 1.0;
+  for (const auto& [id, l] : leases_) {
+    if (l.speculative || l.worker_name == worker_name) continue;
+    const Job& job = jobs_.at(l.job_id);
+    if (is_terminal(job.info.state) || quarantined(job, worker_name)) continue;
+    const Task& t = job.tasks[l.task];
+    if (t.leases != 1 || t.speculated) continue;
+    const double after = speculate_after(job);
+    if (after <= 0) continue;
+    const double ratio = seconds(now - l.granted) / after;
+    if (ratio > best_ratio) {
+      best_ratio = ratio;
+      best = &l;
+    }
+  }
+  return best;
+}
+
+BandTask Scheduler::make_task(const Job& job, int task, const Lease& lease,
+                              const std::string& lease_id) const {
   const JobSpec& s = job.info.spec;
   BandTask t;
-  t.lease_id = job.tasks[task].lease_id;
+  t.lease_id = lease_id;
   t.lease_remaining = std::chrono::duration_cast<Millis>(lease.deadline - now_());
   t.job_id = job.info.job_id;
   t.scene_hash = s.scene_hash;
-  t.frame = s.frame_first + task / s.bands;
-  t.band = task % s.bands;
+  t.frame = frame_of(job, task);
+  t.band = band_of(job, task);
   const Band rows = band_rows(s.height, s.bands, t.band);
   t.y0 = rows.y0;
   t.y1 = rows.y1;
@@ -213,25 +439,51 @@ BandTask Scheduler::make_task(const Job& job, int task, const Lease& lease) cons
   return t;
 }
 
+Result<std::optional<BandTask>> Scheduler::grant(Job& job, int task, Worker& worker,
+                                                 bool speculative) {
+  Task& t = job.tasks[task];
+  t.state = TaskState::kLeased;
+  ++t.leases;
+  if (speculative) {
+    t.speculated = 1;
+    ++job.info.speculative_leases;
+    spdlog::info("job {}: {} runs far longer than its peers; second lease to worker {}",
+                 job.info.job_id, band_name(job, task), worker.info.worker_id);
+  }
+  const std::string id = lease_prefix_ + std::to_string(next_lease_++);
+  const TimePoint now = now_();
+  Lease lease{job.info.job_id,      task,       worker.info.worker_id, worker.info.name, now,
+              now + options_.lease, speculative};
+  leases_.emplace(id, lease);
+  worker.leases.insert(id);
+  if (job.info.state == JobState::kQueued) {
+    job.info.state = JobState::kRunning;
+    events_.push_back(event::JobStateChanged{job.info.job_id, JobState::kRunning, ""});
+  }
+  events_.push_back(event::LeaseGranted{id, job.info.job_id, frame_of(job, task),
+                                        band_of(job, task), worker.info.worker_id, worker.info.name,
+                                        speculative});
+  ++version_;
+  return std::optional<BandTask>(make_task(job, task, lease, id));
+}
+
 Result<std::optional<BandTask>> Scheduler::next_task(const std::string& worker_id) {
   const Status alive = touch(worker_id);
   if (!alive.ok()) return alive;
   Worker& worker = workers_.at(worker_id);
+  const std::string& name = worker.info.name;
   for (const std::string& id : order_) {
     Job& job = jobs_.at(id);
-    if (is_terminal(job.info.state) || job.queue.empty()) continue;
-    const int task = job.queue.front();
-    job.queue.pop_front();
-    Task& t = job.tasks[task];
-    t.state = TaskState::kLeased;
-    ++t.attempts;
-    t.lease_id = lease_prefix_ + std::to_string(next_lease_++);
-    Lease lease{id, task, worker_id, now_() + options_.lease};
-    leases_.emplace(t.lease_id, lease);
-    worker.leases.insert(t.lease_id);
-    if (job.info.state == JobState::kQueued) job.info.state = JobState::kRunning;
-    ++version_;
-    return std::optional<BandTask>(make_task(job, task, lease));
+    if (is_terminal(job.info.state) || !queued(job)) continue;
+    // Quarantine holds only while another worker can take the job's bands:
+    // a farm of one keeps going, bounded by the attempt limit.
+    if (quarantined(job, name) && another_worker_for(job, -1, name)) continue;
+    const int task = pick_task(job, name);
+    if (task >= 0) return grant(job, task, worker, false);
+  }
+  if (const Lease* l = speculation_candidate(name)) {
+    Job& job = jobs_.at(l->job_id);
+    return grant(job, l->task, worker, true);
   }
   return std::optional<BandTask>();
 }
@@ -253,7 +505,7 @@ Result<std::vector<std::string>> Scheduler::heartbeat(const std::string& worker_
   return revoked;
 }
 
-void Scheduler::release(const std::string& lease_id, const std::string& why, bool charge) {
+void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const std::string& why) {
   auto it = leases_.find(lease_id);
   if (it == leases_.end()) return;
   const Lease lease = it->second;
@@ -261,53 +513,86 @@ void Scheduler::release(const std::string& lease_id, const std::string& why, boo
   auto w = workers_.find(lease.worker_id);
   if (w != workers_.end()) w->second.leases.erase(lease_id);
   Job* job = find_job(lease.job_id);
-  if (!job || is_terminal(job->info.state)) return;
-  Task& t = job->tasks[lease.task];
-  if (t.state != TaskState::kLeased || t.lease_id != lease_id) return;
-  t.state = TaskState::kQueued;
-  t.lease_id.clear();
-  t.last_error = why;
-  if (!charge) --t.attempts;
+  if (!job) return;
+  events_.push_back(event::LeaseEnded{lease_id, lease.job_id, frame_of(*job, lease.task),
+                                      band_of(*job, lease.task), outcome, why});
   ++version_;
-  const JobSpec& s = job->info.spec;
-  if (t.attempts >= options_.max_attempts) {
-    fail_job(*job, "band " + std::to_string(lease.task % s.bands) + " of frame " +
-                       std::to_string(s.frame_first + lease.task / s.bands) + " failed " +
-                       std::to_string(t.attempts) + " times; last: " + why);
+  if (is_terminal(job->info.state)) return;
+  Task& t = job->tasks[lease.task];
+  if (t.leases > 0) --t.leases;
+  if (outcome == LeaseOutcome::kDiscarded) ++job->info.results_discarded;
+  if (is_charged(outcome)) {
+    if (t.failures < 255) ++t.failures;
+    Failures& f = job->failures[lease.task];
+    f.workers.insert(lease.worker_name);
+    f.last_error = why;
+    const int n = ++job->worker_failures[lease.worker_name];
+    if (options_.quarantine_after > 0 && n == options_.quarantine_after) {
+      job->info.quarantined.push_back(lease.worker_name);
+      spdlog::warn("job {}: worker {} ({}) failed {} times: quarantined for this job", lease.job_id,
+                   lease.worker_id, lease.worker_name, n);
+    }
+  }
+  if (t.state == TaskState::kDone || t.leases > 0) return;  // the other lease goes on
+  t.state = TaskState::kQueued;
+  if (t.failures >= options_.max_attempts) {
+    end_job(*job, JobState::kFailed,
+            band_name(*job, lease.task) + " failed " + std::to_string(t.failures) +
+                " times; last: " + why);
     return;
   }
-  spdlog::info("job {}: band {} of frame {} back in the queue: {}", lease.job_id,
-               lease.task % s.bands, s.frame_first + lease.task / s.bands, why);
-  job->queue.push_front(lease.task);
+  spdlog::info("job {}: {} back in the queue: {}", lease.job_id, band_name(*job, lease.task), why);
+  job->retry.push_front(lease.task);
 }
 
-Result<CompleteOutcome> Scheduler::complete_band(BandOutput out) {
+std::optional<BandTarget> Scheduler::result_target(const BandOutput& out) const {
+  auto it = leases_.find(out.lease_id);
+  if (it == leases_.end() || it->second.worker_id != out.worker_id) return std::nullopt;
+  if (it->second.deadline < now_() || out.handed_back || !out.error.empty()) return std::nullopt;
+  const Job& job = jobs_.at(it->second.job_id);
+  const JobSpec& s = job.info.spec;
+  const int band = band_of(job, it->second.task);
+  const Band rows = band_rows(s.height, s.bands, band);
+  if (out.rgb.size() != static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3) return std::nullopt;
+  return BandTarget{job.info.job_id, frame_of(job, it->second.task), band, s.width, rows.y0,
+                    rows.y1};
+}
+
+Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   const Status alive = touch(out.worker_id);
   if (!alive.ok()) return alive;
   CompleteOutcome outcome;
   auto it = leases_.find(out.lease_id);
   if (it == leases_.end() || it->second.worker_id != out.worker_id) {
-    outcome.reason =
-        "lease '" + out.lease_id + "' is not held by this worker (lapsed, re-leased or cancelled)";
+    outcome.reason = "lease '" + out.lease_id +
+                     "' is not held by this worker (lapsed, re-leased, cancelled, or its band was "
+                     "done by another worker)";
     return outcome;
   }
+  const std::string who = "worker " + out.worker_id + " (" + it->second.worker_name + ")";
   if (it->second.deadline < now_()) {
     // Strict: once the deadline has passed the band may already be leased
     // elsewhere as far as any observer can tell; the first valid result wins.
-    release(out.lease_id, "lease of worker " + out.worker_id + " lapsed", true);
+    release(out.lease_id, LeaseOutcome::kLapsed, "lease of " + who + " lapsed");
     outcome.reason = "lease '" + out.lease_id + "' lapsed before the result arrived";
     return outcome;
   }
   const Lease lease = it->second;
   Job& job = jobs_.at(lease.job_id);
   const JobSpec& s = job.info.spec;
+  if (out.handed_back) {
+    release(out.lease_id, LeaseOutcome::kHandedBack, "handed back by " + who);
+    outcome.accepted = true;
+    outcome.reason = "handed back";
+    return outcome;
+  }
   if (!out.error.empty()) {
-    release(out.lease_id, "worker " + out.worker_id + ": " + out.error, true);
+    release(out.lease_id, LeaseOutcome::kFailed, who + ": " + out.error);
     outcome.accepted = true;
     return outcome;
   }
-  const int band = lease.task % s.bands;
-  const int frame = s.frame_first + lease.task / s.bands;
+  const int band = band_of(job, lease.task);
+  const int frame = frame_of(job, lease.task);
   const Band rows = band_rows(s.height, s.bands, band);
   const size_t expected = static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3;
   if (out.rgb.size() != expected) {
@@ -315,37 +600,39 @@ Result<CompleteOutcome> Scheduler::complete_band(BandOutput out) {
                             ": expected " + std::to_string(expected) + " floats (" +
                             std::to_string(s.width) + " x " + std::to_string(rows.y1 - rows.y0) +
                             " x 3), got " + std::to_string(out.rgb.size());
-    release(out.lease_id, "worker " + out.worker_id + " sent malformed pixels: " + why, true);
+    release(out.lease_id, LeaseOutcome::kMalformed, who + " sent malformed pixels: " + why);
     return InvalidArgument(why);
   }
 
-  // Allocate before any state changes: if the frame's memory cannot be had,
-  // the lease stands and lapses like any other, and the job stays coherent.
-  PartialFrame& pf = job.partial[frame];
-  if (pf.image.width == 0) pf.image = Image(s.width, s.height);
-
   leases_.erase(it);
-  workers_.at(out.worker_id).leases.erase(out.lease_id);
-  workers_.at(out.worker_id).info.bands_done++;
+  Worker& worker = workers_.at(out.worker_id);
+  worker.leases.erase(out.lease_id);
+  ++worker.info.bands_done;
   Task& t = job.tasks[lease.task];
   t.state = TaskState::kDone;
-  t.lease_id.clear();
-  job.info.bands_done++;
+  if (t.leases > 0) --t.leases;
+  ++job.info.bands_done;
   job.info.stats += out.stats;
-
-  std::copy(out.rgb.begin(), out.rgb.end(),
-            pf.image.rgb.begin() + static_cast<size_t>(rows.y0) * s.width * 3);
-  ++pf.bands_done;
+  job.durations.push_back(seconds(now_() - lease.granted));
+  if (job.durations.size() > kDurationsKept) job.durations.pop_front();
+  events_.push_back(
+      event::BandDone{job.info.job_id, frame, band, out.lease_id, out.worker_id, job.info.stats});
+  // The first result wins: the band's other lease (a speculative copy, or
+  // the original it copied) is discarded, counted once here.
+  if (t.leases > 0) {
+    std::vector<std::string> others;
+    for (const auto& [id, l] : leases_) {
+      if (l.job_id == lease.job_id && l.task == lease.task) others.push_back(id);
+    }
+    for (const std::string& id : others) {
+      release(id, LeaseOutcome::kDiscarded, "band done first by lease " + out.lease_id);
+    }
+  }
   outcome.accepted = true;
-  if (pf.bands_done == s.bands) {
-    FrameImage f;
-    f.job_id = job.info.job_id;
-    f.frame = frame;
-    f.file_name = frame_path(s.output, frame);
-    f.image = std::move(pf.image);
-    job.partial.erase(frame);
-    job.stitched.insert(frame);
-    outcome.frame = std::move(f);
+  if (++job.frame_bands[frame] == s.bands) {
+    job.frame_bands.erase(frame);
+    outcome.frame =
+        FrameReady{job.info.job_id, frame, frame_path(s.output, frame), s.width, s.height, s.bands};
   }
   ++version_;
   return outcome;
@@ -358,10 +645,12 @@ void Scheduler::expire() {
     if (now - w.last_seen > options_.worker_timeout) gone.push_back(id);
   }
   for (const std::string& id : gone) {
-    spdlog::warn("worker {} ({}) silent for {:.1f} s: dropped", id, workers_.at(id).info.name,
-                 seconds(now - workers_.at(id).last_seen));
-    const std::set<std::string> held = workers_.at(id).leases;
-    for (const std::string& l : held) release(l, "worker " + id + " went silent", true);
+    const Worker& w = workers_.at(id);
+    spdlog::warn("worker {} ({}) silent for {:.1f} s: dropped", id, w.info.name,
+                 seconds(now - w.last_seen));
+    const std::set<std::string> held = w.leases;
+    const std::string who = "worker " + id + " (" + w.info.name + ") went silent";
+    for (const std::string& l : held) release(l, LeaseOutcome::kSilent, who);
     workers_.erase(id);
     ++version_;
   }
@@ -370,7 +659,10 @@ void Scheduler::expire() {
     if (l.deadline < now) lapsed.push_back(id);
   }
   for (const std::string& id : lapsed) {
-    release(id, "lease of worker " + leases_.at(id).worker_id + " lapsed", true);
+    auto it = leases_.find(id);
+    if (it == leases_.end()) continue;
+    release(id, LeaseOutcome::kLapsed,
+            "lease of worker " + it->second.worker_id + " (" + it->second.worker_name + ") lapsed");
   }
 }
 

@@ -1,10 +1,13 @@
 // The coordinator's scheduling logic as a plain, single-threaded class:
-// jobs expand into frames x bands tasks; each task is leased to one worker
-// at a time (lease id + deadline); leases lapse when not renewed, and their
-// bands go back to the queue; results under a stale lease are dropped;
-// accepted bands are stitched into their frame. No network, no threads, no
-// files: the caller (Coordinator) locks, writes frames, and drives time
-// through the injected clock, which is how the tests drive it too.
+// jobs expand into frames x bands tasks; each task is leased to a worker
+// (lease id + deadline), and at most once more, speculatively, when it runs
+// far longer than its peers; leases lapse when not renewed and their bands
+// go back to the queue; results under a stale lease are dropped; failures
+// are charged to the band (attempt limit) and to the worker (quarantine).
+// No network, no threads, no files: the caller (Coordinator) locks, keeps
+// band files and frames on disk, drives time through the injected clock and
+// hands every durable change, taken with take_events(), to the JobStore.
+// The tests drive it the same way.
 #pragma once
 
 #include <cstdint>
@@ -13,36 +16,64 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "server/farm_types.h"
+#include "server/journal.h"
 
 namespace locus::farm {
 
 struct SchedulerOptions {
   Millis lease{5000};           // a lease lapses this long after its last renewal
   Millis worker_timeout{5000};  // a worker silent this long is gone, with its leases
-  int max_attempts = 3;         // leases per band (lapsed or failed) before the job fails
+  int max_attempts = 3;         // failed leases per band before the job fails
+  int quarantine_after = 2;     // failures of one worker in a job before it gets no more of it
+  // A band leased longer than speculate_factor x the median time of its
+  // job's finished bands (and at least speculate_min) gets a second lease
+  // when a worker has nothing else to do; 0 turns speculation off.
+  double speculate_factor = 3.0;
+  Millis speculate_min{1000};
 };
 
 // The answer to a returned band.
 struct CompleteOutcome {
   bool accepted = false;
   std::string reason;               // why it was dropped
-  std::optional<FrameImage> frame;  // the band completed this frame: write it
+  std::optional<FrameReady> frame;  // the band completed this frame: write it
+};
+
+// Where an acceptable result goes: checked before its pixels are written.
+struct BandTarget {
+  std::string job_id;
+  int frame = 0;
+  int band = 0;
+  int width = 0;
+  int y0 = 0;
+  int y1 = 0;
 };
 
 class Scheduler {
  public:
   Scheduler(SchedulerOptions options, NowFn now);
 
+  // ---- restart ----
+  // Rebuilds the jobs a store remembered (before any other call). Returns
+  // the frames whose bands are all done but which were not yet written.
+  std::vector<FrameReady> restore(const RecoveredState& state);
+
   // ---- jobs ----
   // `spec` is validated by the caller; returns the new job's id.
-  std::string add_job(JobSpec spec);
+  std::string add_job(JobSpec spec, const std::string& request_id = "",
+                      const std::string& fingerprint = "");
+  // Undoes add_job when its record could not be stored.
+  void forget_job(const std::string& job_id);
+  // The job an earlier submission with this request id created, if any.
+  std::optional<JobRecord> job_for_request(const std::string& request_id) const;
   Result<JobInfo> job(const std::string& job_id) const;
   std::vector<JobInfo> jobs() const;
   Result<JobInfo> cancel(const std::string& job_id);
-  // The caller wrote (or failed to write) a frame handed out by complete_band.
+  // The caller wrote (or failed to write) a frame handed out as ready.
   void frame_written(const std::string& job_id, int frame, const Status& status);
 
   // ---- workers ----
@@ -55,13 +86,17 @@ class Scheduler {
   // Leases the next band to the worker, or nothing when no band waits.
   Result<std::optional<BandTask>> next_task(const std::string& worker_id);
   // Renews the worker's leases; returns those it must drop (re-leased,
-  // lapsed, cancelled).
+  // lapsed, cancelled, won by another worker).
   Result<std::vector<std::string>> heartbeat(const std::string& worker_id,
                                              const std::vector<std::string>& lease_ids);
-  // A band's pixels or error. InvalidArgument for malformed pixels (the
-  // band goes back to the queue); a stale lease is not an error but
-  // `accepted == false`.
-  Result<CompleteOutcome> complete_band(BandOutput output);
+  // Where the pixels of this result go, if it would be accepted now (a live
+  // lease of the sender, pixels of the right size, no error). Nothing:
+  // complete_band() will refuse it or record the failure.
+  std::optional<BandTarget> result_target(const BandOutput& output) const;
+  // A band's pixels (already in its band file), its error, or its hand-back.
+  // InvalidArgument for malformed pixels (the band goes back to the queue);
+  // a stale lease is not an error but `accepted == false`.
+  Result<CompleteOutcome> complete_band(const BandOutput& output);
 
   // Lapses leases past their deadline and drops workers silent past
   // worker_timeout; their bands go back to the queue.
@@ -70,36 +105,47 @@ class Scheduler {
   // Content hashes of the scenes that unfinished jobs still need.
   std::set<std::string> scenes_in_use() const;
 
+  // Every durable change since the last call, oldest first.
+  std::vector<Event> take_events() { return std::exchange(events_, {}); }
+
   // Bumped by every change a watcher may want to see.
   uint64_t version() const { return version_; }
   bool has_queued_bands() const;
 
  private:
-  enum class TaskState { kQueued, kLeased, kDone };
+  enum class TaskState : uint8_t { kQueued, kLeased, kDone };
+  // Compact: a job may have a million tasks.
   struct Task {
     TaskState state = TaskState::kQueued;
-    int attempts = 0;
-    std::string lease_id;
-    std::string last_error;
+    uint8_t failures = 0;  // charged attempts
+    uint8_t leases = 0;    // live leases (2 while speculating)
+    uint8_t speculated = 0;
   };
-  struct PartialFrame {
-    Image image;
-    int bands_done = 0;
+  struct Failures {
+    std::set<std::string> workers;  // names of the workers it failed on
+    std::string last_error;
   };
   struct Job {
     JobInfo info;
+    JobRecord record;
     TimePoint submitted;
     TimePoint finished;
-    std::vector<Task> tasks;  // frame-major: (frame - first) * bands + band
-    std::deque<int> queue;    // task indices waiting for a worker
-    std::map<int, PartialFrame> partial;
-    std::set<int> stitched;  // frames handed out for writing
+    std::vector<Task> tasks;                     // frame-major: (frame - first) * bands + band
+    int next_fresh = 0;                          // tasks from here on were never leased
+    std::deque<int> retry;                       // tasks back in the queue, served first
+    std::map<int, int> frame_bands;              // bands done of the frames in progress
+    std::map<int, Failures> failures;            // by task
+    std::map<std::string, int> worker_failures;  // by worker name
+    std::deque<double> durations;                // seconds of the last accepted bands
   };
   struct Lease {
     std::string job_id;
     int task = 0;
     std::string worker_id;
+    std::string worker_name;
+    TimePoint granted;
     TimePoint deadline;
+    bool speculative = false;
   };
   struct Worker {
     WorkerInfo info;
@@ -110,19 +156,40 @@ class Scheduler {
   Job* find_job(const std::string& id);
   const Job* find_job(const std::string& id) const;
   JobInfo snapshot(const Job& job) const;
-  // Ends a lease; its band is queued again (first, to finish frames early)
-  // and charged an attempt, unless `charge` is false.
-  void release(const std::string& lease_id, const std::string& why, bool charge);
-  void fail_job(Job& job, const std::string& error);
+  bool queued(const Job& job) const {
+    return !job.retry.empty() || job.next_fresh < static_cast<int>(job.tasks.size());
+  }
+  bool quarantined(const Job& job, const std::string& worker_name) const;
+  // Whether a registered worker other than `worker_name` may take tasks of
+  // the job and has not failed on `task` (-1: any task).
+  bool another_worker_for(const Job& job, int task, const std::string& worker_name) const;
+  // The task the worker should take next in this job, or -1.
+  int pick_task(Job& job, const std::string& worker_name);
+  // A band running far longer than its peers, for a second lease, or null.
+  const Lease* speculation_candidate(const std::string& worker_name) const;
+  Result<std::optional<BandTask>> grant(Job& job, int task, Worker& worker, bool speculative);
+  // Ends a lease with `outcome`; when no other lease of its band remains,
+  // the band is queued again (first, to finish frames early). Charged
+  // outcomes count against the band's attempts and the worker.
+  void release(const std::string& lease_id, LeaseOutcome outcome, const std::string& why);
+  void end_job(Job& job, JobState state, const std::string& error);
   void drop_leases_of(Job& job);
-  BandTask make_task(const Job& job, int task, const Lease& lease) const;
+  double speculate_after(const Job& job) const;
+  BandTask make_task(const Job& job, int task, const Lease& lease, const std::string& id) const;
+  int frame_of(const Job& job, int task) const {
+    return job.info.spec.frame_first + task / job.info.spec.bands;
+  }
+  int band_of(const Job& job, int task) const { return task % job.info.spec.bands; }
+  std::string band_name(const Job& job, int task) const;
 
   SchedulerOptions options_;
   NowFn now_;
   std::vector<std::string> order_;  // job ids, oldest first: dispatch is FIFO by job
   std::map<std::string, Job> jobs_;
+  std::map<std::string, std::string> requests_;  // request id -> job id
   std::map<std::string, Lease> leases_;
   std::map<std::string, Worker> workers_;
+  std::vector<Event> events_;
   uint64_t next_job_ = 1;
   uint64_t next_worker_ = 1;
   uint64_t next_lease_ = 1;

@@ -88,29 +88,30 @@ TEST(DefaultBands, SeveralPerWorkerWithinLimits) {
   EXPECT_GT(min_bands(16384, 16384), 1);
 }
 
-TEST_F(SchedulerTest, StitchesFramesFromBandsInAnyOrder) {
+TEST_F(SchedulerTest, FramesAreReadyWhenTheirLastBandIsIn) {
   const std::string job = s.add_job(spec(5, 7, 3, 4, 3));
   const std::string w1 = s.add_worker("a", 1), w2 = s.add_worker("b", 1);
   std::vector<BandTask> tasks;
   for (int i = 0; i < 6; ++i) tasks.push_back(lease(i % 2 ? w2 : w1));
   EXPECT_FALSE(s.next_task(w1)->has_value());
   EXPECT_EQ(s.job(job)->state, JobState::kRunning);
-  std::vector<FrameImage> frames;
+  std::vector<FrameReady> frames;
   for (int i : {5, 0, 3, 1, 4, 2}) {
     auto r = s.complete_band(render(i % 2 ? w2 : w1, tasks[i]));
     ASSERT_TRUE(r.ok()) << r.status().message();
     EXPECT_TRUE(r->accepted) << r->reason;
-    if (r->frame) frames.push_back(std::move(*r->frame));
+    if (r->frame) frames.push_back(*r->frame);
   }
+  // Frame 4 (tasks 3-5) is complete with task 4, the 5th returned; frame 3
+  // (tasks 0-2) with task 2, the last.
   ASSERT_EQ(frames.size(), 2u);
-  for (const FrameImage& f : frames) {
-    EXPECT_EQ(f.file_name, f.frame == 3 ? "shot_0003.png" : "shot_0004.png");
-    for (int y = 0; y < 7; ++y) {
-      for (int x = 0; x < 5; ++x) {
-        for (int c = 0; c < 3; ++c) ASSERT_EQ(f.image.pixel(x, y)[c], value(f.frame, x, y, c));
-      }
-    }
-  }
+  EXPECT_EQ(frames[0].frame, 4);
+  EXPECT_EQ(frames[0].file_name, "shot_0004.png");
+  EXPECT_EQ(frames[1].frame, 3);
+  EXPECT_EQ(frames[1].file_name, "shot_0003.png");
+  EXPECT_EQ(frames[1].width, 5);
+  EXPECT_EQ(frames[1].height, 7);
+  EXPECT_EQ(frames[1].bands, 3);
   EXPECT_EQ(s.job(job)->bands_done, 6);
   EXPECT_EQ(s.job(job)->stats.pixels_total, 70u);
   EXPECT_EQ(s.job(job)->state, JobState::kRunning);  // until the frames are written
@@ -272,6 +273,166 @@ TEST_F(SchedulerTest, JobsAreServedInSubmissionOrder) {
   ASSERT_EQ(s.jobs().size(), 2u);
   EXPECT_EQ(s.workers().size(), 1u);
   EXPECT_TRUE(s.workers()[0].busy);
+}
+
+BandOutput failure(const std::string& worker, const BandTask& t, const std::string& error) {
+  BandOutput o;
+  o.worker_id = worker;
+  o.lease_id = t.lease_id;
+  o.error = error;
+  return o;
+}
+
+TEST_F(SchedulerTest, FailedBandGoesToAnotherWorkerWherePossible) {
+  s.add_job(spec(4, 4, 1, 1, 2));
+  const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1);
+  const BandTask first = lease(a);
+  ASSERT_TRUE(s.complete_band(failure(a, first, "no memory")).ok());
+  // a is not given the band it failed on while b can take it...
+  const BandTask next_a = lease(a);
+  EXPECT_NE(next_a.band, first.band);
+  // ...b is.
+  const BandTask next_b = lease(b);
+  EXPECT_EQ(next_b.band, first.band);
+  EXPECT_NE(next_b.lease_id, first.lease_id);
+}
+
+TEST_F(SchedulerTest, AttemptsGoToDifferentWorkersThenTheJobFailsWithTheError) {
+  const std::string job = s.add_job(spec(4, 4, 1, 1, 1));
+  const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1), c = s.add_worker("c", 1);
+  std::set<std::string> took;
+  for (const std::string& w : {a, b, c}) {
+    const BandTask t = lease(w);
+    took.insert(w);
+    ASSERT_TRUE(s.complete_band(failure(w, t, "bad scene on " + w)).ok());
+  }
+  EXPECT_EQ(took.size(), 3u);  // three attempts, three workers
+  auto j = s.job(job);
+  EXPECT_EQ(j->state, JobState::kFailed);
+  EXPECT_NE(j->error.find("failed 3 times"), std::string::npos) << j->error;
+  EXPECT_NE(j->error.find("bad scene on " + c), std::string::npos) << j->error;
+  EXPECT_NE(j->error.find("worker " + c + " (c)"), std::string::npos) << j->error;
+}
+
+TEST_F(SchedulerTest, WorkerFailingRepeatedlyIsQuarantinedForThatJob) {
+  const std::string j1 = s.add_job(spec(4, 8, 1, 1, 8));
+  const std::string bad = s.add_worker("bad-host:1", 1), good = s.add_worker("good-host:2", 1);
+  for (int i = 0; i < 2; ++i) ASSERT_TRUE(s.complete_band(failure(bad, lease(bad), "GPU lost")).ok());
+  EXPECT_EQ(s.job(j1)->quarantined, std::vector<std::string>{"bad-host:1"});
+  // No more bands of j1 for it while `good` can take them...
+  EXPECT_FALSE(s.next_task(bad)->has_value());
+  // ...but bands of another job, yes.
+  const std::string j2 = s.add_job(spec(4, 4, 1, 1, 1));
+  EXPECT_EQ(lease(bad).job_id, j2);
+  // The failed bands were charged once each, the job goes on.
+  for (int i = 0; i < 8; ++i) {
+    auto r = s.complete_band(render(good, lease(good)));
+    ASSERT_TRUE(r.ok() && r->accepted);
+  }
+  EXPECT_EQ(s.job(j1)->bands_done, 8);
+}
+
+TEST_F(SchedulerTest, QuarantineDoesNotStallAFarmOfOne) {
+  const std::string job = s.add_job(spec(4, 8, 1, 1, 4));
+  const std::string w = s.add_worker("only", 1);
+  for (int i = 0; i < 2; ++i) ASSERT_TRUE(s.complete_band(failure(w, lease(w), "flaky")).ok());
+  EXPECT_FALSE(s.job(job)->quarantined.empty());
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(s.complete_band(render(w, lease(w)))->accepted);
+  EXPECT_EQ(s.job(job)->bands_done, 4);
+}
+
+TEST_F(SchedulerTest, SlowBandIsSpeculatedAndTheFirstResultWins) {
+  const std::string job = s.add_job(spec(4, 8, 1, 1, 6));
+  const std::string slow = s.add_worker("slow", 1), fast = s.add_worker("fast", 1);
+  const BandTask stuck = lease(slow);
+  for (int i = 0; i < 5; ++i) {
+    const BandTask t = lease(fast);
+    clock.advance(100);
+    s.heartbeat(slow, {stuck.lease_id});
+    ASSERT_TRUE(s.complete_band(render(fast, t))->accepted);
+  }
+  // Median 0.1 s; the stuck band has run 0.5 s: not yet past the minimum.
+  EXPECT_FALSE(s.next_task(fast)->has_value());
+  for (int i = 0; i < 6; ++i) {
+    clock.advance(200);
+    s.heartbeat(slow, {stuck.lease_id});
+  }
+  const BandTask copy = lease(fast);
+  EXPECT_EQ(copy.band, stuck.band);
+  EXPECT_NE(copy.lease_id, stuck.lease_id);
+  EXPECT_EQ(s.job(job)->speculative_leases, 1);
+  // Not a third copy.
+  const std::string other = s.add_worker("other", 1);
+  EXPECT_FALSE(s.next_task(other)->has_value());
+  auto won = s.complete_band(render(fast, copy));
+  ASSERT_TRUE(won.ok() && won->accepted);
+  EXPECT_TRUE(won->frame);
+  // The slow worker learns its band is gone; its late result is dropped.
+  EXPECT_EQ(*s.heartbeat(slow, {stuck.lease_id}), std::vector<std::string>{stuck.lease_id});
+  auto late = s.complete_band(render(slow, stuck));
+  ASSERT_TRUE(late.ok());
+  EXPECT_FALSE(late->accepted);
+  const JobInfo j = *s.job(job);
+  EXPECT_EQ(j.bands_done, 6);  // counted once
+  EXPECT_EQ(j.results_discarded, 1);
+}
+
+TEST_F(SchedulerTest, OriginalMayStillWinOverItsSpeculativeCopy) {
+  const std::string job = s.add_job(spec(4, 8, 1, 1, 4));
+  const std::string slow = s.add_worker("slow", 1), fast = s.add_worker("fast", 1);
+  const BandTask stuck = lease(slow);
+  for (int i = 0; i < 3; ++i) {
+    const BandTask t = lease(fast);
+    clock.advance(10);
+    ASSERT_TRUE(s.complete_band(render(fast, t))->accepted);
+  }
+  clock.advance(900);
+  s.heartbeat(slow, {stuck.lease_id});
+  clock.advance(200);
+  const BandTask copy = lease(fast);
+  ASSERT_EQ(copy.band, stuck.band);
+  ASSERT_TRUE(s.complete_band(render(slow, stuck))->accepted);
+  EXPECT_FALSE(s.complete_band(render(fast, copy))->accepted);
+  EXPECT_EQ(s.job(job)->bands_done, 4);
+  EXPECT_EQ(s.job(job)->results_discarded, 1);
+}
+
+TEST_F(SchedulerTest, HandedBackBandsAreNotChargedAnAttempt) {
+  const std::string job = s.add_job(spec(4, 4, 1, 1, 1));
+  const std::string w = s.add_worker("w", 1);
+  for (int i = 0; i < 5; ++i) {
+    BandOutput back;
+    back.worker_id = w;
+    back.lease_id = lease(w).lease_id;
+    back.handed_back = true;
+    auto r = s.complete_band(back);
+    ASSERT_TRUE(r.ok());
+  }
+  EXPECT_EQ(s.job(job)->state, JobState::kRunning);
+  EXPECT_TRUE(s.complete_band(render(w, lease(w)))->accepted);
+  EXPECT_EQ(s.job(job)->bands_done, 1);
+}
+
+TEST_F(SchedulerTest, RetriedSubmissionFindsItsJob) {
+  const std::string job = s.add_job(spec(4, 4, 1, 1, 1), "req-1", "fp");
+  ASSERT_TRUE(s.job_for_request("req-1"));
+  EXPECT_EQ(s.job_for_request("req-1")->job_id, job);
+  EXPECT_EQ(s.job_for_request("req-1")->fingerprint, "fp");
+  EXPECT_FALSE(s.job_for_request("req-2"));
+  EXPECT_FALSE(s.job_for_request(""));
+}
+
+TEST_F(SchedulerTest, EveryDurableChangeIsAnEvent) {
+  const std::string job = s.add_job(spec(2, 2, 1, 1, 1));
+  const std::string w = s.add_worker("w", 1);
+  const BandTask t = lease(w);
+  auto r = s.complete_band(render(w, t));
+  s.frame_written(job, 1, Status::Ok());
+  std::vector<size_t> kinds;
+  for (const Event& e : s.take_events()) kinds.push_back(e.index());
+  // JobAdded, WorkerAdded, running, LeaseGranted, BandDone, FrameWritten, succeeded.
+  EXPECT_EQ(kinds, (std::vector<size_t>{0, 6, 1, 2, 4, 5, 1}));
+  EXPECT_TRUE(s.take_events().empty());
 }
 
 }  // namespace

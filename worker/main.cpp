@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <csignal>
+#include <cstdlib>
 #include <thread>
 
 #include "worker/worker_client.h"
@@ -22,10 +23,16 @@ int main(int argc, char** argv) {
   app.add_option("--name", options.name, "Name shown by `locus workers` (default host:pid)");
   app.add_option("--poll-ms", poll_ms, "Longest wait for a band per request")
       ->check(CLI::Range(100, 60000));
+  int slow_band_ms = 0;
+  app.add_option("--test-slow-band-ms", slow_band_ms,
+                 "Test only: wait this long before rendering each band (a slow worker for the "
+                 "fault tests)")
+      ->check(CLI::Range(0, 600000));
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
   spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
   options.poll = locus::farm::Millis(poll_ms);
+  options.slow_band = locus::farm::Millis(slow_band_ms);
 
   sigset_t signals;
   sigemptyset(&signals);
@@ -34,11 +41,17 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   locus::farm::WorkerClient worker(options);
+  // The first signal: finish the band in hand (or hand it back if not yet
+  // started), then exit. A second one: hand it back now and exit.
   std::thread waiter([&] {
     int sig = 0;
     sigwait(&signals, &sig);
-    if (sig != 0) spdlog::info("signal {}: finishing the band in hand, then exiting", sig);
+    spdlog::info("signal {}: finishing the band in hand, then exiting", sig);
     worker.stop();
+    sigwait(&signals, &sig);
+    spdlog::info("signal {} again: handing the band back and exiting now", sig);
+    worker.hand_back();
+    std::_Exit(0);
   });
   // The waiter may still sit in sigwait when run() returns; exiting ends it.
   waiter.detach();

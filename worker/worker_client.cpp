@@ -39,6 +39,8 @@ class WorkerClient::Impl {
     cv_.notify_all();
   }
 
+  void hand_back();
+
  private:
   bool register_worker();
   void heartbeat_loop();
@@ -146,7 +148,21 @@ int WorkerClient::Impl::run() {
     }
     outage_ = false;
     backoff = Millis(100);
-    if (resp.has_task()) handle(rpc::FromProto(resp.task()));
+    if (!resp.has_task()) continue;
+    bool stopping;
+    {
+      std::lock_guard lk(mu_);
+      stopping = stopping_;
+      lease_ = resp.task().lease_id();
+      revoked_ = false;
+      sending_ = false;
+    }
+    // A band that arrived as the worker stops goes straight back.
+    if (stopping) {
+      hand_back();
+      break;
+    }
+    handle(rpc::FromProto(resp.task()));
   }
   {
     std::lock_guard lk(mu_);
@@ -214,12 +230,42 @@ bool WorkerClient::Impl::fetch_scene(const BandTask& t) {
   return true;
 }
 
-void WorkerClient::Impl::handle(const BandTask& t) {
+void WorkerClient::Impl::hand_back() {
+  v1::CompleteBandRequest req;
   {
     std::lock_guard lk(mu_);
-    lease_ = t.lease_id;
-    revoked_ = false;
-    sending_ = false;
+    if (lease_.empty() || sending_ || revoked_) return;
+    revoked_ = true;  // whatever the render gives is not sent now
+    req.set_worker_id(worker_id_);
+    req.set_lease_id(lease_);
+  }
+  req.set_handed_back(true);
+  v1::CompleteBandResponse resp;
+  grpc::ClientContext ctx;
+  rpc::set_deadline(ctx, Millis(3000));
+  const Status s = rpc::FromGrpc(stub_->CompleteBand(&ctx, req, &resp), peer_);
+  if (s.ok()) {
+    spdlog::info("band of lease {} handed back", req.lease_id());
+  } else {
+    spdlog::warn("could not hand back lease {} ({}); it lapses instead", req.lease_id(),
+                 s.message());
+  }
+}
+
+void WorkerClient::Impl::handle(const BandTask& t) {
+  if (o_.slow_band.count() > 0) {
+    pause(o_.slow_band);
+    bool stopping;
+    {
+      std::lock_guard lk(mu_);
+      stopping = stopping_;
+    }
+    if (stopping) {  // not started yet: give it back rather than finish it
+      hand_back();
+      std::lock_guard lk(mu_);
+      lease_.clear();
+      return;
+    }
   }
   if (fetch_scene(t)) {
     auto r = renderer_.render(t);
@@ -271,5 +317,6 @@ WorkerClient::WorkerClient(WorkerOptions options)
 WorkerClient::~WorkerClient() = default;
 int WorkerClient::run() { return impl_->run(); }
 void WorkerClient::stop() { impl_->stop(); }
+void WorkerClient::hand_back() { impl_->hand_back(); }
 
 }  // namespace locus::farm

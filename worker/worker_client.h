@@ -18,6 +18,9 @@ struct WorkerOptions {
   int threads = 1;          // per band
   std::string name;         // default host:pid
   Millis poll{10000};       // long-poll wait per GetTask
+  // Test only (tests/faults/run.sh): wait this long before rendering each
+  // band, to play a slow worker.
+  Millis slow_band{0};
 };
 
 class WorkerClient {
@@ -25,11 +28,15 @@ class WorkerClient {
   explicit WorkerClient(WorkerOptions options);
   ~WorkerClient();
 
-  // Serves until stop() (then finishes and returns the band in hand).
-  // Returns 0, or 1 when the coordinator's address is malformed.
+  // Serves until stop() (then finishes and returns the band in hand, or
+  // hands it back if it has not started rendering it). Returns 0.
   int run();
   // Safe from any thread (a signal-handling one).
   void stop();
+  // Gives the band in hand back to the coordinator at once (not counted as
+  // a failed attempt), for a worker that must exit now: render_band() cannot
+  // be interrupted, so the caller exits the process right after.
+  void hand_back();
 
  private:
   class Impl;

@@ -8,6 +8,7 @@ PACKAGES=(
   protobuf-compiler libprotobuf-dev protobuf-compiler-grpc libgrpc++-dev
   libglm-dev libopenimageio-dev openimageio-tools libspdlog-dev libgtest-dev libcli11-dev
   libtinyobjloader-dev libsqlite3-dev
+  sqlite3 iproute2
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio
 )
 

@@ -1,0 +1,123 @@
+// What the Scheduler tells its durable store, and what the store gives back
+// after a restart. The Scheduler stays a plain single-threaded class: it
+// only appends events; the Coordinator hands them to the JobStore
+// (server/store.h) in one transaction after each call. No SQLite here.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "server/farm_types.h"
+
+namespace locus::farm {
+
+// How a lease ended (the `outcome` column of the attempts table).
+enum class LeaseOutcome {
+  kDone,        // its result was accepted
+  kFailed,      // the worker reported an error
+  kMalformed,   // the worker sent pixels of the wrong size
+  kLapsed,      // not renewed in time
+  kSilent,      // the worker went silent and was dropped
+  kHandedBack,  // the worker gave it back (SIGTERM)
+  kDiscarded,   // another lease of the band won the race
+  kRevoked,     // the job was cancelled or failed
+};
+const char* lease_outcome_name(LeaseOutcome outcome);
+// Whether the outcome counts as one of the band's failed attempts.
+bool is_charged(LeaseOutcome outcome);
+
+// A job as stored: the spec plus what makes a submission idempotent.
+struct JobRecord {
+  std::string job_id;
+  int64_t seq = 0;          // j0001 has 1
+  std::string request_id;   // the client's token; empty: none
+  std::string fingerprint;  // of the request, to tell a retry from a reuse of the token
+  JobSpec spec;
+};
+
+namespace event {
+struct JobAdded {
+  JobRecord job;
+};
+struct JobStateChanged {
+  std::string job_id;
+  JobState state;
+  std::string error;
+};
+struct LeaseGranted {
+  std::string lease_id;
+  std::string job_id;
+  int frame = 0;
+  int band = 0;
+  std::string worker_id;
+  std::string worker_name;
+  bool speculative = false;
+};
+struct LeaseEnded {
+  std::string lease_id;
+  std::string job_id;
+  int frame = 0;
+  int band = 0;
+  LeaseOutcome outcome = LeaseOutcome::kRevoked;
+  std::string error;
+};
+// The band's pixels are in its band file; the lease that delivered them ends.
+struct BandDone {
+  std::string job_id;
+  int frame = 0;
+  int band = 0;
+  std::string lease_id;
+  std::string worker_id;
+  Stats job_stats;  // the job's total after this band
+};
+struct FrameWritten {
+  std::string job_id;
+  int frame = 0;
+  std::string file_name;
+};
+struct WorkerAdded {
+  uint64_t next_worker = 0;  // worker numbers never repeat across runs
+};
+}  // namespace event
+
+using Event =
+    std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted, event::LeaseEnded,
+                 event::BandDone, event::FrameWritten, event::WorkerAdded>;
+
+// A job as the store remembers it, for Scheduler::restore().
+struct RecoveredJob {
+  JobRecord record;
+  JobState state = JobState::kQueued;
+  std::string error;
+  double seconds_elapsed = 0;
+  Stats stats;
+  int64_t bands_done = 0;
+  int64_t results_discarded = 0;
+  int64_t speculative_leases = 0;
+  std::vector<int> frames_written;
+  // Unfinished jobs only: the bands whose pixels are on disk, and the
+  // charged failures (for the attempt limit, "another worker where
+  // possible" and quarantine).
+  struct BandRef {
+    int frame = 0;
+    int band = 0;
+  };
+  std::vector<BandRef> done_bands;
+  struct Failure {
+    int frame = 0;
+    int band = 0;
+    std::string worker_name;
+    std::string error;
+  };
+  std::vector<Failure> failures;
+};
+
+struct RecoveredState {
+  std::vector<RecoveredJob> jobs;  // oldest first
+  uint64_t next_worker = 1;
+  int64_t leases_voided = 0;  // leases of the previous run, ended at load
+};
+
+}  // namespace locus::farm

@@ -1,0 +1,439 @@
+#include "server/store.h"
+
+#include <sqlite3.h>
+
+#include <chrono>
+#include <cstdio>
+#include <sstream>
+
+namespace locus::farm {
+namespace {
+
+// Schema version 1. Times are Unix seconds (wall clock): they survive a
+// restart, where the scheduler's steady clock does not.
+constexpr const char* kSchema = R"sql(
+CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS scenes(hash TEXT PRIMARY KEY, scene BLOB NOT NULL);
+CREATE TABLE IF NOT EXISTS jobs(
+  seq INTEGER PRIMARY KEY,
+  id TEXT NOT NULL UNIQUE,
+  request_id TEXT UNIQUE,
+  fingerprint TEXT NOT NULL DEFAULT '',
+  scene_hash TEXT NOT NULL,
+  scene_name TEXT NOT NULL,
+  width INTEGER NOT NULL, height INTEGER NOT NULL,
+  frame_first INTEGER NOT NULL, frame_last INTEGER NOT NULL,
+  bands INTEGER NOT NULL,
+  output TEXT NOT NULL,
+  orbit REAL NOT NULL,
+  method TEXT NOT NULL, boxes TEXT NOT NULL, spp INTEGER NOT NULL,
+  state TEXT NOT NULL,
+  error TEXT NOT NULL DEFAULT '',
+  submitted_at REAL NOT NULL,
+  finished_at REAL,
+  stats TEXT NOT NULL DEFAULT '');
+CREATE TABLE IF NOT EXISTS bands(
+  job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
+  done INTEGER NOT NULL DEFAULT 0,
+  completions INTEGER NOT NULL DEFAULT 0,
+  failures INTEGER NOT NULL DEFAULT 0,
+  last_error TEXT NOT NULL DEFAULT '',
+  lease_id TEXT, worker_id TEXT,
+  PRIMARY KEY(job_id, frame, band)) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS frames(
+  job_id TEXT NOT NULL, frame INTEGER NOT NULL, file TEXT NOT NULL, written_at REAL NOT NULL,
+  PRIMARY KEY(job_id, frame)) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS attempts(
+  lease_id TEXT PRIMARY KEY,
+  job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
+  worker_id TEXT NOT NULL, worker_name TEXT NOT NULL,
+  speculative INTEGER NOT NULL DEFAULT 0,
+  started_at REAL NOT NULL,
+  ended_at REAL,
+  outcome TEXT,
+  error TEXT NOT NULL DEFAULT '',
+  charged INTEGER NOT NULL DEFAULT 0);
+CREATE INDEX IF NOT EXISTS attempts_by_band ON attempts(job_id, frame, band);
+CREATE VIEW IF NOT EXISTS leases AS
+  SELECT lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at
+  FROM attempts WHERE outcome IS NULL;
+INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '1');
+)sql";
+
+double wall_now() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// Stats as one line of text: the fields in declaration order, then the
+// shadow method.
+std::string encode_stats(const Stats& s) {
+  std::ostringstream o;
+  o.precision(17);
+  o << s.seconds_prepare << ' ' << s.seconds_render << ' ' << s.rays_eye << ' ' << s.rays_reflected
+    << ' ' << s.rays_refracted << ' ' << s.rays_shadow << ' ' << s.tests_ray_object << ' '
+    << s.tests_shadow_volume << ' ' << s.pixels_total << ' ' << s.pixels_ray_traced << ' '
+    << s.spans_total << ' ' << s.spans_ray_traced << ' ' << s.shadow_method;
+  return o.str();
+}
+
+Stats decode_stats(const std::string& text) {
+  Stats s;
+  std::istringstream i(text);
+  i >> s.seconds_prepare >> s.seconds_render >> s.rays_eye >> s.rays_reflected >>
+      s.rays_refracted >> s.rays_shadow >> s.tests_ray_object >> s.tests_shadow_volume >>
+      s.pixels_total >> s.pixels_ray_traced >> s.spans_total >> s.spans_ray_traced >>
+      s.shadow_method;
+  if (!i && !text.empty()) return Stats();
+  return s;
+}
+
+JobState state_from_name(const std::string& n) {
+  for (JobState s : {JobState::kQueued, JobState::kRunning, JobState::kSucceeded, JobState::kFailed,
+                     JobState::kCancelled}) {
+    if (n == job_state_name(s)) return s;
+  }
+  return JobState::kFailed;
+}
+
+}  // namespace
+
+// A prepared statement, finalized on scope exit. Binding is by position
+// (1-based) through bind(); step() returns SQLITE_ROW / SQLITE_DONE.
+// Statements are prepared once per store and kept (keyed by their SQL).
+class JobStore::Statement {
+ public:
+  Statement(JobStore& store, const char* sql) : db_(store.db_) {
+    auto it = store.cache_.find(sql);
+    if (it != store.cache_.end()) {
+      stmt_ = it->second;
+      return;
+    }
+    rc_ = sqlite3_prepare_v2(db_, sql, -1, &stmt_, nullptr);
+    if (rc_ == SQLITE_OK) store.cache_.emplace(sql, stmt_);
+  }
+  ~Statement() {
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  template <typename... Args>
+  Statement& bind(const Args&... args) {
+    int i = 0;
+    (bind_one(++i, args), ...);
+    return *this;
+  }
+  int step() {
+    if (rc_ != SQLITE_OK) return rc_;
+    return sqlite3_step(stmt_);
+  }
+  // Runs a statement that returns no rows.
+  Status run() {
+    const int rc = step();
+    if (rc != SQLITE_DONE && rc != SQLITE_ROW) return error();
+    return Status::Ok();
+  }
+  Status error() const { return Internal(std::string("job store: ") + sqlite3_errmsg(db_)); }
+  int64_t integer(int col) const { return sqlite3_column_int64(stmt_, col); }
+  double real(int col) const { return sqlite3_column_double(stmt_, col); }
+  bool null(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL; }
+  std::string text(int col) const {
+    const auto* p = static_cast<const char*>(sqlite3_column_blob(stmt_, col));
+    return p ? std::string(p, sqlite3_column_bytes(stmt_, col)) : std::string();
+  }
+
+ private:
+  void bind_one(int i, int64_t v) { sqlite3_bind_int64(stmt_, i, v); }
+  void bind_one(int i, int v) { sqlite3_bind_int64(stmt_, i, v); }
+  void bind_one(int i, bool v) { sqlite3_bind_int64(stmt_, i, v ? 1 : 0); }
+  void bind_one(int i, double v) { sqlite3_bind_double(stmt_, i, v); }
+  void bind_one(int i, const std::string& v) {
+    sqlite3_bind_text(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
+  }
+  void bind_one(int i, const char* v) { sqlite3_bind_text(stmt_, i, v, -1, SQLITE_TRANSIENT); }
+  void bind_one(int i, std::nullptr_t) { sqlite3_bind_null(stmt_, i); }
+
+  sqlite3* db_;
+  sqlite3_stmt* stmt_ = nullptr;
+  int rc_ = SQLITE_OK;
+};
+
+Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
+  sqlite3* db = nullptr;
+  const int rc = sqlite3_open_v2(
+      path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
+  if (rc != SQLITE_OK) {
+    const std::string why = db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    sqlite3_close(db);
+    return FailedPrecondition(path + ": cannot open the job store: " + why);
+  }
+  std::unique_ptr<JobStore> store(new JobStore(db));
+  sqlite3_busy_timeout(db, 5000);
+  // WAL: readers (`sqlite3 DATA/locus.db`, the fault tests) never block the
+  // coordinator. synchronous=NORMAL: a commit survives a crash of the
+  // process (kill -9) at once, and a power loss once checkpointed; band and
+  // frame files are fsynced before the commit that names them, so a power
+  // loss can only take the store back to an earlier consistent state.
+  if (Status s = store->exec("PRAGMA journal_mode=WAL"); !s.ok()) return s;
+  if (Status s = store->exec("PRAGMA synchronous=NORMAL"); !s.ok()) return s;
+  if (Status s = store->exec(kSchema); !s.ok())
+    return FailedPrecondition(path + ": " + s.message());
+  Statement check(*store, "SELECT value FROM meta WHERE key = 'schema'");
+  if (check.step() != SQLITE_ROW || check.text(0) != "1") {
+    return FailedPrecondition(path + ": a job store of another version; use another --data");
+  }
+  return store;
+}
+
+JobStore::~JobStore() {
+  for (auto& [sql, stmt] : cache_) sqlite3_finalize(stmt);
+  sqlite3_close(db_);
+}
+
+Status JobStore::exec(const char* sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string why = err ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    return Internal("job store: " + why);
+  }
+  return Status::Ok();
+}
+
+Status JobStore::apply(const std::vector<Event>& events) {
+  if (events.empty()) return Status::Ok();
+  if (Status s = exec("BEGIN IMMEDIATE"); !s.ok()) return s;
+  for (const Event& e : events) {
+    if (Status s = apply_one(e); !s.ok()) {
+      exec("ROLLBACK");
+      return s;
+    }
+  }
+  if (Status s = exec("COMMIT"); !s.ok()) {
+    exec("ROLLBACK");
+    return s;
+  }
+  return Status::Ok();
+}
+
+Status JobStore::apply_one(const Event& e) {
+  const double now = wall_now();
+  if (const auto* a = std::get_if<event::JobAdded>(&e)) {
+    const JobRecord& r = a->job;
+    const JobSpec& s = r.spec;
+    Statement ins(
+        *this,
+        "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
+        "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
+        "spp, state, submitted_at) VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
+             s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
+             s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now);
+    return ins.run();
+  }
+  if (const auto* c = std::get_if<event::JobStateChanged>(&e)) {
+    Statement st(*this,
+                 "UPDATE jobs SET state = ?, error = ?, finished_at = CASE WHEN ? THEN ? ELSE NULL "
+                 "END WHERE id = ?");
+    st.bind(job_state_name(c->state), c->error, is_terminal(c->state), now, c->job_id);
+    return st.run();
+  }
+  if (const auto* g = std::get_if<event::LeaseGranted>(&e)) {
+    Statement st(*this,
+                 "INSERT INTO attempts(lease_id, job_id, frame, band, worker_id, worker_name, "
+                 "speculative, started_at) VALUES(?,?,?,?,?,?,?,?)");
+    st.bind(g->lease_id, g->job_id, g->frame, g->band, g->worker_id, g->worker_name, g->speculative,
+            now);
+    return st.run();
+  }
+  if (const auto* l = std::get_if<event::LeaseEnded>(&e)) {
+    Statement st(*this,
+                 "UPDATE attempts SET ended_at = ?, outcome = ?, error = ?, charged = ? "
+                 "WHERE lease_id = ? AND outcome IS NULL");
+    st.bind(now, lease_outcome_name(l->outcome), l->error, is_charged(l->outcome), l->lease_id);
+    if (Status s = st.run(); !s.ok()) return s;
+    if (!is_charged(l->outcome)) return Status::Ok();
+    Statement band(*this,
+                   "INSERT INTO bands(job_id, frame, band, failures, last_error) VALUES(?,?,?,1,?) "
+                   "ON CONFLICT(job_id, frame, band) DO UPDATE SET failures = failures + 1, "
+                   "last_error = excluded.last_error");
+    band.bind(l->job_id, l->frame, l->band, l->error);
+    return band.run();
+  }
+  if (const auto* d = std::get_if<event::BandDone>(&e)) {
+    Statement band(*this,
+                   "INSERT INTO bands(job_id, frame, band, done, completions, lease_id, worker_id) "
+                   "VALUES(?,?,?,1,1,?,?) ON CONFLICT(job_id, frame, band) DO UPDATE SET done = 1, "
+                   "completions = completions + 1, lease_id = excluded.lease_id, "
+                   "worker_id = excluded.worker_id");
+    band.bind(d->job_id, d->frame, d->band, d->lease_id, d->worker_id);
+    if (Status s = band.run(); !s.ok()) return s;
+    Statement attempt(*this,
+                      "UPDATE attempts SET ended_at = ?, outcome = 'done' WHERE lease_id = ? AND "
+                      "outcome IS NULL");
+    attempt.bind(now, d->lease_id);
+    if (Status s = attempt.run(); !s.ok()) return s;
+    Statement stats(*this, "UPDATE jobs SET stats = ? WHERE id = ?");
+    stats.bind(encode_stats(d->job_stats), d->job_id);
+    return stats.run();
+  }
+  if (const auto* f = std::get_if<event::FrameWritten>(&e)) {
+    Statement st(*this,
+                 "INSERT OR REPLACE INTO frames(job_id, frame, file, written_at) VALUES(?,?,?,?)");
+    st.bind(f->job_id, f->frame, f->file_name, now);
+    return st.run();
+  }
+  if (const auto* w = std::get_if<event::WorkerAdded>(&e)) {
+    Statement st(*this, "INSERT OR REPLACE INTO meta(key, value) VALUES('next_worker', ?)");
+    st.bind(std::to_string(w->next_worker));
+    return st.run();
+  }
+  return Status::Ok();
+}
+
+Result<RecoveredState> JobStore::recover() {
+  RecoveredState state;
+  const double now = wall_now();
+  {
+    Statement st(*this,
+                 "UPDATE attempts SET ended_at = ?, outcome = 'void', "
+                 "error = 'the coordinator restarted' WHERE outcome IS NULL");
+    st.bind(now);
+    if (Status s = st.run(); !s.ok()) return s;
+    state.leases_voided = sqlite3_changes(db_);
+  }
+  {
+    Statement st(*this, "SELECT value FROM meta WHERE key = 'next_worker'");
+    if (st.step() == SQLITE_ROW) state.next_worker = std::stoull("0" + st.text(0));
+    if (state.next_worker == 0) state.next_worker = 1;
+  }
+  Statement jobs(
+      *this,
+      "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
+      "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
+      "state, error, submitted_at, finished_at, stats FROM jobs ORDER BY seq");
+  for (;;) {
+    const int rc = jobs.step();
+    if (rc == SQLITE_DONE) break;
+    if (rc != SQLITE_ROW) return jobs.error();
+    RecoveredJob j;
+    JobRecord& r = j.record;
+    r.seq = jobs.integer(0);
+    r.job_id = jobs.text(1);
+    r.request_id = jobs.text(2);
+    r.fingerprint = jobs.text(3);
+    JobSpec& s = r.spec;
+    s.scene_hash = jobs.text(4);
+    s.scene_name = jobs.text(5);
+    s.width = static_cast<int>(jobs.integer(6));
+    s.height = static_cast<int>(jobs.integer(7));
+    s.frame_first = static_cast<int>(jobs.integer(8));
+    s.frame_last = static_cast<int>(jobs.integer(9));
+    s.bands = static_cast<int>(jobs.integer(10));
+    s.output = jobs.text(11);
+    s.orbit_degrees = jobs.real(12);
+    s.render.method = jobs.text(13);
+    s.render.boxes = jobs.text(14);
+    s.render.spp = static_cast<int>(jobs.integer(15));
+    j.state = state_from_name(jobs.text(16));
+    j.error = jobs.text(17);
+    const double submitted = jobs.real(18);
+    j.seconds_elapsed = (jobs.null(19) ? now : jobs.real(19)) - submitted;
+    j.stats = decode_stats(jobs.text(20));
+    state.jobs.push_back(std::move(j));
+  }
+  for (RecoveredJob& j : state.jobs) {
+    const std::string& id = j.record.job_id;
+    {
+      Statement st(*this, "SELECT frame FROM frames WHERE job_id = ? ORDER BY frame");
+      st.bind(id);
+      while (st.step() == SQLITE_ROW) j.frames_written.push_back(static_cast<int>(st.integer(0)));
+    }
+    {
+      Statement st(*this,
+                   "SELECT SUM(outcome = 'discarded'), SUM(speculative) FROM attempts "
+                   "WHERE job_id = ?");
+      st.bind(id);
+      if (st.step() == SQLITE_ROW) {
+        j.results_discarded = st.integer(0);
+        j.speculative_leases = st.integer(1);
+      }
+    }
+    if (is_terminal(j.state)) {
+      Statement st(*this, "SELECT COUNT(*) FROM bands WHERE job_id = ? AND done = 1");
+      st.bind(id);
+      if (st.step() == SQLITE_ROW) j.bands_done = st.integer(0);
+      continue;
+    }
+    {
+      Statement st(*this, "SELECT frame, band FROM bands WHERE job_id = ? AND done = 1");
+      st.bind(id);
+      while (st.step() == SQLITE_ROW) {
+        j.done_bands.push_back({static_cast<int>(st.integer(0)), static_cast<int>(st.integer(1))});
+      }
+      j.bands_done = static_cast<int64_t>(j.done_bands.size());
+    }
+    {
+      Statement st(*this,
+                   "SELECT frame, band, worker_name, error FROM attempts WHERE job_id = ? AND "
+                   "charged = 1 ORDER BY started_at");
+      st.bind(id);
+      while (st.step() == SQLITE_ROW) {
+        j.failures.push_back({static_cast<int>(st.integer(0)), static_cast<int>(st.integer(1)),
+                              st.text(2), st.text(3)});
+      }
+    }
+  }
+  return state;
+}
+
+Status JobStore::forget_band(const std::string& job_id, int frame, int band) {
+  Statement st(*this,
+               "UPDATE bands SET done = 0, completions = 0 WHERE job_id = ? AND frame = ? AND "
+               "band = ?");
+  st.bind(job_id, frame, band);
+  return st.run();
+}
+
+Status JobStore::put_scene(const std::string& hash, const std::string& bytes) {
+  Statement st(*this, "INSERT OR IGNORE INTO scenes(hash, scene) VALUES(?, ?)");
+  st.bind(hash, bytes);
+  return st.run();
+}
+
+Result<std::string> JobStore::scene(const std::string& hash) {
+  Statement st(*this, "SELECT scene FROM scenes WHERE hash = ?");
+  st.bind(hash);
+  const int rc = st.step();
+  if (rc == SQLITE_ROW) return st.text(0);
+  if (rc == SQLITE_DONE) return NotFound("scene " + hash + " is not in the job store");
+  return st.error();
+}
+
+Status JobStore::keep_scenes(const std::set<std::string>& keep) {
+  std::vector<std::string> drop;
+  {
+    Statement st(*this, "SELECT hash FROM scenes");
+    while (st.step() == SQLITE_ROW) {
+      if (!keep.count(st.text(0))) drop.push_back(st.text(0));
+    }
+  }
+  for (const std::string& h : drop) {
+    Statement st(*this, "DELETE FROM scenes WHERE hash = ?");
+    st.bind(h);
+    if (Status s = st.run(); !s.ok()) return s;
+  }
+  return Status::Ok();
+}
+
+Result<int> JobStore::band_completions(const std::string& job_id, int frame, int band) {
+  Statement st(*this, "SELECT completions FROM bands WHERE job_id = ? AND frame = ? AND band = ?");
+  st.bind(job_id, frame, band);
+  const int rc = st.step();
+  if (rc == SQLITE_ROW) return static_cast<int>(st.integer(0));
+  if (rc == SQLITE_DONE) return 0;
+  return st.error();
+}
+
+}  // namespace locus::farm

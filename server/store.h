@@ -1,0 +1,59 @@
+// The coordinator's durable job store: one SQLite database in WAL mode,
+// DATA/locus.db, holding jobs, scenes, bands, frames and attempts (a lease
+// is an attempt without an outcome; the `leases` view lists them). The
+// Scheduler's events are applied in one transaction per call, so a
+// kill -9 at any moment leaves the store at the end of some call: never a
+// half-recorded band. docs/farm.md "The job store" has the schema and the
+// recovery rules.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "common/status.h"
+#include "server/journal.h"
+
+struct sqlite3;
+struct sqlite3_stmt;
+
+namespace locus::farm {
+
+class JobStore {
+ public:
+  // Opens (creating when new) the database at `path`.
+  static Result<std::unique_ptr<JobStore>> open(const std::string& path);
+  ~JobStore();
+  JobStore(const JobStore&) = delete;
+  JobStore& operator=(const JobStore&) = delete;
+
+  // Everything in one transaction: all of it or none.
+  Status apply(const std::vector<Event>& events);
+
+  // What a restart resumes. Leases of the previous run are ended ("void",
+  // not charged to the band: the coordinator, not the worker, went away).
+  Result<RecoveredState> recover();
+  // A band the store says is done but whose band file is missing or torn
+  // (possible only after a power loss): back to not done.
+  Status forget_band(const std::string& job_id, int frame, int band);
+
+  Status put_scene(const std::string& hash, const std::string& bytes);
+  Result<std::string> scene(const std::string& hash);
+  // Drops the scenes no longer in `keep`.
+  Status keep_scenes(const std::set<std::string>& keep);
+
+  // For tests and tools: times a band's result was accepted (0 if never).
+  Result<int> band_completions(const std::string& job_id, int frame, int band);
+
+ private:
+  explicit JobStore(sqlite3* db) : db_(db) {}
+  Status exec(const char* sql);
+  Status apply_one(const Event& e);
+  class Statement;
+  sqlite3* db_;
+  std::map<std::string, sqlite3_stmt*> cache_;  // by SQL text
+};
+
+}  // namespace locus::farm
