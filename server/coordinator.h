@@ -23,7 +23,10 @@
 namespace locus::farm {
 
 struct CoordinatorOptions {
-  std::string data_dir;  // frames go to DATA/jobs/<job>/<file>
+  std::string data_dir;     // the coordinator's own files
+  std::string output_root;  // frames go to ROOT/<job>/<file>; empty: DATA/jobs
+  std::string mesh_root;    // OBJ files a submitted scene may name; empty: none
+  Limits limits;
   Millis lease{5000};
   Millis heartbeat{1000};   // asked of workers; well inside the lease
   Millis max_poll{10000};   // longest GetTask wait
@@ -102,8 +105,9 @@ class Coordinator {
   Result<std::vector<std::string>> heartbeat(const std::string& worker_id,
                                              const std::vector<std::string>& lease_ids);
 
-  // The directory holding a job's frames.
+  // The directory holding a job's frames, under the output root.
   std::string job_dir(const std::string& job_id) const;
+  std::string output_root() const;
 
  private:
   void tick_loop();

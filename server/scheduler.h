@@ -69,6 +69,8 @@ class Scheduler {
 
   // Content hashes of the scenes that unfinished jobs still need.
   std::set<std::string> scenes_in_use() const;
+  // Jobs queued or running (the --max-jobs limit).
+  size_t unfinished_jobs() const;
 
   // Bumped by every change a watcher may want to see.
   uint64_t version() const { return version_; }

@@ -9,12 +9,15 @@
 #include <memory>
 #include <string>
 
+#include "server/auth.h"
 #include "server/farm_types.h"
 
 namespace locus::farm {
 
 struct WorkerOptions {
   std::string coordinator;  // HOST:PORT
+  Credentials credentials;  // token, TLS files, --insecure
+  std::string mesh_root;    // OBJ files a scene may name; empty: meshes inline only
   int threads = 1;          // per band
   std::string name;         // default host:pid
   Millis poll{10000};       // long-poll wait per GetTask
@@ -26,7 +29,9 @@ class WorkerClient {
   ~WorkerClient();
 
   // Serves until stop() (then finishes and returns the band in hand).
-  // Returns 0, or 1 when the coordinator's address is malformed.
+  // Returns 0; 1 when the credentials are unusable or the coordinator
+  // refuses them (UNAUTHENTICATED, PERMISSION_DENIED): retrying would not
+  // help.
   int run();
   // Safe from any thread (a signal-handling one).
   void stop();
