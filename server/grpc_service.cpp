@@ -2,7 +2,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <exception>
+#include <mutex>
 #include <fstream>
 #include <sstream>
 
@@ -23,8 +25,36 @@ bool peer_certificate_verified(const grpc::ServerContext& ctx) {
          !auth->FindPropertyValues(GRPC_X509_PEM_CERT_PROPERTY_NAME).empty();
 }
 
-// Every call: credentials first (refusals logged with the peer and the
-// reason, never the token), then the handler; whatever escapes it (a
+// Logs a refused call with the peer and the reason (never the token): at
+// most kRefusalsLogged a second, so that a flood of bad calls cannot flood
+// the log; the rest are counted in the next line that is written.
+void log_refusal(const std::string& peer, const Status& why) {
+  constexpr int kRefusalsLogged = 20;
+  static std::mutex mu;
+  static auto window = std::chrono::steady_clock::now();
+  static int logged = 0, suppressed = 0;
+  std::lock_guard lk(mu);
+  const auto now = std::chrono::steady_clock::now();
+  if (now - window >= std::chrono::seconds(1)) {
+    window = now;
+    logged = 0;
+  }
+  if (logged >= kRefusalsLogged) {
+    ++suppressed;
+    return;
+  }
+  ++logged;
+  // The message starts with the call: "refused WorkerService.Register: ...".
+  if (suppressed > 0) {
+    spdlog::warn("refused {} (peer {}; {} refusals before this one not logged)", why.message(),
+                 peer, suppressed);
+    suppressed = 0;
+    return;
+  }
+  spdlog::warn("refused {} (peer {})", why.message(), peer);
+}
+
+// Every call: credentials first, then the handler; whatever escapes it (a
 // bad_alloc from an absurd request) becomes an error for that call, never
 // the end of the coordinator.
 template <typename F>
@@ -32,7 +62,7 @@ grpc::Status serve(const farm::Authenticator& auth, const grpc::ServerContext& c
                    farm::Role role, const char* rpc, F&& body) {
   const Status allowed = auth.check(role, authorization(ctx), peer_certificate_verified(ctx), rpc);
   if (!allowed.ok()) {
-    spdlog::warn("refused {} from {}: {}", rpc, ctx.peer(), allowed.message());
+    log_refusal(ctx.peer(), allowed);
     return ToGrpc(allowed);
   }
   try {
