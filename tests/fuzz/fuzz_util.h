@@ -6,10 +6,12 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <string_view>
 
 #include "common/scene_io.h"
 #include "common/status.h"
@@ -48,14 +50,52 @@ inline void check_round_trip(const Scene& scene) {
     violated("round trip changed the scene's size");
 }
 
-// An empty directory for relative paths to resolve under.
-inline const std::string& empty_dir() {
-  static const std::string dir = [] {
-    std::string t = (std::filesystem::temp_directory_path() / "locus-fuzz-XXXXXX").string();
-    if (!mkdtemp(t.data())) violated("cannot create a temporary directory");
-    return t;
-  }();
-  return dir;
+// A scratch directory, removed at exit: relative OBJ paths resolve under
+// it (it holds no OBJ file), and the coordinator target keeps its data there.
+inline const std::string& scratch_dir() {
+  struct Dir {
+    std::string path;
+    Dir() {
+      path = (std::filesystem::temp_directory_path() / "locus-fuzz-XXXXXX").string();
+      if (!mkdtemp(path.data())) violated("cannot create a temporary directory");
+    }
+    ~Dir() {
+      std::error_code ec;
+      std::filesystem::remove_all(path, ec);
+    }
+  };
+  static const Dir dir;
+  return dir.path;
+}
+
+// The loader targets' bodies (fuzz_nff.cpp, fuzz_scene_json.cpp), also
+// replayed on the corpus by the gtest suite (tests/fuzz_corpus_test.cpp).
+// Every input must come back as a scene that survives the wire form's
+// round trip, or as an error naming the input.
+inline int fuzz_nff(const uint8_t* data, size_t size) {
+  quiet_logs();
+  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  auto scene = parse_nff(text, "fuzz.nff");
+  if (!scene.ok()) {
+    check_error(scene.status(), "fuzz.nff");
+    return 0;
+  }
+  check_round_trip(*scene);
+  return 0;
+}
+
+// Relative OBJ paths resolve under a directory that does not exist, so they name
+// nothing; an absolute one may read a file, which the loader must survive.
+inline int fuzz_scene_json(const uint8_t* data, size_t size) {
+  quiet_logs();
+  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  auto scene = parse_scene_json(text, "fuzz.json", scratch_dir() + "/scenes");
+  if (!scene.ok()) {
+    check_error(scene.status(), "fuzz.json");
+    return 0;
+  }
+  check_round_trip(*scene);
+  return 0;
 }
 
 }  // namespace locus::fuzz
