@@ -60,10 +60,11 @@ class WorkerClient::Impl {
   bool refused(const Status& s) {
     if (s.code() != Code::kUnauthenticated && s.code() != Code::kPermissionDenied) return false;
     spdlog::error("{}; stopping (check the worker's token and certificate)", s.message());
-    std::lock_guard lk(mu_);
-    refused_ = true;
-    stopping_ = true;
-    cv_.notify_all();
+    {
+      std::lock_guard lk(mu_);
+      refused_ = true;
+    }
+    stop();  // also ends a long poll in flight
     return true;
   }
   // One warning per outage, not one per retry.
