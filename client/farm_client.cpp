@@ -6,6 +6,7 @@
 #include <random>
 #include <thread>
 
+#include "server/paths.h"
 #include "server/rpc.h"
 
 namespace locus::client {
@@ -32,18 +33,33 @@ std::string new_request_id() {
 
 class FarmClient::Impl {
  public:
-  explicit Impl(const std::string& address)
-      : stub(v1::ClientService::NewStub(rpc::make_channel(address))), peer("farm at " + address) {}
+  Impl(const std::string& address, const farm::Credentials& credentials)
+      : peer("farm at " + address) {
+    auto c = rpc::connect(address, credentials);
+    if (!c.ok()) {
+      broken = c.status();
+      return;
+    }
+    conn = std::move(*c);
+    stub = v1::ClientService::NewStub(conn.channel);
+  }
+  rpc::Connection conn;
   std::unique_ptr<v1::ClientService::Stub> stub;
   std::string peer;
+  Status broken;
 
   Status check(const grpc::Status& s) const { return rpc::FromGrpc(s, peer); }
+  void prepare(grpc::ClientContext& ctx, farm::Millis timeout) const {
+    rpc::prepare(ctx, conn, timeout);
+  }
 };
 
-FarmClient::FarmClient(const std::string& address) : impl_(std::make_unique<Impl>(address)) {}
+FarmClient::FarmClient(const std::string& address, const farm::Credentials& credentials)
+    : impl_(std::make_unique<Impl>(address, credentials)) {}
 FarmClient::~FarmClient() = default;
 
 Result<farm::JobInfo> FarmClient::submit(const farm::SubmitRequest& request) {
+  if (!impl_->broken.ok()) return impl_->broken;
   v1::SubmitJobRequest req;
   *req.mutable_spec() = rpc::ToProto(request);
   // One id per submission, the same on every retry: the coordinator then
@@ -54,7 +70,7 @@ Result<farm::JobInfo> FarmClient::submit(const farm::SubmitRequest& request) {
   for (;;) {
     v1::SubmitJobResponse resp;
     grpc::ClientContext ctx;
-    rpc::set_deadline(ctx, rpc::kDataCall);
+    impl_->prepare(ctx, rpc::kDataCall);
     const Status s = impl_->check(impl_->stub->SubmitJob(&ctx, req, &resp));
     if (s.ok()) return rpc::FromProto(resp.status());
     if (!transient(s) || std::chrono::steady_clock::now() + backoff > give_up) return s;
@@ -64,19 +80,21 @@ Result<farm::JobInfo> FarmClient::submit(const farm::SubmitRequest& request) {
 }
 
 Result<farm::JobInfo> FarmClient::job(const std::string& job_id) {
+  if (!impl_->broken.ok()) return impl_->broken;
   v1::GetJobRequest req;
   req.set_job_id(job_id);
   v1::JobStatus resp;
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kShortCall);
+  impl_->prepare(ctx, rpc::kShortCall);
   if (Status s = impl_->check(impl_->stub->GetJob(&ctx, req, &resp)); !s.ok()) return s;
   return rpc::FromProto(resp);
 }
 
 Result<std::vector<farm::JobInfo>> FarmClient::jobs() {
+  if (!impl_->broken.ok()) return impl_->broken;
   v1::ListJobsResponse resp;
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kShortCall);
+  impl_->prepare(ctx, rpc::kShortCall);
   if (Status s = impl_->check(impl_->stub->ListJobs(&ctx, v1::ListJobsRequest(), &resp)); !s.ok())
     return s;
   std::vector<farm::JobInfo> out;
@@ -85,19 +103,21 @@ Result<std::vector<farm::JobInfo>> FarmClient::jobs() {
 }
 
 Result<farm::JobInfo> FarmClient::cancel(const std::string& job_id) {
+  if (!impl_->broken.ok()) return impl_->broken;
   v1::CancelJobRequest req;
   req.set_job_id(job_id);
   v1::CancelJobResponse resp;
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kShortCall);
+  impl_->prepare(ctx, rpc::kShortCall);
   if (Status s = impl_->check(impl_->stub->CancelJob(&ctx, req, &resp)); !s.ok()) return s;
   return rpc::FromProto(resp.status());
 }
 
 Result<std::vector<farm::WorkerInfo>> FarmClient::workers() {
+  if (!impl_->broken.ok()) return impl_->broken;
   v1::ListWorkersResponse resp;
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kShortCall);
+  impl_->prepare(ctx, rpc::kShortCall);
   if (Status s = impl_->check(impl_->stub->ListWorkers(&ctx, v1::ListWorkersRequest(), &resp));
       !s.ok()) {
     return s;
@@ -109,6 +129,7 @@ Result<std::vector<farm::WorkerInfo>> FarmClient::workers() {
 
 Result<farm::JobInfo> FarmClient::watch(
     const std::string& job_id, const std::function<void(const farm::JobInfo&)>& on_update) {
+  if (!impl_->broken.ok()) return impl_->broken;
   constexpr int kStreamSeconds = 30;
   // A farm that goes away (a coordinator restarting) is waited for: the job
   // is in its store, and the watch goes on once it is back.
@@ -120,7 +141,7 @@ Result<farm::JobInfo> FarmClient::watch(
     req.set_job_id(job_id);
     req.set_max_seconds(kStreamSeconds);
     grpc::ClientContext ctx;
-    rpc::set_deadline(ctx, farm::Millis(kStreamSeconds * 1000) + rpc::kShortCall);
+    impl_->prepare(ctx, farm::Millis(kStreamSeconds * 1000) + rpc::kShortCall);
     auto reader = impl_->stub->WatchJob(&ctx, req);
     v1::JobStatus status;
     std::optional<farm::JobInfo> last;
@@ -148,11 +169,12 @@ Result<farm::JobInfo> FarmClient::watch(
 Result<std::vector<std::string>> FarmClient::fetch(
     const std::string& job_id, const std::vector<int>& frames,
     const std::function<std::string(int, const std::string&)>& dest) {
+  if (!impl_->broken.ok()) return impl_->broken;
   v1::FetchResultsRequest req;
   req.set_job_id(job_id);
   for (int f : frames) req.add_frames(f);
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kDataCall);
+  impl_->prepare(ctx, rpc::kDataCall);
   auto reader = impl_->stub->FetchResults(&ctx, req);
   std::vector<std::string> written;
   std::ofstream out;
@@ -168,6 +190,11 @@ Result<std::vector<std::string>> FarmClient::fetch(
   };
   while (reader->Read(&chunk)) {
     if (chunk.offset() == 0) {
+      // The name comes from the coordinator: it must not lead elsewhere.
+      if (Status s = farm::check_plain_file_name(chunk.file_name(), impl_->peer + " sent a file");
+          !s.ok()) {
+        return abandon(s);
+      }
       path = dest(chunk.frame(), chunk.file_name());
       std::error_code ec;
       if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);

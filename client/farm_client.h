@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "server/auth.h"
 #include "server/coordinator.h"
 #include "server/farm_types.h"
 
@@ -18,7 +19,9 @@ namespace locus::client {
 
 class FarmClient {
  public:
-  explicit FarmClient(const std::string& address);
+  // A bad credential (unreadable --tls-ca, plaintext to a remote address
+  // without --insecure) is returned by every call.
+  explicit FarmClient(const std::string& address, const farm::Credentials& credentials = {});
   ~FarmClient();
 
   Result<farm::JobInfo> submit(const farm::SubmitRequest& request);
@@ -32,6 +35,8 @@ class FarmClient {
                               const std::function<void(const farm::JobInfo&)>& on_update);
   // Fetches written frames (`frames` empty: all written so far); each file
   // goes to dest(frame, file_name), written atomically. Returns the paths.
+  // A file name from the coordinator that is not a plain file name is
+  // refused before `dest` sees it.
   Result<std::vector<std::string>> fetch(
       const std::string& job_id, const std::vector<int>& frames,
       const std::function<std::string(int, const std::string&)>& dest);

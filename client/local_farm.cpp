@@ -8,18 +8,35 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstring>
 #include <cstdlib>
 #include <filesystem>
 #include <thread>
 
 #include "client/farm_client.h"
+#include "server/auth.h"
 
 namespace locus::client {
 namespace fs = std::filesystem;
 namespace {
 
+// The environment of a worker: this one's, with LOCUS_TOKEN set to the
+// farm's token (never on a command line, which `ps` shows to every user).
+std::vector<std::string> worker_environment(const std::string& token) {
+  std::vector<std::string> env;
+  for (char** e = environ; e && *e; ++e) {
+    if (std::strncmp(*e, "LOCUS_TOKEN=", 12) != 0) env.emplace_back(*e);
+  }
+  env.push_back("LOCUS_TOKEN=" + token);
+  return env;
+}
+
 pid_t spawn_worker(const std::string& binary, const std::string& address, int threads,
-                   const std::string& log) {
+                   const std::string& log, const std::vector<std::string>& env) {
+  // Built before fork: the child may only make async-signal-safe calls.
+  std::vector<const char*> envp;
+  for (const std::string& e : env) envp.push_back(e.c_str());
+  envp.push_back(nullptr);
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid != 0) return pid;
@@ -40,7 +57,7 @@ pid_t spawn_worker(const std::string& binary, const std::string& address, int th
   const std::string threads_arg = std::to_string(threads);
   const char* argv[] = {binary.c_str(),      "--coordinator", address.c_str(), "--threads",
                         threads_arg.c_str(), "--poll-ms",     "2000",          nullptr};
-  execv(binary.c_str(), const_cast<char* const*>(argv));
+  execve(binary.c_str(), const_cast<char* const*>(argv), const_cast<char* const*>(envp.data()));
   _exit(127);
 }
 
@@ -76,15 +93,24 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   co.fsync = false;
   farm->coordinator_ = std::make_unique<farm::Coordinator>(co);
   if (Status s = farm->coordinator_->start(); !s.ok()) return s;
+  // Loopback only, plaintext (nothing leaves the host), and a fresh random
+  // token for both roles: another user of this machine cannot use it.
+  auto token = farm::random_token();
+  if (!token.ok()) return token.status();
+  farm->token_ = *token;
+  rpc::ServerSecurity security;
+  security.insecure = true;
+  security.auth = farm::Authenticator::from_tokens({farm->token_}, {farm->token_});
   farm->server_ = std::make_unique<rpc::CoordinatorServer>(*farm->coordinator_);
-  auto port = farm->server_->start("127.0.0.1:0");
+  auto port = farm->server_->start("127.0.0.1:0", std::move(security));
   if (!port.ok()) return port.status();
   farm->address_ = "127.0.0.1:" + std::to_string(*port);
+  const std::vector<std::string> env = worker_environment(farm->token_);
 
   for (int i = 0; i < o.workers; ++i) {
     const std::string log =
         (fs::path(farm->dir_) / ("worker-" + std::to_string(i) + ".log")).string();
-    const pid_t pid = spawn_worker(*binary, farm->address_, o.threads, log);
+    const pid_t pid = spawn_worker(*binary, farm->address_, o.threads, log, env);
     if (pid < 0) return Internal("cannot start " + *binary);
     farm->pids_.push_back(pid);
   }

@@ -1,7 +1,8 @@
 // The embedded farm of `locus render --workers N`: a coordinator inside this
 // process on 127.0.0.1 (ephemeral port) and N `locus-worker` processes found
 // next to the `locus` binary. The job then runs through the same gRPC path
-// as on a real farm.
+// as on a real farm, under a random token that the workers get through
+// LOCUS_TOKEN in their environment.
 #pragma once
 
 #include <sys/types.h>
@@ -33,6 +34,8 @@ class LocalFarm {
   ~LocalFarm();  // SIGTERM to the workers (SIGKILL if they linger), then the server
 
   const std::string& address() const { return address_; }
+  // The farm's random token (both roles), for this process's client.
+  const std::string& token() const { return token_; }
   // The directory of worker logs (worker-N.log); kept when keep_logs() was
   // called, or when workers died.
   const std::string& dir() const { return dir_; }
@@ -46,6 +49,7 @@ class LocalFarm {
 
   std::string dir_;
   std::string address_;
+  std::string token_;
   std::unique_ptr<farm::Coordinator> coordinator_;
   std::unique_ptr<rpc::CoordinatorServer> server_;
   std::mutex mu_;

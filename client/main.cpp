@@ -21,6 +21,7 @@
 #include "common/render.h"
 #include "common/scene_io.h"
 #include "proto/scene.pb.h"
+#include "server/auth.h"
 #include "worker/band_renderer.h"
 
 namespace {
@@ -130,7 +131,9 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
   r.width = job.scene.camera.width;
   r.height = job.scene.camera.height;
   r.bands = a.bands;
-  r.output = a.output;
+  // The directories of -o are this side's: the coordinator gets the file
+  // name alone and writes under its own output root.
+  r.output = for_farm ? fs::path(a.output).filename().string() : a.output;
   r.orbit_degrees = a.orbit;
   if (a.bands > r.height) {
     return InvalidArgument("--bands " + std::to_string(a.bands) + ": the frame has only " +
@@ -221,7 +224,9 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     spdlog::set_level(level);
     return fail(local.status());
   }
-  client::FarmClient farm((*local)->address());
+  farm::Credentials local_creds;
+  local_creds.token = (*local)->token();
+  client::FarmClient farm((*local)->address(), local_creds);
   auto submitted = farm.submit(job->request);
   if (!submitted.ok()) {
     spdlog::set_level(level);
@@ -276,12 +281,12 @@ struct SubmitArgs {
   bool wait = false;
 };
 
-int run_submit(const std::string& address, const SubmitArgs& a) {
+int run_submit(const std::string& address, const farm::Credentials& creds, const SubmitArgs& a) {
   // Validated here first: the user sees the scene's problems and nothing
   // reaches the coordinator.
   auto job = prepare_job(a.job, true);
   if (!job.ok()) return fail(job.status());
-  client::FarmClient farm(address);
+  client::FarmClient farm(address, creds);
   auto submitted = farm.submit(job->request);
   if (!submitted.ok()) return fail(submitted.status());
   std::printf("%s\n", submitted->job_id.c_str());
@@ -308,8 +313,8 @@ void print_job(const farm::JobInfo& j) {
   for (const std::string& w : j.quarantined) std::printf("  quarantined worker %s\n", w.c_str());
 }
 
-int run_status(const std::string& address, const std::string& job_id) {
-  client::FarmClient farm(address);
+int run_status(const std::string& address, const farm::Credentials& creds, const std::string& job_id) {
+  client::FarmClient farm(address, creds);
   if (!job_id.empty()) {
     auto j = farm.job(job_id);
     if (!j.ok()) return fail(j.status());
@@ -336,8 +341,8 @@ int run_status(const std::string& address, const std::string& job_id) {
   return 0;
 }
 
-int run_watch(const std::string& address, const std::string& job_id) {
-  client::FarmClient farm(address);
+int run_watch(const std::string& address, const farm::Credentials& creds, const std::string& job_id) {
+  client::FarmClient farm(address, creds);
   client::Progress progress(stdout, isatty(STDOUT_FILENO) != 0);
   auto done = farm.watch(job_id, [&](const farm::JobInfo& j) { progress.update(j); });
   progress.finish();
@@ -346,8 +351,8 @@ int run_watch(const std::string& address, const std::string& job_id) {
   return done->state == farm::JobState::kSucceeded ? 0 : 1;
 }
 
-int run_cancel(const std::string& address, const std::string& job_id) {
-  client::FarmClient farm(address);
+int run_cancel(const std::string& address, const farm::Credentials& creds, const std::string& job_id) {
+  client::FarmClient farm(address, creds);
   auto j = farm.cancel(job_id);
   if (!j.ok()) return fail(j.status());
   std::printf("job %s: %s (%lld/%lld bands done)\n", j->job_id.c_str(),
@@ -356,8 +361,8 @@ int run_cancel(const std::string& address, const std::string& job_id) {
   return 0;
 }
 
-int run_workers(const std::string& address) {
-  client::FarmClient farm(address);
+int run_workers(const std::string& address, const farm::Credentials& creds) {
+  client::FarmClient farm(address, creds);
   auto ws = farm.workers();
   if (!ws.ok()) return fail(ws.status());
   if (ws->empty()) {
@@ -378,8 +383,8 @@ int run_workers(const std::string& address) {
   return 0;
 }
 
-int run_fetch(const std::string& address, const std::string& job_id, const std::string& dir) {
-  client::FarmClient farm(address);
+int run_fetch(const std::string& address, const farm::Credentials& creds, const std::string& job_id, const std::string& dir) {
+  client::FarmClient farm(address, creds);
   auto j = farm.job(job_id);
   if (!j.ok()) return fail(j.status());
   auto files = farm.fetch(
@@ -449,9 +454,18 @@ int main(int argc, char** argv) {
   validate->add_option("scene", vpath, "Scene file")->required();
 
   std::string farm_address = default_farm();
+  std::string token_file;
+  farm::Credentials creds;
   auto add_farm = [&](CLI::App* cmd) {
     cmd->add_option("--farm", farm_address,
                     "Coordinator address HOST:PORT (default $LOCUS_FARM or 127.0.0.1:7000)");
+    cmd->add_option("--token-file", token_file,
+                    "File holding your client token (default: $LOCUS_TOKEN)");
+    cmd->add_option("--tls-ca", creds.tls_ca, "CA (PEM) that signed the coordinator's certificate");
+    cmd->add_option("--tls-cert", creds.tls_cert, "Client certificate (PEM), for mutual TLS");
+    cmd->add_option("--tls-key", creds.tls_key, "Client private key (PEM), for mutual TLS");
+    cmd->add_flag("--insecure", creds.insecure,
+                  "Plaintext to a non-loopback farm (a trusted network only)");
   };
   SubmitArgs sa;
   auto* submit = app.add_subcommand("submit", "Submit a job to a farm; prints its id");
@@ -485,11 +499,14 @@ int main(int argc, char** argv) {
     return run_render(ra);
   }
   if (validate->parsed()) return run_validate(vpath);
-  if (submit->parsed()) return run_submit(farm_address, sa);
-  if (status->parsed()) return run_status(farm_address, job_id);
-  if (watch->parsed()) return run_watch(farm_address, job_id);
-  if (cancel->parsed()) return run_cancel(farm_address, job_id);
-  if (workers->parsed()) return run_workers(farm_address);
-  if (fetch->parsed()) return run_fetch(farm_address, job_id, dir);
+  auto token = farm::load_token(token_file);
+  if (!token.ok()) return fail(token.status());
+  creds.token = *token;
+  if (submit->parsed()) return run_submit(farm_address, creds, sa);
+  if (status->parsed()) return run_status(farm_address, creds, job_id);
+  if (watch->parsed()) return run_watch(farm_address, creds, job_id);
+  if (cancel->parsed()) return run_cancel(farm_address, creds, job_id);
+  if (workers->parsed()) return run_workers(farm_address, creds);
+  if (fetch->parsed()) return run_fetch(farm_address, creds, job_id, dir);
   return 1;
 }

@@ -18,6 +18,7 @@
 #include "common/image.h"
 #include "common/scene_io.h"
 #include "server/band_files.h"
+#include "server/paths.h"
 
 namespace locus::farm {
 namespace fs = std::filesystem;
@@ -36,6 +37,14 @@ std::string lower(std::string s) {
 Result<std::string> output_file_pattern(const std::string& output, int frames) {
   if (output.empty())
     return InvalidArgument("output: a pattern such as out/shot_####.png is required");
+  // Confined: the coordinator writes under its output root only, and says
+  // so rather than quietly dropping what would lead elsewhere.
+  if (Status s = check_no_parent_refs(output, "output"); !s.ok()) return s;
+  if (fs::path(output).is_absolute()) {
+    return InvalidArgument("output '" + output +
+                           "': absolute paths are refused; the coordinator writes each job's "
+                           "frames under its output root, give a file name such as shot_####.png");
+  }
   const std::string name = fs::path(output).filename().string();
   if (name.empty() || name == "." || name == "..") {
     return InvalidArgument("output '" + output +
@@ -74,6 +83,9 @@ Status Coordinator::start() {
   fs::create_directories(fs::path(options_.data_dir) / "jobs", ec);
   if (ec)
     return FailedPrecondition("--data " + options_.data_dir + ": cannot create: " + ec.message());
+  fs::create_directories(output_root(), ec);
+  if (ec)
+    return FailedPrecondition("--output-root " + output_root() + ": cannot create: " + ec.message());
   std::lock_guard lk(mu_);
   if (started_) return Status::Ok();
   if (Status s = recover(); !s.ok()) return s;
@@ -207,7 +219,12 @@ void Coordinator::crash_for_test() {
 }
 
 std::string Coordinator::job_dir(const std::string& job_id) const {
-  return (fs::path(options_.data_dir) / "jobs" / job_id).string();
+  return (fs::path(output_root()) / job_id).string();
+}
+
+std::string Coordinator::output_root() const {
+  return options_.output_root.empty() ? (fs::path(options_.data_dir) / "jobs").string()
+                                      : options_.output_root;
 }
 
 // ---------------------------------------------------------------- background
@@ -273,16 +290,18 @@ void Coordinator::write_loop() {
 // ---------------------------------------------------------------- clients
 
 Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
-  const std::string name = r.scene_name.empty() ? "scene" : r.scene_name;
-  // A scene from the wire carries its meshes inline; an OBJ path would make
-  // the coordinator read its own files.
-  for (int i = 0; i < r.scene.objects_size(); ++i) {
-    if (r.scene.objects(i).has_mesh() && !r.scene.objects(i).mesh().obj().empty()) {
-      return InvalidArgument(name + ": objects[" + std::to_string(i) +
-                             "].mesh.obj: a submitted scene must carry its meshes inline");
-    }
+  const std::string name = r.scene_name.empty() ? "scene" : r.scene_name.substr(0, 256);
+  const Limits& limits = options_.limits;
+  if (r.scene.objects_size() > limits.max_objects) {
+    return InvalidArgument(name + ": " + std::to_string(r.scene.objects_size()) +
+                           " objects; this farm takes at most " +
+                           std::to_string(limits.max_objects) + " (--max-objects)");
   }
-  Result<Scene> scene = scene_from_proto(r.scene, name);
+  // OBJ files only from the mesh root (none by default: meshes inline);
+  // the scene stored for the workers keeps the names as given.
+  v1::Scene confined = r.scene;
+  if (Status s = confine_mesh_paths(confined, options_.mesh_root, name); !s.ok()) return s;
+  Result<Scene> scene = scene_from_proto(confined, name);
   if (!scene.ok()) return Status(Code::kInvalidArgument, scene.status().message());
   if (!scene->has_camera && (r.width == 0 || r.height == 0)) {
     return InvalidArgument(name + ": the scene has no camera resolution; give the size");
@@ -293,10 +312,10 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
   spec.width = r.width > 0 ? r.width : scene->camera.width;
   spec.height = r.height > 0 ? r.height : scene->camera.height;
   if (r.width < 0 || r.height < 0 || spec.width < 1 || spec.height < 1 ||
-      spec.width > kMaxResolution || spec.height > kMaxResolution) {
+      spec.width > limits.max_resolution || spec.height > limits.max_resolution) {
     return InvalidArgument("size " + std::to_string(spec.width) + "x" +
                            std::to_string(spec.height) + ": each side must be 1.." +
-                           std::to_string(kMaxResolution));
+                           std::to_string(limits.max_resolution) + " (--max-resolution)");
   }
   spec.frame_first = r.frame_first;
   spec.frame_last = r.frame_last;
@@ -304,10 +323,10 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
     return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
                            std::to_string(r.frame_last) + ": expected A-B with 0 <= A <= B");
   }
-  if (static_cast<int64_t>(r.frame_last) - r.frame_first + 1 > kMaxFramesPerJob) {
+  if (static_cast<int64_t>(r.frame_last) - r.frame_first + 1 > limits.max_frames) {
     return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
                            std::to_string(r.frame_last) + ": at most " +
-                           std::to_string(kMaxFramesPerJob) + " frames per job");
+                           std::to_string(limits.max_frames) + " frames per job (--max-frames)");
   }
   Result<RenderParams> params = to_render_params(r.render, 0);
   if (!params.ok()) return params.status();
@@ -365,10 +384,15 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
   spec.bands = r.bands > 0 ? r.bands
                            : default_bands(spec.width, spec.height, spec.frames(),
                                            static_cast<int>(scheduler_.worker_count()));
-  if (spec.bands_total() > kMaxBandsPerJob) {
+  if (spec.bands_total() > limits.max_bands) {
     return InvalidArgument(std::to_string(spec.frames()) + " frames x " +
                            std::to_string(spec.bands) + " bands: at most " +
-                           std::to_string(kMaxBandsPerJob) + " bands per job");
+                           std::to_string(limits.max_bands) + " bands per job (--max-bands)");
+  }
+  if (scheduler_.unfinished_jobs() >= static_cast<size_t>(limits.max_jobs)) {
+    return Status(Code::kResourceExhausted,
+                  "the farm already has " + std::to_string(limits.max_jobs) +
+                      " jobs queued or running (--max-jobs); wait for one to end, or cancel one");
   }
   // Recorded before the client hears of the job: an id the client was
   // given survives any restart.

@@ -26,9 +26,12 @@
 namespace locus::farm {
 
 struct CoordinatorOptions {
-  // The job store (DATA/locus.db) and the pixels: DATA/jobs/<job>/<file>
-  // for frames, DATA/jobs/<job>/bands/ for bands of frames in progress.
+  // The job store (DATA/locus.db) and the pixels: DATA/jobs/<job>/bands/
+  // for bands of frames in progress; frames go to ROOT/<job>/<file>.
   std::string data_dir;
+  std::string output_root;  // ROOT above; empty: DATA/jobs
+  std::string mesh_root;    // OBJ files a submitted scene may name; empty: none
+  Limits limits;
   Millis lease{5000};
   Millis heartbeat{1000};   // asked of workers; well inside the lease
   Millis max_poll{10000};   // longest GetTask wait
@@ -121,11 +124,12 @@ class Coordinator {
   Result<std::vector<std::string>> heartbeat(const std::string& worker_id,
                                              const std::vector<std::string>& lease_ids);
 
-  // The directory holding a job's frames.
+  // The directory holding a job's frames, under the output root.
   std::string job_dir(const std::string& job_id) const;
   // Time from a band being available to a worker to its lease, over the
   // coordinator's life (GetTask calls that returned a band).
   LatencySummary dispatch_latency();
+  std::string output_root() const;
 
  private:
   Status recover();          // start(), before the threads

@@ -1,5 +1,7 @@
 // locus-coordinator: accepts jobs from `locus`, leases bands to the workers
-// that dial in, stitches and writes the frames under --data.
+// that dial in, stitches and writes the frames under its output root.
+// Serves TLS with bearer tokens, or plaintext only with --insecure
+// (docs/farm.md "Security").
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -7,8 +9,18 @@
 #include <csignal>
 #include <cstdio>
 
+#include "server/auth.h"
 #include "server/coordinator.h"
 #include "server/grpc_service.h"
+
+namespace {
+
+int fail(const std::string& message) {
+  std::fprintf(stderr, "locus-coordinator: %s\n", message.c_str());
+  return 2;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"locus-coordinator: the Locus render farm's coordinator"};
@@ -21,10 +33,20 @@ int main(int argc, char** argv) {
   double speculate_factor = 3.0;
   int speculate_min_ms = 1000;
   bool no_fsync = false;
+  locus::farm::CoordinatorOptions options;
+  locus::farm::Limits& limits = options.limits;
+  locus::rpc::ServerSecurity security;
+  std::string client_tokens, worker_tokens;
   app.add_option("--listen", listen, "Address to serve on, HOST:PORT (port 0: any free port)");
   app.add_option("--data", data,
                  "Directory of the job store (locus.db) and the frames; a restart on the same "
                  "directory resumes its jobs");
+  app.add_option("--output-root", options.output_root,
+                 "Directory under which each job's frames are written, ROOT/<job>/ (default "
+                 "DATA/jobs)");
+  app.add_option("--mesh-root", options.mesh_root,
+                 "Directory of OBJ files that submitted scenes may name (default: none, meshes "
+                 "travel inline)");
   app.add_option("--lease-ms", lease_ms, "A band's lease lapses this long after its last renewal")
       ->check(CLI::Range(200, 3600000));
   app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat period asked of workers")
@@ -46,15 +68,47 @@ int main(int argc, char** argv) {
   app.add_flag("--no-fsync", no_fsync,
                "Do not fsync band and frame files (faster; a crash of the coordinator is still "
                "survived, a power loss may cost finished bands)");
+  // Security.
+  app.add_option("--tls-cert", security.tls_cert, "Server certificate chain (PEM)");
+  app.add_option("--tls-key", security.tls_key, "Server certificate's private key (PEM)");
+  app.add_option("--tls-ca", security.tls_ca,
+                 "CA (PEM) for mutual TLS: workers must present a certificate it signed");
+  app.add_option("--client-tokens", client_tokens,
+                 "File of client tokens (submit, status, watch, cancel, fetch), one per line");
+  app.add_option("--worker-tokens", worker_tokens,
+                 "File of worker tokens (take and return bands), one per line");
+  app.add_flag("--insecure", security.insecure,
+               "Allow serving without TLS, and without tokens (a trusted network only)");
+  // Limits.
+  app.add_option("--max-resolution", limits.max_resolution, "Largest image side, in pixels")
+      ->check(CLI::Range(1, locus::kMaxResolution));
+  app.add_option("--max-objects", limits.max_objects, "Most objects in a submitted scene")
+      ->check(CLI::Range(1, 10000000));
+  app.add_option("--max-frames", limits.max_frames, "Most frames per job")
+      ->check(CLI::Range(1, locus::farm::kMaxFramesPerJob));
+  app.add_option("--max-bands", limits.max_bands, "Most bands per job (frames x bands)")
+      ->check(CLI::Range(int64_t{1}, locus::farm::kMaxBandsPerJob));
+  app.add_option("--max-jobs", limits.max_jobs, "Most jobs queued or running at once")
+      ->check(CLI::Range(1, 1000000));
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
   spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
   if (heartbeat_ms * 2 > lease_ms) {
-    std::fprintf(stderr,
-                 "locus-coordinator: --heartbeat-ms %d must be at most half of --lease-ms %d\n",
-                 heartbeat_ms, lease_ms);
-    return 2;
+    return fail("--heartbeat-ms " + std::to_string(heartbeat_ms) +
+                " must be at most half of --lease-ms " + std::to_string(lease_ms));
   }
+  if (client_tokens.empty() != worker_tokens.empty())
+    return fail("--client-tokens and --worker-tokens go together (give both files)");
+  if (!client_tokens.empty()) {
+    auto auth = locus::farm::Authenticator::from_files(client_tokens, worker_tokens);
+    if (!auth.ok()) return fail(auth.status().message());
+    security.auth = std::move(*auth);
+  }
+  if (locus::Status st = locus::rpc::check_server_security(security); !st.ok()) return fail(st.message());
+  if (security.tls_cert.empty())
+    spdlog::warn("--insecure: serving plaintext; anyone on the path can read the traffic");
+  if (!security.auth.enforcing())
+    spdlog::warn("--insecure: no tokens; anyone who reaches {} can use the farm", listen);
 
   // Signals are taken synchronously by the main thread below; block them
   // before gRPC starts its threads so none of those gets them.
@@ -64,7 +118,6 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  locus::farm::CoordinatorOptions options;
   options.data_dir = data;
   options.lease = locus::farm::Millis(lease_ms);
   options.heartbeat = locus::farm::Millis(heartbeat_ms);
@@ -78,13 +131,18 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "locus-coordinator: %s\n", st.message().c_str());
     return 1;
   }
+  const bool tls = !security.tls_cert.empty();
+  const bool mtls = !security.tls_ca.empty();
+  const bool tokens = security.auth.enforcing();
   locus::rpc::CoordinatorServer server(coordinator);
-  auto port = server.start(listen);
+  auto port = server.start(listen, std::move(security));
   if (!port.ok()) {
     std::fprintf(stderr, "locus-coordinator: %s\n", port.status().message().c_str());
     return 1;
   }
-  spdlog::info("locus-coordinator listening on {} (port {}), data in {}", listen, *port, data);
+  spdlog::info("locus-coordinator listening on {} (port {}; {}{}, {}), frames in {}", listen,
+               *port, tls ? "TLS" : "plaintext", mtls ? " with worker certificates" : "",
+               tokens ? "tokens required" : "no tokens", coordinator.output_root());
   // Scripts that start it on port 0 read the port from stdout.
   std::printf("listening on port %d\n", *port);
   std::fflush(stdout);

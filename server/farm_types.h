@@ -13,6 +13,7 @@
 
 #include "common/image.h"
 #include "common/render.h"
+#include "common/scene_io.h"
 #include "common/status.h"
 
 namespace locus::farm {
@@ -23,9 +24,18 @@ using Millis = std::chrono::milliseconds;
 // Injected wherever time matters, so tests drive leases with a fake clock.
 using NowFn = std::function<TimePoint()>;
 
-// The limits a coordinator enforces on every job (docs/farm.md "Limits").
+// The limits a coordinator enforces on every job (docs/farm.md "Limits"):
+// the defaults of its flags, and the most the flags allow.
 inline constexpr int kMaxFramesPerJob = 100000;
 inline constexpr int64_t kMaxBandsPerJob = 1000000;
+
+struct Limits {
+  int max_resolution = kMaxResolution;  // pixels per side (--max-resolution)
+  int max_objects = 100000;             // objects in a scene (--max-objects)
+  int max_frames = kMaxFramesPerJob;    // frames per job (--max-frames)
+  int64_t max_bands = kMaxBandsPerJob;  // frames x bands per job (--max-bands)
+  int max_jobs = 1000;                  // jobs queued or running at once (--max-jobs)
+};
 // gRPC's message size limit, set explicitly on every server and channel; a
 // band's pixels must fit in one message with room to spare.
 inline constexpr int kMaxMessageBytes = 64 << 20;

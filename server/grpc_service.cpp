@@ -2,21 +2,69 @@
 
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <exception>
-
-#include "server/rpc.h"
+#include <mutex>
+#include <fstream>
+#include <sstream>
 
 namespace locus::rpc {
 namespace {
 
-// Bounds every field a peer controls before it reaches the logic.
-constexpr size_t kMaxIdBytes = 256;
-constexpr int kMaxLeasesPerHeartbeat = 1024;
+// The first value of a call's `authorization` header, "" when absent.
+std::string_view authorization(const grpc::ServerContext& ctx) {
+  const auto& md = ctx.client_metadata();
+  auto it = md.find("authorization");
+  return it == md.end() ? std::string_view() : std::string_view(it->second.data(), it->second.size());
+}
 
-// Runs a handler body; whatever escapes (a bad_alloc from an absurd request)
-// becomes an error for that call, never the end of the coordinator.
+// TLS verified a client certificate against --tls-ca.
+bool peer_certificate_verified(const grpc::ServerContext& ctx) {
+  const auto auth = ctx.auth_context();
+  return auth && auth->IsPeerAuthenticated() &&
+         !auth->FindPropertyValues(GRPC_X509_PEM_CERT_PROPERTY_NAME).empty();
+}
+
+// Logs a refused call with the peer and the reason (never the token): at
+// most kRefusalsLogged a second, so that a flood of bad calls cannot flood
+// the log; the rest are counted in the next line that is written.
+void log_refusal(const std::string& peer, const Status& why) {
+  constexpr int kRefusalsLogged = 20;
+  static std::mutex mu;
+  static auto window = std::chrono::steady_clock::now();
+  static int logged = 0, suppressed = 0;
+  std::lock_guard lk(mu);
+  const auto now = std::chrono::steady_clock::now();
+  if (now - window >= std::chrono::seconds(1)) {
+    window = now;
+    logged = 0;
+  }
+  if (logged >= kRefusalsLogged) {
+    ++suppressed;
+    return;
+  }
+  ++logged;
+  // The message starts with the call: "refused WorkerService.Register: ...".
+  if (suppressed > 0) {
+    spdlog::warn("refused {} (peer {}; {} refusals before this one not logged)", why.message(),
+                 peer, suppressed);
+    suppressed = 0;
+    return;
+  }
+  spdlog::warn("refused {} (peer {})", why.message(), peer);
+}
+
+// Every call: credentials first, then the handler; whatever escapes it (a
+// bad_alloc from an absurd request) becomes an error for that call, never
+// the end of the coordinator.
 template <typename F>
-grpc::Status guarded(const char* rpc, F&& body) {
+grpc::Status serve(const farm::Authenticator& auth, const grpc::ServerContext& ctx,
+                   farm::Role role, const char* rpc, F&& body) {
+  const Status allowed = auth.check(role, authorization(ctx), peer_certificate_verified(ctx), rpc);
+  if (!allowed.ok()) {
+    log_refusal(ctx.peer(), allowed);
+    return ToGrpc(allowed);
+  }
   try {
     return ToGrpc(body());
   } catch (const std::exception& e) {
@@ -25,184 +73,153 @@ grpc::Status guarded(const char* rpc, F&& body) {
   }
 }
 
-Status check_id(const std::string& id, const char* what) {
-  if (id.empty()) return InvalidArgument(std::string(what) + " is required");
-  if (id.size() > kMaxIdBytes) return InvalidArgument(std::string(what) + " is too long");
-  return Status::Ok();
-}
+constexpr farm::Role kClient = farm::Role::kClient;
+constexpr farm::Role kWorker = farm::Role::kWorker;
 
 }  // namespace
 
 class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
  public:
-  explicit ClientImpl(farm::Coordinator& c) : c_(c) {}
+  ClientImpl(Handlers& h, const farm::Authenticator& auth) : h_(h), auth_(auth) {}
 
-  grpc::Status SubmitJob(grpc::ServerContext*, const v1::SubmitJobRequest* req,
+  grpc::Status SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
                          v1::SubmitJobResponse* resp) override {
-    return guarded("SubmitJob", [&]() -> Status {
-      farm::SubmitRequest submit = FromProto(req->spec());
-      submit.request_id = req->request_id();
-      auto r = c_.submit(submit);
-      if (!r.ok()) return r.status();
-      resp->set_job_id(r->job_id);
-      *resp->mutable_status() = ToProto(*r);
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kClient, "ClientService.SubmitJob",
+                 [&] { return h_.SubmitJob(*req, resp); });
   }
 
-  grpc::Status GetJob(grpc::ServerContext*, const v1::GetJobRequest* req,
+  grpc::Status GetJob(grpc::ServerContext* ctx, const v1::GetJobRequest* req,
                       v1::JobStatus* resp) override {
-    return guarded("GetJob", [&]() -> Status {
-      if (Status s = check_id(req->job_id(), "job_id"); !s.ok()) return s;
-      auto r = c_.job(req->job_id());
-      if (!r.ok()) return r.status();
-      *resp = ToProto(*r);
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kClient, "ClientService.GetJob",
+                 [&] { return h_.GetJob(*req, resp); });
   }
 
-  grpc::Status ListJobs(grpc::ServerContext*, const v1::ListJobsRequest*,
+  grpc::Status ListJobs(grpc::ServerContext* ctx, const v1::ListJobsRequest* req,
                         v1::ListJobsResponse* resp) override {
-    return guarded("ListJobs", [&]() -> Status {
-      for (const farm::JobInfo& j : c_.jobs()) *resp->add_jobs() = ToProto(j);
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kClient, "ClientService.ListJobs",
+                 [&] { return h_.ListJobs(*req, resp); });
   }
 
   grpc::Status WatchJob(grpc::ServerContext* ctx, const v1::WatchJobRequest* req,
                         grpc::ServerWriter<v1::JobStatus>* writer) override {
-    return guarded("WatchJob", [&]() -> Status {
-      if (Status s = check_id(req->job_id(), "job_id"); !s.ok()) return s;
-      const farm::Millis max(
-          req->max_seconds() > 0 ? static_cast<int64_t>(req->max_seconds()) * 1000 : 30000);
-      return c_.watch(
-          req->job_id(), max, [ctx] { return ctx->IsCancelled(); },
-          [writer](const farm::JobInfo& j) { return writer->Write(ToProto(j)); });
+    return serve(auth_, *ctx, kClient, "ClientService.WatchJob", [&] {
+      return h_.WatchJob(
+          *req, [ctx] { return ctx->IsCancelled(); },
+          [writer](const v1::JobStatus& s) { return writer->Write(s); });
     });
   }
 
-  grpc::Status CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* req,
+  grpc::Status CancelJob(grpc::ServerContext* ctx, const v1::CancelJobRequest* req,
                          v1::CancelJobResponse* resp) override {
-    return guarded("CancelJob", [&]() -> Status {
-      if (Status s = check_id(req->job_id(), "job_id"); !s.ok()) return s;
-      auto r = c_.cancel(req->job_id());
-      if (!r.ok()) return r.status();
-      *resp->mutable_status() = ToProto(*r);
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kClient, "ClientService.CancelJob",
+                 [&] { return h_.CancelJob(*req, resp); });
   }
 
-  grpc::Status ListWorkers(grpc::ServerContext*, const v1::ListWorkersRequest*,
+  grpc::Status ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest* req,
                            v1::ListWorkersResponse* resp) override {
-    return guarded("ListWorkers", [&]() -> Status {
-      for (const farm::WorkerInfo& w : c_.workers()) *resp->add_workers() = ToProto(w);
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kClient, "ClientService.ListWorkers",
+                 [&] { return h_.ListWorkers(*req, resp); });
   }
 
-  grpc::Status FetchResults(grpc::ServerContext*, const v1::FetchResultsRequest* req,
+  grpc::Status FetchResults(grpc::ServerContext* ctx, const v1::FetchResultsRequest* req,
                             grpc::ServerWriter<v1::FileChunk>* writer) override {
-    return guarded("FetchResults", [&]() -> Status {
-      if (Status s = check_id(req->job_id(), "job_id"); !s.ok()) return s;
-      std::vector<int> frames(req->frames().begin(), req->frames().end());
-      return c_.fetch(req->job_id(), frames, [writer](const farm::FileChunk& c) {
-        v1::FileChunk p;
-        p.set_frame(c.frame);
-        p.set_file_name(c.file_name);
-        p.set_offset(c.offset);
-        p.set_data(c.data);
-        p.set_last(c.last);
-        return writer->Write(p);
-      });
+    return serve(auth_, *ctx, kClient, "ClientService.FetchResults", [&] {
+      return h_.FetchResults(*req, [writer](const v1::FileChunk& c) { return writer->Write(c); });
     });
   }
 
  private:
-  farm::Coordinator& c_;
+  Handlers& h_;
+  const farm::Authenticator& auth_;
 };
 
 class CoordinatorServer::WorkerImpl final : public v1::WorkerService::Service {
  public:
-  explicit WorkerImpl(farm::Coordinator& c) : c_(c) {}
+  WorkerImpl(Handlers& h, const farm::Authenticator& auth) : h_(h), auth_(auth) {}
 
   grpc::Status Register(grpc::ServerContext* ctx, const v1::RegisterRequest* req,
                         v1::RegisterResponse* resp) override {
-    return guarded("Register", [&]() -> Status {
-      const std::string name = req->name().empty() ? ctx->peer() : req->name();
-      farm::Registration r = c_.register_worker(name, req->threads());
-      resp->set_worker_id(r.worker_id);
-      resp->set_heartbeat_ms(static_cast<int32_t>(r.heartbeat.count()));
-      resp->set_lease_ms(static_cast<int32_t>(r.lease.count()));
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kWorker, "WorkerService.Register",
+                 [&] { return h_.Register(*req, ctx->peer(), resp); });
   }
 
   grpc::Status GetTask(grpc::ServerContext* ctx, const v1::GetTaskRequest* req,
                        v1::GetTaskResponse* resp) override {
-    return guarded("GetTask", [&]() -> Status {
-      if (Status s = check_id(req->worker_id(), "worker_id"); !s.ok()) return s;
-      auto r = c_.get_task(req->worker_id(), farm::Millis(std::max(0, req->wait_ms())),
-                           [ctx] { return ctx->IsCancelled(); });
-      if (!r.ok()) return r.status();
-      if (r->has_value()) *resp->mutable_task() = ToProto(**r);
-      return Status::Ok();
+    return serve(auth_, *ctx, kWorker, "WorkerService.GetTask", [&] {
+      return h_.GetTask(*req, [ctx] { return ctx->IsCancelled(); }, resp);
     });
   }
 
-  grpc::Status GetScene(grpc::ServerContext*, const v1::GetSceneRequest* req,
+  grpc::Status GetScene(grpc::ServerContext* ctx, const v1::GetSceneRequest* req,
                         v1::GetSceneResponse* resp) override {
-    return guarded("GetScene", [&]() -> Status {
-      if (Status s = check_id(req->worker_id(), "worker_id"); !s.ok()) return s;
-      if (Status s = check_id(req->scene_hash(), "scene_hash"); !s.ok()) return s;
-      auto r = c_.get_scene(req->worker_id(), req->scene_hash());
-      if (!r.ok()) return r.status();
-      *resp->mutable_scene() = **r;
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kWorker, "WorkerService.GetScene",
+                 [&] { return h_.GetScene(*req, resp); });
   }
 
-  grpc::Status CompleteBand(grpc::ServerContext*, const v1::CompleteBandRequest* req,
+  grpc::Status CompleteBand(grpc::ServerContext* ctx, const v1::CompleteBandRequest* req,
                             v1::CompleteBandResponse* resp) override {
-    return guarded("CompleteBand", [&]() -> Status {
-      if (Status s = check_id(req->worker_id(), "worker_id"); !s.ok()) return s;
-      if (Status s = check_id(req->lease_id(), "lease_id"); !s.ok()) return s;
-      auto r = c_.complete_band(FromProto(*req));
-      if (!r.ok()) return r.status();
-      resp->set_accepted(r->accepted);
-      resp->set_reason(r->reason);
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kWorker, "WorkerService.CompleteBand",
+                 [&] { return h_.CompleteBand(*req, resp); });
   }
 
-  grpc::Status Heartbeat(grpc::ServerContext*, const v1::HeartbeatRequest* req,
+  grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req,
                          v1::HeartbeatResponse* resp) override {
-    return guarded("Heartbeat", [&]() -> Status {
-      if (Status s = check_id(req->worker_id(), "worker_id"); !s.ok()) return s;
-      if (req->lease_ids_size() > kMaxLeasesPerHeartbeat)
-        return InvalidArgument("too many lease ids");
-      std::vector<std::string> leases(req->lease_ids().begin(), req->lease_ids().end());
-      auto r = c_.heartbeat(req->worker_id(), leases);
-      if (!r.ok()) return r.status();
-      for (const std::string& id : *r) resp->add_revoked_lease_ids(id);
-      return Status::Ok();
-    });
+    return serve(auth_, *ctx, kWorker, "WorkerService.Heartbeat",
+                 [&] { return h_.Heartbeat(*req, resp); });
   }
 
  private:
-  farm::Coordinator& c_;
+  Handlers& h_;
+  const farm::Authenticator& auth_;
 };
 
 CoordinatorServer::CoordinatorServer(farm::Coordinator& coordinator)
     : coordinator_(coordinator),
-      client_(std::make_unique<ClientImpl>(coordinator)),
-      worker_(std::make_unique<WorkerImpl>(coordinator)) {}
+      handlers_(coordinator),
+      client_(std::make_unique<ClientImpl>(handlers_, auth_)),
+      worker_(std::make_unique<WorkerImpl>(handlers_, auth_)) {}
 
 CoordinatorServer::~CoordinatorServer() { shutdown(farm::Millis(0)); }
 
-Result<int> CoordinatorServer::start(const std::string& address) {
+Result<int> CoordinatorServer::start(const std::string& address, ServerSecurity security) {
+  if (Status s = check_server_security(security); !s.ok()) return s;
+  std::shared_ptr<grpc::ServerCredentials> creds;
+  if (!security.tls_cert.empty()) {
+    auto read = [](const std::string& path, const char* flag) -> Result<std::string> {
+      std::ifstream in(path, std::ios::binary);
+      if (!in) return FailedPrecondition(std::string(flag) + " " + path + ": cannot read the file");
+      std::ostringstream text;
+      text << in.rdbuf();
+      return text.str();
+    };
+    grpc::SslServerCredentialsOptions ssl(
+        security.tls_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                // Clients may present one; worker calls require one
+                                // (Authenticator::require_worker_certificate).
+                                : GRPC_SSL_REQUEST_CLIENT_CERTIFICATE_AND_VERIFY);
+    grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
+    auto cert = read(security.tls_cert, "--tls-cert");
+    if (!cert.ok()) return cert.status();
+    auto key = read(security.tls_key, "--tls-key");
+    if (!key.ok()) return key.status();
+    pair.cert_chain = *cert;
+    pair.private_key = *key;
+    ssl.pem_key_cert_pairs.push_back(pair);
+    if (!security.tls_ca.empty()) {
+      auto ca = read(security.tls_ca, "--tls-ca");
+      if (!ca.ok()) return ca.status();
+      ssl.pem_root_certs = *ca;
+    }
+    creds = grpc::SslServerCredentials(ssl);
+    security.auth.require_worker_certificate(!security.tls_ca.empty());
+  } else {
+    creds = grpc::InsecureServerCredentials();
+  }
+  auth_ = std::move(security.auth);
+
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(address, creds, &port);
   configure_server(builder);
   builder.RegisterService(client_.get());
   builder.RegisterService(worker_.get());
@@ -210,7 +227,9 @@ Result<int> CoordinatorServer::start(const std::string& address) {
   if (!server_ || port == 0) {
     server_.reset();
     return Status(Code::kUnavailable,
-                  "cannot listen on " + address + " (address in use, or not local?)");
+                  "cannot listen on " + address + " (address in use, or not local?" +
+                      (security.tls_cert.empty() ? "" : " Or --tls-cert/--tls-key do not match.") +
+                      ")");
   }
   return port;
 }

@@ -1,6 +1,7 @@
-// The coordinator's gRPC adapter: ClientService and WorkerService forward to
-// farm::Coordinator, converting with rpc.h. Lifecycle: start (bind), serve,
-// shutdown with a deadline, wait.
+// The coordinator's gRPC adapter: ClientService and WorkerService check
+// each call's credentials (server/auth.h) and forward to the handlers
+// (server/handlers.h). Lifecycle: start (bind, with TLS or explicitly
+// insecure), serve, shutdown with a deadline, wait.
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -9,6 +10,8 @@
 #include <string>
 
 #include "server/coordinator.h"
+#include "server/handlers.h"
+#include "server/rpc.h"
 
 namespace locus::rpc {
 
@@ -18,8 +21,8 @@ class CoordinatorServer {
   ~CoordinatorServer();
 
   // Binds `address` ("127.0.0.1:0" picks a free port) and serves; returns
-  // the bound port.
-  Result<int> start(const std::string& address);
+  // the bound port. Refuses what check_server_security() refuses.
+  Result<int> start(const std::string& address, ServerSecurity security);
   // Refuses new calls, gives running ones until `grace` to finish, then
   // cancels them.
   void shutdown(farm::Millis grace);
@@ -29,6 +32,8 @@ class CoordinatorServer {
   class ClientImpl;
   class WorkerImpl;
   farm::Coordinator& coordinator_;
+  Handlers handlers_;
+  farm::Authenticator auth_;
   std::unique_ptr<ClientImpl> client_;
   std::unique_ptr<WorkerImpl> worker_;
   std::unique_ptr<grpc::Server> server_;

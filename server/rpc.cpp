@@ -1,5 +1,10 @@
 #include "server/rpc.h"
 
+#include <arpa/inet.h>
+
+#include <fstream>
+#include <sstream>
+
 namespace locus::rpc {
 
 grpc::Status ToGrpc(const Status& s) {
@@ -64,12 +69,23 @@ Status FromGrpc(const grpc::Status& s, const std::string& peer) {
     case G::RESOURCE_EXHAUSTED:
       return Status(Code::kResourceExhausted, peer + ": " + s.error_message());
     case G::PERMISSION_DENIED:
-      return Status(Code::kPermissionDenied, peer + ": permission denied: " + s.error_message());
+      return Status(Code::kPermissionDenied,
+                    "the " + peer + " refused the call (PERMISSION_DENIED): " + s.error_message());
     case G::UNAUTHENTICATED:
-      return Status(Code::kUnauthenticated, peer + ": not authenticated: " + s.error_message());
-    case G::UNAVAILABLE:
-      return Status(Code::kUnavailable, "cannot reach the " + peer + " (" + s.error_message() +
-                                            "); is it running, and is the address right?");
+      return Status(Code::kUnauthenticated,
+                    "the " + peer + " refused the call (UNAUTHENTICATED): " + s.error_message());
+    case G::UNAVAILABLE: {
+      // A TLS mismatch shows only as a failed connection; say where to look.
+      const std::string& m = s.error_message();
+      const bool tls = m.find("andshake") != std::string::npos ||
+                       m.find("SSL") != std::string::npos || m.find("ssl") != std::string::npos ||
+                       m.find("Socket closed") != std::string::npos;
+      return Status(Code::kUnavailable,
+                    "cannot reach the " + peer + " (" + m + "); is it running, and is the address right?" +
+                        (tls ? " If the farm uses TLS, give --tls-ca with the CA that signed its "
+                               "certificate (and --tls-cert/--tls-key for mutual TLS)."
+                             : ""));
+    }
     case G::DEADLINE_EXCEEDED:
       return Status(Code::kDeadlineExceeded, "the " + peer + " did not answer in time");
     case G::CANCELLED:
@@ -81,7 +97,19 @@ Status FromGrpc(const grpc::Status& s, const std::string& peer) {
   }
 }
 
-std::shared_ptr<grpc::Channel> make_channel(const std::string& address) {
+namespace {
+
+Result<std::string> read_pem(const std::string& path, const std::string& flag) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return FailedPrecondition(flag + " " + path + ": cannot read the file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (text.str().find("-----BEGIN ") == std::string::npos)
+    return InvalidArgument(flag + " " + path + ": not a PEM file (no -----BEGIN line)");
+  return text.str();
+}
+
+grpc::ChannelArguments channel_arguments() {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(farm::kMaxMessageBytes);
   args.SetMaxSendMessageSize(farm::kMaxMessageBytes);
@@ -90,7 +118,89 @@ std::shared_ptr<grpc::Channel> make_channel(const std::string& address) {
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 200);
-  return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+  return args;
+}
+
+}  // namespace
+
+bool is_loopback(const std::string& address) {
+  std::string a = address;
+  if (a.rfind("unix:", 0) == 0) return true;
+  for (const char* scheme : {"ipv4:", "ipv6:", "dns:///", "dns:"}) {
+    if (a.rfind(scheme, 0) == 0) {
+      a = a.substr(std::string(scheme).size());
+      break;
+    }
+  }
+  std::string host;
+  if (!a.empty() && a[0] == '[') {
+    const size_t close = a.find(']');
+    if (close == std::string::npos) return false;
+    host = a.substr(1, close - 1);
+  } else {
+    host = a.substr(0, a.rfind(':'));
+  }
+  if (host == "localhost" || host == "::1") return true;
+  in_addr v4{};
+  return inet_pton(AF_INET, host.c_str(), &v4) == 1 && (ntohl(v4.s_addr) >> 24) == 127;
+}
+
+Result<Connection> connect(const std::string& address, const farm::Credentials& c) {
+  Connection conn;
+  conn.token = c.token;
+  conn.address = address;
+  if (c.tls_cert.empty() != c.tls_key.empty())
+    return InvalidArgument("--tls-cert and --tls-key go together (a client certificate and its key)");
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  if (!c.tls_ca.empty() || !c.tls_cert.empty()) {
+    grpc::SslCredentialsOptions ssl;
+    if (!c.tls_ca.empty()) {
+      auto ca = read_pem(c.tls_ca, "--tls-ca");
+      if (!ca.ok()) return ca.status();
+      ssl.pem_root_certs = *ca;
+    }
+    if (!c.tls_cert.empty()) {
+      auto cert = read_pem(c.tls_cert, "--tls-cert");
+      if (!cert.ok()) return cert.status();
+      auto key = read_pem(c.tls_key, "--tls-key");
+      if (!key.ok()) return key.status();
+      ssl.pem_cert_chain = *cert;
+      ssl.pem_private_key = *key;
+    }
+    creds = grpc::SslCredentials(ssl);
+  } else if (c.insecure || is_loopback(address)) {
+    creds = grpc::InsecureChannelCredentials();
+  } else {
+    return FailedPrecondition("farm at " + address +
+                              ": give --tls-ca CA.pem to reach it over TLS, or --insecure for "
+                              "plaintext on a trusted network (plaintext is the default only on "
+                              "loopback addresses)");
+  }
+  conn.channel = grpc::CreateCustomChannel(address, creds, channel_arguments());
+  return conn;
+}
+
+void prepare(grpc::ClientContext& context, const Connection& connection, farm::Millis timeout) {
+  context.set_deadline(std::chrono::system_clock::now() + timeout);
+  if (!connection.token.empty()) context.AddMetadata("authorization", "Bearer " + connection.token);
+}
+
+Status check_server_security(const ServerSecurity& s) {
+  if (s.tls_cert.empty() != s.tls_key.empty())
+    return InvalidArgument("--tls-cert and --tls-key go together (the server certificate and its key)");
+  if (!s.tls_ca.empty() && s.tls_cert.empty())
+    return InvalidArgument("--tls-ca (mutual TLS) needs --tls-cert and --tls-key as well");
+  if (s.tls_cert.empty() && !s.insecure) {
+    return FailedPrecondition(
+        "refusing to serve without TLS: give --tls-cert and --tls-key (docs/farm.md "
+        "\"Security\"), or --insecure to serve plaintext on a trusted network");
+  }
+  if (!s.auth.enforcing() && !s.insecure) {
+    return FailedPrecondition(
+        "refusing to serve without tokens: give --client-tokens FILE and --worker-tokens FILE "
+        "(one token per line), or --insecure to let anyone who reaches the port use the farm");
+  }
+  return Status::Ok();
 }
 
 void configure_server(grpc::ServerBuilder& builder) {
@@ -104,10 +214,6 @@ void configure_server(grpc::ServerBuilder& builder) {
   grpc::ResourceQuota quota("locus-coordinator");
   quota.SetMaxThreads(512);
   builder.SetResourceQuota(quota);
-}
-
-void set_deadline(grpc::ClientContext& context, farm::Millis timeout) {
-  context.set_deadline(std::chrono::system_clock::now() + timeout);
 }
 
 // ---------------------------------------------------------------- conversions

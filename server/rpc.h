@@ -12,6 +12,7 @@
 
 #include "common/status.h"
 #include "proto/locus.grpc.pb.h"
+#include "server/auth.h"
 #include "server/coordinator.h"
 #include "server/farm_types.h"
 
@@ -26,11 +27,39 @@ grpc::Status ToGrpc(const Status& status);
 // `peer` names the other end in the message: "farm at 127.0.0.1:7000".
 Status FromGrpc(const grpc::Status& status, const std::string& peer);
 
-// Insecure channel with the farm's explicit message size limits. Issue #7
-// adds TLS and tokens here.
-std::shared_ptr<grpc::Channel> make_channel(const std::string& address);
+// A coordinator as a client or worker reaches it: a channel with the
+// farm's explicit message size limits, and the token each call carries.
+struct Connection {
+  std::shared_ptr<grpc::Channel> channel;
+  std::string token;
+  std::string address;
+};
+
+// TLS when the credentials name a CA or a client certificate (verifying
+// the coordinator against --tls-ca); plaintext to a loopback address, or
+// anywhere with `insecure`. Otherwise FailedPrecondition saying what to
+// give: a token must not cross a network in clear text by accident.
+Result<Connection> connect(const std::string& address, const farm::Credentials& credentials);
+// 127.0.0.0/8, ::1, localhost or a unix socket: traffic that never leaves
+// the host.
+bool is_loopback(const std::string& address);
+// The deadline and the bearer token of one call. Every client and worker
+// call goes through it.
+void prepare(grpc::ClientContext& context, const Connection& connection, farm::Millis timeout);
+
+// How a coordinator serves: TLS from PEM files (with a CA: mutual TLS,
+// which worker calls then require), or plaintext only when `insecure`;
+// tokens through `auth` (open: every call allowed, `insecure` only).
+struct ServerSecurity {
+  bool insecure = false;
+  std::string tls_cert;
+  std::string tls_key;
+  std::string tls_ca;
+  farm::Authenticator auth;
+};
+// What a coordinator must refuse to start with, in words naming the flags.
+Status check_server_security(const ServerSecurity& security);
 void configure_server(grpc::ServerBuilder& builder);
-void set_deadline(grpc::ClientContext& context, farm::Millis timeout);
 
 // ---- FromProto / ToProto ----
 v1::RenderSettings ToProto(const farm::RenderSettings& s);

@@ -340,6 +340,12 @@ std::set<std::string> Scheduler::scenes_in_use() const {
   return used;
 }
 
+size_t Scheduler::unfinished_jobs() const {
+  return static_cast<size_t>(std::count_if(jobs_.begin(), jobs_.end(), [](const auto& kv) {
+    return !is_terminal(kv.second.info.state);
+  }));
+}
+
 bool Scheduler::has_queued_bands() const {
   for (const auto& [id, job] : jobs_) {
     if (!is_terminal(job.info.state) && queued(job)) return true;

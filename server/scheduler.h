@@ -104,6 +104,8 @@ class Scheduler {
 
   // Content hashes of the scenes that unfinished jobs still need.
   std::set<std::string> scenes_in_use() const;
+  // Jobs queued or running (the --max-jobs limit).
+  size_t unfinished_jobs() const;
 
   // Every durable change since the last call, oldest first.
   std::vector<Event> take_events() { return std::exchange(events_, {}); }

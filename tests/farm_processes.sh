@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # farm_processes.sh BINDIR SHARED SOURCE: the farm as real processes on
 # 127.0.0.1 (ephemeral ports only): the embedded farm of `locus render`, a
-# coordinator and workers started by hand with `locus submit --wait`, a
-# worker killed with SIGKILL mid-job, cancel, and the CLI's errors. Frames are
+# coordinator and workers started by hand (TLS, worker certificates and
+# tokens, certificates made here with tests/tls/make_certs.sh) with `locus
+# submit --wait`, a worker killed with SIGKILL mid-job, cancel, refused
+# credentials, and the CLI's errors. Frames are
 # compared byte for byte with `--workers 0` renders (identical files imply
 # identical decoded pixels). Prints one line per check and
 # "N passed, M failed".
@@ -41,8 +43,43 @@ glass=$src/scenes/paper/a_glass.json
   same_frames "$tmp/e" a "$tmp/r" a 1 4 && ok "render --workers 2 == --workers 0 (scenes/anim, 4 frames, 5 bands)" ||
   { bad "embedded farm, scenes/anim"; cat "$tmp/e.log"; }
 
-# ---- a coordinator and two workers started by hand
+# ---- the embedded farm's token is in its workers' environment, not on their command line
+"$bin/locus" render "$glass" --frames 1-3 --size 96x72 --spp 6 --workers 2 -o "$tmp/e/t_####.png" 2>"$tmp/t.log" &
+render=$!
+seen=
+for _ in $(seq 200); do
+  for w in $(pgrep -P "$render" 2>/dev/null); do
+    if tr '\0' '\n' <"/proc/$w/environ" 2>/dev/null | grep -Eq '^LOCUS_TOKEN=[0-9a-f]{64}$'; then
+      token=$(tr '\0' '\n' <"/proc/$w/environ" | sed -n 's/^LOCUS_TOKEN=//p')
+      tr '\0' ' ' <"/proc/$w/cmdline" | grep -q -- "$token" && seen=cmdline || seen=${seen:-env}
+    fi
+  done
+  [ -n "$seen" ] && break
+  sleep 0.02
+done
+wait "$render"
+[ "$seen" = env ] && ok "embedded farm: random 64-hex token in the workers' LOCUS_TOKEN, not on their command line" ||
+  bad "embedded farm token: '$seen'"
+
+# ---- a coordinator refuses to start without TLS or tokens unless --insecure
+bash "$src/tests/tls/make_certs.sh" "$tmp/tls"
+tls=$tmp/tls
+printf '# clients\nclient-token-%s\n' "$RANDOM$RANDOM" >"$tmp/client.tokens"
+printf 'worker-token-%s\n' "$RANDOM$RANDOM" >"$tmp/worker.tokens"
+chmod 600 "$tmp/client.tokens" "$tmp/worker.tokens"
+"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/d0" --client-tokens "$tmp/client.tokens" \
+  --worker-tokens "$tmp/worker.tokens" >/dev/null 2>"$tmp/err"
+[ $? -ne 0 ] && grep -q "refusing to serve without TLS" "$tmp/err" && ok "no TLS, no --insecure: refused to start" ||
+  { bad "started without TLS"; cat "$tmp/err"; }
+"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/d0" --tls-cert "$tls/server.pem" --tls-key "$tls/server.key" \
+  >/dev/null 2>"$tmp/err"
+[ $? -ne 0 ] && grep -q "refusing to serve without tokens" "$tmp/err" && ok "no token files, no --insecure: refused to start" ||
+  { bad "started without tokens"; cat "$tmp/err"; }
+
+# ---- a coordinator (TLS, worker certificates, tokens) and two workers started by hand
 "$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/data" --lease-ms 3000 --heartbeat-ms 300 \
+  --tls-cert "$tls/server.pem" --tls-key "$tls/server.key" --tls-ca "$tls/ca.pem" \
+  --client-tokens "$tmp/client.tokens" --worker-tokens "$tmp/worker.tokens" \
   >"$tmp/coord.out" 2>"$tmp/coord.log" &
 pids+=($!)
 port=
@@ -53,24 +90,50 @@ for _ in $(seq 100); do
 done
 [ -n "$port" ] || { bad "coordinator did not start"; cat "$tmp/coord.log"; exit 1; }
 farm=127.0.0.1:$port
-"$bin/locus-worker" --coordinator "$farm" 2>"$tmp/w1.log" &
+wflags=(--tls-ca "$tls/ca.pem" --tls-cert "$tls/client.pem" --tls-key "$tls/client.key" --token-file "$tmp/worker.tokens")
+"$bin/locus-worker" --coordinator "$farm" "${wflags[@]}" 2>"$tmp/w1.log" &
 w1=$!
-"$bin/locus-worker" --coordinator "$farm" 2>"$tmp/w2.log" &
+"$bin/locus-worker" --coordinator "$farm" "${wflags[@]}" 2>"$tmp/w2.log" &
 w2=$!
 pids+=("$w1" "$w2")
+# Every farm command below: TLS verified against the test CA, and the
+# client token (from LOCUS_TOKEN here; --token-file works alike).
+export LOCUS_TOKEN
+LOCUS_TOKEN=$(sed -n 2p "$tmp/client.tokens")
+locus() { "$bin/locus" "$@" --tls-ca "$tls/ca.pem"; }
 
-"$bin/locus" submit "$balls" --farm "$farm" --orbit 30 --frames 1-6 --size 64x48 -o "$tmp/s/f_####.png" --wait \
+# ---- refused credentials
+env -u LOCUS_TOKEN "$bin/locus" status --farm "$farm" --tls-ca "$tls/ca.pem" 2>"$tmp/err" && bad "no token accepted" ||
+  { grep -q UNAUTHENTICATED "$tmp/err" && ok "no token: $(cat "$tmp/err")" || { bad "no token message"; cat "$tmp/err"; }; }
+"$bin/locus" status --farm "$farm" --tls-ca "$tls/ca.pem" --token-file "$tmp/worker.tokens" 2>"$tmp/err" &&
+  bad "a worker token listed jobs" ||
+  { grep -q PERMISSION_DENIED "$tmp/err" && ok "worker token on ClientService: $(cat "$tmp/err")" ||
+    { bad "worker token message"; cat "$tmp/err"; }; }
+"$bin/locus" status --farm "$farm" 2>"$tmp/err" && bad "plaintext to a TLS farm accepted" ||
+  { grep -q -- "--tls-ca" "$tmp/err" && ok "plaintext to a TLS farm: refused, with a hint at --tls-ca" ||
+    { bad "plaintext to TLS message"; cat "$tmp/err"; }; }
+timeout 20 "$bin/locus-worker" --coordinator "$farm" "${wflags[@]:0:6}" --token-file "$tmp/client.tokens" 2>"$tmp/err"
+[ $? -eq 1 ] && grep -q PERMISSION_DENIED "$tmp/err" && ok "a worker with a client token exits 1 (PERMISSION_DENIED)" ||
+  { bad "worker with a client token"; cat "$tmp/err"; }
+timeout 20 "$bin/locus-worker" --coordinator "$farm" --tls-ca "$tls/ca.pem" --token-file "$tmp/worker.tokens" 2>"$tmp/err"
+[ $? -eq 1 ] && grep -q "client certificate" "$tmp/err" && ok "a worker without a client certificate exits 1 (UNAUTHENTICATED)" ||
+  { bad "worker without a certificate"; cat "$tmp/err"; }
+grep -q "refused WorkerService.Register" "$tmp/coord.log" && grep -q "refused ClientService.ListJobs" "$tmp/coord.log" &&
+  ! grep -qF "$LOCUS_TOKEN" "$tmp/coord.log" && ok "refusals logged by the coordinator, tokens never" ||
+  bad "refusal logs"
+
+locus submit "$balls" --farm "$farm" --orbit 30 --frames 1-6 --size 64x48 -o "$tmp/s/f_####.png" --wait \
   >"$tmp/submit.out" 2>"$tmp/submit.log" && same_frames "$tmp/s" f "$tmp/r" f 1 6 &&
   ok "submit --wait to a hand-started farm == --workers 0" || { bad "submit --wait"; cat "$tmp/submit.log"; }
 job=$(head -1 "$tmp/submit.out")
-"$bin/locus" fetch "$job" "$tmp/fetched" --farm "$farm" >/dev/null && same_frames "$tmp/fetched" f "$tmp/r" f 1 6 &&
+locus fetch "$job" "$tmp/fetched" --farm "$farm" >/dev/null && same_frames "$tmp/fetched" f "$tmp/r" f 1 6 &&
   ok "fetch $job" || bad "fetch $job"
 
 # ---- SIGKILL of a worker in the middle of a job
 # About 3 s of work for two workers: long enough to freeze one, see it
 # holding a band and kill it (the lease, 3 s, outlives that look).
 "$bin/locus" render "$glass" --orbit 20 --frames 1-8 --size 96x72 --method raytrace --spp 12 --workers 0 -o "$tmp/r/k_####.png" 2>/dev/null
-"$bin/locus" submit "$glass" --farm "$farm" --orbit 20 --frames 1-8 --size 96x72 --method raytrace --spp 12 --bands 4 \
+locus submit "$glass" --farm "$farm" --orbit 20 --frames 1-8 --size 96x72 --method raytrace --spp 12 --bands 4 \
   -o "$tmp/k/k_####.png" --wait >"$tmp/kill.out" 2>"$tmp/kill.log" &
 submit=$!
 for _ in $(seq 500); do
@@ -82,7 +145,7 @@ for _ in $(seq 10); do
   # Freeze a worker, so that what `locus workers` says of it stays true,
   # and kill it only if it holds a band.
   kill -STOP "$w1"
-  if "$bin/locus" workers --farm "$farm" 2>/dev/null | awk -v pid="$w1" '$4 == "busy" && $2 ~ (":" pid "$")' | grep -q .; then
+  if locus workers --farm "$farm" 2>/dev/null | awk -v pid="$w1" '$4 == "busy" && $2 ~ (":" pid "$")' | grep -q .; then
     victim=$w1
     kill -9 "$w1"
     break
@@ -102,29 +165,29 @@ else
 fi
 
 # ---- cancel
-"$bin/locus" submit "$glass" --farm "$farm" --frames 1-400 --size 96x72 --method raytrace --spp 4 -o "$tmp/c/c_####.png" \
+locus submit "$glass" --farm "$farm" --frames 1-400 --size 96x72 --method raytrace --spp 4 -o "$tmp/c/c_####.png" \
   >"$tmp/cancel.out" 2>"$tmp/cancel.log"
 cjob=$(head -1 "$tmp/cancel.out")
 sleep 0.3
-"$bin/locus" cancel "$cjob" --farm "$farm" | grep -q cancelled && ok "cancel $cjob" || bad "cancel $cjob"
-before=$("$bin/locus" status "$cjob" --farm "$farm" | awk '/progress/ {print $2}')
+locus cancel "$cjob" --farm "$farm" | grep -q cancelled && ok "cancel $cjob" || bad "cancel $cjob"
+before=$(locus status "$cjob" --farm "$farm" | awk '/progress/ {print $2}')
 sleep 0.5
-after=$("$bin/locus" status "$cjob" --farm "$farm" | awk '/progress/ {print $2}')
+after=$(locus status "$cjob" --farm "$farm" | awk '/progress/ {print $2}')
 [ "$before" = "$after" ] && ok "no band completes after cancel ($after)" || bad "work went on after cancel: $before -> $after"
-"$bin/locus" watch "$cjob" --farm "$farm" >"$tmp/watch.out"
+locus watch "$cjob" --farm "$farm" >"$tmp/watch.out"
 [ $? -eq 1 ] && tail -1 "$tmp/watch.out" | grep -q cancelled && ok "watch of a cancelled job ends (exit 1)" ||
   { bad "watch of a cancelled job"; cat "$tmp/watch.out"; }
 
 # ---- errors a user can cause
 printf '{"camera": {"from": [0,0,5], "at": [0,0,0], "width": 32, "height": 24},\n "objects": [{"sphere": {"radius": -1}}]}\n' \
   >"$tmp/bad.json"
-jobs_before=$("$bin/locus" status --farm "$farm" | wc -l)
-"$bin/locus" submit "$tmp/bad.json" --farm "$farm" -o "$tmp/x.png" 2>"$tmp/err" && bad "a bad scene was accepted" ||
+jobs_before=$(locus status --farm "$farm" | wc -l)
+locus submit "$tmp/bad.json" --farm "$farm" -o "$tmp/x.png" 2>"$tmp/err" && bad "a bad scene was accepted" ||
   { grep -q "bad.json" "$tmp/err" && grep -q "radius" "$tmp/err" && ok "bad scene at submit: $(head -1 "$tmp/err")" ||
     { bad "bad scene message"; cat "$tmp/err"; }; }
-jobs_after=$("$bin/locus" status --farm "$farm" | wc -l)
+jobs_after=$(locus status --farm "$farm" | wc -l)
 [ "$jobs_before" = "$jobs_after" ] && ok "the bad scene created no job" || bad "the bad scene created a job"
-"$bin/locus" status j9999 --farm "$farm" 2>"$tmp/err" && bad "unknown job accepted" ||
+locus status j9999 --farm "$farm" 2>"$tmp/err" && bad "unknown job accepted" ||
   { grep -q "unknown" "$tmp/err" && ok "unknown job: $(cat "$tmp/err")" || bad "unknown job message"; }
 "$bin/locus" workers --farm 127.0.0.1:1 2>"$tmp/err" && bad "unreachable farm accepted" ||
   { grep -q "cannot reach the farm at 127.0.0.1:1" "$tmp/err" && ok "unreachable farm: cannot reach ..." ||

@@ -1,148 +1,11 @@
 // The farm end to end inside one process: a coordinator serving gRPC on
 // 127.0.0.1 (ephemeral port), workers as threads, the CLI's FarmClient.
 // Frames are compared, decoded, with single-process renders.
-#include <gtest/gtest.h>
-
-#include <filesystem>
-#include <thread>
-
-#include "client/farm_client.h"
-#include "common/image.h"
-#include "common/render.h"
-#include "common/scene_io.h"
-#include "proto/locus.grpc.pb.h"
-#include "server/coordinator.h"
-#include "server/grpc_service.h"
-#include "server/rpc.h"
-#include "worker/band_renderer.h"
-#include "worker/worker_client.h"
+#include "tests/farm_fixture.h"
 
 namespace locus::farm {
 namespace {
-namespace fs = std::filesystem;
-using client::FarmClient;
-
-const std::string kBalls = std::string(LOCUS_SHARED_DIR) + "/spd/s1/balls.nff";
-const std::string kSpheres = std::string(LOCUS_SOURCE_DIR) + "/scenes/simple/spheres.json";
-const std::string kGlass = std::string(LOCUS_SOURCE_DIR) + "/scenes/paper/a_glass.json";
-const std::string kAnim = std::string(LOCUS_SOURCE_DIR) + "/scenes/anim/glass_and_mirror.json";
-
-fs::path temp_dir() {
-  std::string t = (fs::temp_directory_path() / "locus-farm-test-XXXXXX").string();
-  EXPECT_NE(mkdtemp(t.data()), nullptr);
-  return t;
-}
-
-SubmitRequest request(const std::string& path, int w, int h, int first, int last, int bands,
-                      const std::string& output, double orbit = 0) {
-  auto scene = load_scene(path);
-  EXPECT_TRUE(scene.ok()) << scene.status().message();
-  SubmitRequest r;
-  r.scene = scene_to_proto(*scene);
-  r.scene_name = path;
-  r.width = w;
-  r.height = h;
-  r.frame_first = first;
-  r.frame_last = last;
-  r.bands = bands;
-  r.output = output;
-  r.orbit_degrees = orbit;
-  return r;
-}
-
-// The single-process render of one frame, written and decoded like the
-// farm's: the comparison is of decoded pixels.
-Image reference(const SubmitRequest& r, int frame, const fs::path& dir) {
-  auto scene = load_scene(r.scene_name);
-  EXPECT_TRUE(scene.ok());
-  const Scene s =
-      frame_scene(*scene, r.width, r.height, frame, r.frame_first, r.frame_last, r.orbit_degrees);
-  auto params = to_render_params(r.render, 1);
-  auto img = render_image(s, *params);
-  EXPECT_TRUE(img.ok()) << img.status().message();
-  const fs::path out =
-      dir / ("ref_" + std::to_string(frame) + fs::path(r.output).extension().string());
-  EXPECT_TRUE(write_image(out.string(), img->pixels).ok());
-  return *read_image(out.string());
-}
-
-class FarmTest : public ::testing::Test {
- protected:
-  void SetUp() override { dir_ = temp_dir(); }
-
-  void TearDown() override {
-    for (auto& w : workers_) w->stop();
-    for (auto& t : threads_) t.join();
-    if (server_) server_->shutdown(Millis(500));
-    if (coordinator_) coordinator_->shutdown();
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-
-  void start(Millis lease = Millis(3000)) {
-    CoordinatorOptions o;
-    o.data_dir = (dir_ / "data").string();
-    o.lease = lease;
-    o.heartbeat = lease / 4;
-    o.tick = Millis(20);
-    coordinator_ = std::make_unique<Coordinator>(o);
-    ASSERT_TRUE(coordinator_->start().ok());
-    server_ = std::make_unique<rpc::CoordinatorServer>(*coordinator_);
-    auto port = server_->start("127.0.0.1:0");
-    ASSERT_TRUE(port.ok()) << port.status().message();
-    address_ = "127.0.0.1:" + std::to_string(*port);
-    client_ = std::make_unique<FarmClient>(address_);
-  }
-
-  void add_workers(int n) {
-    for (int i = 0; i < n; ++i) {
-      WorkerOptions o;
-      o.coordinator = address_;
-      o.threads = 1;
-      o.poll = Millis(500);
-      workers_.push_back(std::make_unique<WorkerClient>(o));
-      threads_.emplace_back([w = workers_.back().get()] { w->run(); });
-    }
-  }
-
-  JobInfo run(const SubmitRequest& r) {
-    auto job = client_->submit(r);
-    EXPECT_TRUE(job.ok()) << job.status().message();
-    if (!job.ok()) return JobInfo();
-    auto done = client_->watch(job->job_id, [](const JobInfo&) {});
-    EXPECT_TRUE(done.ok()) << done.status().message();
-    return done.ok() ? *done : JobInfo();
-  }
-
-  // Fetches the job's frames and compares each with a single-process render.
-  void expect_identical(const JobInfo& job, const SubmitRequest& r) {
-    ASSERT_EQ(job.state, JobState::kSucceeded) << job.error;
-    const fs::path got = dir_ / ("got_" + job.job_id);
-    auto files = client_->fetch(
-        job.job_id, {}, [&](int, const std::string& name) { return (got / name).string(); });
-    ASSERT_TRUE(files.ok()) << files.status().message();
-    ASSERT_EQ(files->size(), static_cast<size_t>(r.frame_last - r.frame_first + 1));
-    for (int f = r.frame_first; f <= r.frame_last; ++f) {
-      auto farm =
-          read_image((got / frame_path(fs::path(r.output).filename().string(), f)).string());
-      ASSERT_TRUE(farm.ok()) << farm.status().message();
-      const Image ref = reference(r, f, dir_);
-      ASSERT_EQ(farm->width, ref.width);
-      ASSERT_EQ(farm->height, ref.height);
-      size_t differ = 0;
-      for (size_t i = 0; i < ref.rgb.size(); ++i) differ += farm->rgb[i] != ref.rgb[i];
-      EXPECT_EQ(differ, 0u) << r.scene_name << " frame " << f << " bands " << job.spec.bands;
-    }
-  }
-
-  fs::path dir_;
-  std::string address_;
-  std::unique_ptr<Coordinator> coordinator_;
-  std::unique_ptr<rpc::CoordinatorServer> server_;
-  std::unique_ptr<FarmClient> client_;
-  std::vector<std::unique_ptr<WorkerClient>> workers_;
-  std::vector<std::thread> threads_;
-};
+using namespace testing_farm;
 
 TEST_F(FarmTest, StitchedFramesEqualSingleProcessForAnySplit) {
   start();
@@ -219,9 +82,9 @@ TEST_F(FarmTest, ResultAfterLeaseExpiryIsIgnored) {
   ASSERT_TRUE(job.ok()) << job.status().message();
 
   // A worker that takes a band and answers only after its lease lapsed.
-  auto stub = v1::WorkerService::NewStub(rpc::make_channel(address_));
+  auto stub = worker_stub(worker_creds_);
   grpc::ClientContext c1, c2, c3;
-  rpc::set_deadline(c1, Millis(5000));
+  prepare(c1);
   v1::RegisterRequest reg;
   reg.set_name("slow");
   v1::RegisterResponse who;
@@ -230,14 +93,14 @@ TEST_F(FarmTest, ResultAfterLeaseExpiryIsIgnored) {
   get.set_worker_id(who.worker_id());
   get.set_wait_ms(2000);
   v1::GetTaskResponse task;
-  rpc::set_deadline(c2, Millis(5000));
+  prepare(c2);
   ASSERT_TRUE(stub->GetTask(&c2, get, &task).ok());
   ASSERT_TRUE(task.has_task());
   // Alive (heartbeats) but not renewing the lease: it lapses.
   for (int i = 0; i < 7; ++i) {
     std::this_thread::sleep_for(Millis(100));
     grpc::ClientContext hc;
-    rpc::set_deadline(hc, Millis(5000));
+    prepare(hc);
     v1::HeartbeatRequest hb;
     hb.set_worker_id(who.worker_id());
     v1::HeartbeatResponse hr;
@@ -250,7 +113,7 @@ TEST_F(FarmTest, ResultAfterLeaseExpiryIsIgnored) {
   const int rows = task.task().y1() - task.task().y0();
   for (int i = 0; i < 32 * rows * 3; ++i) late.add_rgb(1.0f);  // a visibly wrong band
   v1::CompleteBandResponse answer;
-  rpc::set_deadline(c3, Millis(5000));
+  prepare(c3);
   const grpc::Status st = stub->CompleteBand(&c3, late, &answer);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_FALSE(answer.accepted());
@@ -347,10 +210,10 @@ TEST_F(FarmTest, UnknownJobsAndMalformedWorkerCallsAreRefused) {
       client_->fetch("nope", {}, [](int, const std::string&) { return std::string("/dev/null"); });
   EXPECT_EQ(fetch.status().code(), Code::kNotFound);
 
-  auto stub = v1::WorkerService::NewStub(rpc::make_channel(address_));
+  auto stub = worker_stub(worker_creds_);
   {
     grpc::ClientContext ctx;
-    rpc::set_deadline(ctx, Millis(5000));
+    prepare(ctx);
     v1::GetTaskRequest req;
     req.set_worker_id("w-unknown");
     v1::GetTaskResponse resp;
@@ -358,7 +221,7 @@ TEST_F(FarmTest, UnknownJobsAndMalformedWorkerCallsAreRefused) {
   }
   {
     grpc::ClientContext ctx;
-    rpc::set_deadline(ctx, Millis(5000));
+    prepare(ctx);
     v1::CompleteBandRequest req;  // no ids at all
     v1::CompleteBandResponse resp;
     EXPECT_EQ(stub->CompleteBand(&ctx, req, &resp).error_code(),
@@ -369,7 +232,7 @@ TEST_F(FarmTest, UnknownJobsAndMalformedWorkerCallsAreRefused) {
     SubmitRequest r = request(kSpheres, 16, 8, 1, 1, 1, "m.png");
     ASSERT_TRUE(client_->submit(r).ok());
     grpc::ClientContext c1, c2, c3;
-    for (auto* c : {&c1, &c2, &c3}) rpc::set_deadline(*c, Millis(5000));
+    for (auto* c : {&c1, &c2, &c3}) prepare(*c);
     v1::RegisterResponse who;
     ASSERT_TRUE(stub->Register(&c1, v1::RegisterRequest(), &who).ok());
     v1::GetTaskRequest get;

@@ -5,6 +5,7 @@
 #include "common/animation.h"
 #include "common/scene_io.h"
 #include "proto/scene.pb.h"
+#include "server/paths.h"
 
 namespace locus::farm {
 
@@ -16,15 +17,20 @@ Scene frame_scene(const Scene& base, int width, int height, int frame, int frame
   return scene_at_frame(s, frame, Orbit{orbit_degrees, frame_first, frame_last});
 }
 
-BandRenderer::BandRenderer(int threads, size_t max_scenes, size_t max_prepared)
+BandRenderer::BandRenderer(int threads, std::string mesh_root, size_t max_scenes,
+                           size_t max_prepared)
     : threads_(threads),
+      mesh_root_(std::move(mesh_root)),
       max_scenes_(std::max<size_t>(1, max_scenes)),
       max_prepared_(std::max<size_t>(1, max_prepared)) {}
 
 Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto,
                                const std::string& name) {
   if (scenes_.count(hash)) return Status::Ok();
-  Result<Scene> scene = scene_from_proto(proto, name);
+  // The scene came over the network: it reads no file outside the root.
+  v1::Scene confined = proto;
+  if (Status s = confine_mesh_paths(confined, mesh_root_, name); !s.ok()) return s;
+  Result<Scene> scene = scene_from_proto(confined, name);
   if (!scene.ok()) return scene.status();
   while (scenes_.size() >= max_scenes_) {
     scenes_.erase(scene_order_.front());
@@ -40,7 +46,8 @@ Result<BandOutput> BandRenderer::render(const BandTask& t) {
   if (it == scenes_.end()) return FailedPrecondition("scene " + t.scene_hash + " is not held");
   Result<RenderParams> params = to_render_params(t.render, threads_);
   if (!params.ok()) return params.status();
-  if (t.width < 1 || t.height < 1 || t.y0 < 0 || t.y1 <= t.y0 || t.y1 > t.height) {
+  if (t.width < 1 || t.height < 1 || t.width > kMaxResolution || t.height > kMaxResolution ||
+      t.y0 < 0 || t.y1 <= t.y0 || t.y1 > t.height) {
     return InvalidArgument("band rows [" + std::to_string(t.y0) + ", " + std::to_string(t.y1) +
                            ") do not fit a " + std::to_string(t.width) + "x" +
                            std::to_string(t.height) + " frame");

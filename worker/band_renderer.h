@@ -21,11 +21,15 @@ namespace farm {
 
 class BandRenderer {
  public:
-  // `threads` per band (0 = all cores); the cache sizes bound memory.
-  explicit BandRenderer(int threads, size_t max_scenes = 4, size_t max_prepared = 2);
+  // `threads` per band (0 = all cores); OBJ files a scene names are read
+  // from under `mesh_root` only (empty: none, meshes inline); the cache
+  // sizes bound memory.
+  explicit BandRenderer(int threads, std::string mesh_root = "", size_t max_scenes = 4,
+                        size_t max_prepared = 2);
 
   bool has_scene(const std::string& hash) const { return scenes_.count(hash) != 0; }
-  // Converts and keeps a scene received from the coordinator.
+  // Converts and keeps a scene received from the coordinator; its mesh
+  // paths confined under the mesh root (server/paths.h).
   Status add_scene(const std::string& hash, const v1::Scene& scene, const std::string& name);
   // Renders the band of `task`; its scene must have been added. The
   // returned output carries pixels and stats (ids are the caller's).
@@ -40,6 +44,7 @@ class BandRenderer {
     std::shared_ptr<const PreparedScene> scene;
   };
   int threads_;
+  std::string mesh_root_;
   size_t max_scenes_;
   size_t max_prepared_;
   std::map<std::string, std::shared_ptr<const Scene>> scenes_;

@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdlib>
+#include <cstdio>
 #include <thread>
 
 #include "worker/worker_client.h"
@@ -28,11 +29,28 @@ int main(int argc, char** argv) {
                  "Test only: wait this long before rendering each band (a slow worker for the "
                  "fault tests)")
       ->check(CLI::Range(0, 600000));
+  std::string token_file;
+  locus::farm::Credentials& c = options.credentials;
+  app.add_option("--token-file", token_file,
+                 "File holding this worker's token (default: $LOCUS_TOKEN)");
+  app.add_option("--tls-ca", c.tls_ca, "CA (PEM) that signed the coordinator's certificate");
+  app.add_option("--tls-cert", c.tls_cert, "This worker's certificate (PEM), for mutual TLS");
+  app.add_option("--tls-key", c.tls_key, "This worker's private key (PEM), for mutual TLS");
+  app.add_flag("--insecure", c.insecure,
+               "Plaintext to a non-loopback coordinator (a trusted network only)");
+  app.add_option("--mesh-root", options.mesh_root,
+                 "Directory of OBJ files scenes may name (default: none, meshes inline)");
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
   spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
   options.poll = locus::farm::Millis(poll_ms);
   options.slow_band = locus::farm::Millis(slow_band_ms);
+  auto token = locus::farm::load_token(token_file);
+  if (!token.ok()) {
+    std::fprintf(stderr, "locus-worker: %s\n", token.status().message().c_str());
+    return 2;
+  }
+  c.token = *token;
 
   sigset_t signals;
   sigemptyset(&signals);

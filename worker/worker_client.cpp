@@ -24,10 +24,16 @@ std::string default_name() {
 
 class WorkerClient::Impl {
  public:
-  explicit Impl(WorkerOptions o) : o_(std::move(o)), renderer_(o_.threads) {
+  explicit Impl(WorkerOptions o) : o_(std::move(o)), renderer_(o_.threads, o_.mesh_root) {
     if (o_.name.empty()) o_.name = default_name();
-    stub_ = v1::WorkerService::NewStub(rpc::make_channel(o_.coordinator));
     peer_ = "coordinator at " + o_.coordinator;
+    auto c = rpc::connect(o_.coordinator, o_.credentials);
+    if (!c.ok()) {
+      broken_ = c.status();
+      return;
+    }
+    conn_ = std::move(*c);
+    stub_ = v1::WorkerService::NewStub(conn_.channel);
   }
 
   int run();
@@ -52,6 +58,17 @@ class WorkerClient::Impl {
     std::unique_lock lk(mu_);
     cv_.wait_for(lk, d, [&] { return stopping_; });
   }
+  // The coordinator refused this worker's credentials: no retry helps.
+  bool refused(const Status& s) {
+    if (s.code() != Code::kUnauthenticated && s.code() != Code::kPermissionDenied) return false;
+    spdlog::error("{}; stopping (check the worker's token and certificate)", s.message());
+    {
+      std::lock_guard lk(mu_);
+      refused_ = true;
+    }
+    stop();  // also ends a long poll in flight
+    return true;
+  }
   // One warning per outage, not one per retry.
   void unreachable(const Status& s) {
     if (!outage_) spdlog::warn("{}; retrying", s.message());
@@ -60,6 +77,8 @@ class WorkerClient::Impl {
 
   WorkerOptions o_;
   BandRenderer renderer_;
+  rpc::Connection conn_;
+  Status broken_;
   std::unique_ptr<v1::WorkerService::Stub> stub_;
   std::string peer_;
 
@@ -73,6 +92,7 @@ class WorkerClient::Impl {
   bool sending_ = false;  // its result is on the way: a revocation now only echoes it
   grpc::ClientContext* poll_ctx_ = nullptr;
   bool outage_ = false;
+  bool refused_ = false;
 };
 
 bool WorkerClient::Impl::register_worker() {
@@ -81,9 +101,10 @@ bool WorkerClient::Impl::register_worker() {
   req.set_threads(o_.threads);
   v1::RegisterResponse resp;
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kShortCall);
+  rpc::prepare(ctx, conn_, rpc::kShortCall);
   const Status s = rpc::FromGrpc(stub_->Register(&ctx, req, &resp), peer_);
   if (!s.ok()) {
+    if (refused(s)) return false;
     unreachable(s);
     return false;
   }
@@ -97,6 +118,10 @@ bool WorkerClient::Impl::register_worker() {
 }
 
 int WorkerClient::Impl::run() {
+  if (!broken_.ok()) {
+    spdlog::error("{}", broken_.message());
+    return 1;
+  }
   std::thread heartbeats([this] { heartbeat_loop(); });
   Millis backoff{100};
   for (;;) {
@@ -120,7 +145,7 @@ int WorkerClient::Impl::run() {
     req.set_wait_ms(static_cast<int32_t>(o_.poll.count()));
     v1::GetTaskResponse resp;
     grpc::ClientContext ctx;
-    rpc::set_deadline(ctx, o_.poll + rpc::kPollSlack);
+    rpc::prepare(ctx, conn_, o_.poll + rpc::kPollSlack);
     {
       std::lock_guard lk(mu_);
       if (stopping_) break;
@@ -141,6 +166,7 @@ int WorkerClient::Impl::run() {
         worker_id_.clear();
         continue;
       }
+      if (refused(s)) break;
       unreachable(s);
       pause(backoff);
       backoff = std::min(backoff * 2, Millis(2000));
@@ -170,7 +196,7 @@ int WorkerClient::Impl::run() {
     cv_.notify_all();
   }
   heartbeats.join();
-  return 0;
+  return refused_ ? 1 : 0;
 }
 
 void WorkerClient::Impl::heartbeat_loop() {
@@ -185,10 +211,16 @@ void WorkerClient::Impl::heartbeat_loop() {
     lk.unlock();
     v1::HeartbeatResponse resp;
     grpc::ClientContext ctx;
-    rpc::set_deadline(ctx, std::max(period * 2, Millis(1000)));
+    rpc::prepare(ctx, conn_, std::max(period * 2, Millis(1000)));
     const grpc::Status gs = stub_->Heartbeat(&ctx, req, &resp);
     lk.lock();
-    if (!gs.ok()) continue;  // the main loop reports outages and re-registers
+    if (!gs.ok()) {
+      // The main loop reports outages and re-registers.
+      lk.unlock();
+      refused(rpc::FromGrpc(gs, peer_));
+      lk.lock();
+      continue;
+    }
     for (const std::string& id : resp.revoked_lease_ids()) {
       if (id == lease_ && !revoked_ && !sending_) {
         revoked_ = true;
@@ -208,9 +240,10 @@ bool WorkerClient::Impl::fetch_scene(const BandTask& t) {
   }
   v1::GetSceneResponse resp;
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, rpc::kDataCall);
+  rpc::prepare(ctx, conn_, rpc::kDataCall);
   const Status s = rpc::FromGrpc(stub_->GetScene(&ctx, req, &resp), peer_);
   if (!s.ok()) {
+    if (refused(s)) return false;
     // The band's lease lapses and it goes to another worker (or this one
     // again once the coordinator is back).
     spdlog::warn("job {}: cannot fetch scene {}: {}", t.job_id, t.scene_hash.substr(0, 12),
@@ -242,7 +275,7 @@ void WorkerClient::Impl::hand_back() {
   req.set_handed_back(true);
   v1::CompleteBandResponse resp;
   grpc::ClientContext ctx;
-  rpc::set_deadline(ctx, Millis(3000));
+  rpc::prepare(ctx, conn_, Millis(3000));
   const Status s = rpc::FromGrpc(stub_->CompleteBand(&ctx, req, &resp), peer_);
   if (s.ok()) {
     spdlog::info("band of lease {} handed back", req.lease_id());
@@ -296,13 +329,14 @@ void WorkerClient::Impl::send(BandOutput o) {
   for (int attempt = 0; attempt < 3; ++attempt) {
     v1::CompleteBandResponse resp;
     grpc::ClientContext ctx;
-    rpc::set_deadline(ctx, rpc::kDataCall);
+    rpc::prepare(ctx, conn_, rpc::kDataCall);
     const Status s = rpc::FromGrpc(stub_->CompleteBand(&ctx, req, &resp), peer_);
     if (s.ok()) {
       if (!resp.accepted())
         spdlog::info("result for lease {} dropped: {}", req.lease_id(), resp.reason());
       return;
     }
+    if (refused(s)) return;
     if (s.code() != Code::kUnavailable && s.code() != Code::kDeadlineExceeded) {
       spdlog::warn("result for lease {} refused: {}", req.lease_id(), s.message());
       return;

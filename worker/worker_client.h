@@ -9,12 +9,15 @@
 #include <memory>
 #include <string>
 
+#include "server/auth.h"
 #include "server/farm_types.h"
 
 namespace locus::farm {
 
 struct WorkerOptions {
   std::string coordinator;  // HOST:PORT
+  Credentials credentials;  // token, TLS files, --insecure
+  std::string mesh_root;    // OBJ files a scene may name; empty: meshes inline only
   int threads = 1;          // per band
   std::string name;         // default host:pid
   Millis poll{10000};       // long-poll wait per GetTask
@@ -29,7 +32,9 @@ class WorkerClient {
   ~WorkerClient();
 
   // Serves until stop() (then finishes and returns the band in hand, or
-  // hands it back if it has not started rendering it). Returns 0.
+  // hands it back if it has not started rendering it). Returns 0; 1 when
+  // the credentials are unusable or the coordinator refuses them
+  // (UNAUTHENTICATED, PERMISSION_DENIED): retrying would not help.
   int run();
   // Safe from any thread (a signal-handling one).
   void stop();

@@ -22,7 +22,7 @@ cleanup() {
 }
 trap cleanup EXIT
 
-"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/data" ${COORDINATOR_FLAGS:-} \
+"$bin/locus-coordinator" --insecure --listen 127.0.0.1:0 --data "$tmp/data" ${COORDINATOR_FLAGS:-} \
   >"$tmp/coord.out" 2>"$tmp/coord.log" &
 coord=$!
 pids+=($coord)

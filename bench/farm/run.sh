@@ -25,7 +25,16 @@ cleanup() {
 }
 trap cleanup EXIT
 
-"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/data" >"$tmp/coord.out" 2>"$tmp/coord.log" &
+# Secured as a real farm is (docs/farm.md "Security"): TLS, worker
+# certificates and tokens, with throwaway certificates and tokens.
+bash "$root/tests/tls/make_certs.sh" "$tmp/tls"
+tls=$tmp/tls
+head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \n' >"$tmp/client.tokens"
+head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \n' >"$tmp/worker.tokens"
+"$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/data" \
+  --tls-cert "$tls/server.pem" --tls-key "$tls/server.key" --tls-ca "$tls/ca.pem" \
+  --client-tokens "$tmp/client.tokens" --worker-tokens "$tmp/worker.tokens" \
+  >"$tmp/coord.out" 2>"$tmp/coord.log" &
 pids+=($!)
 port=
 for _ in $(seq 200); do
@@ -39,13 +48,14 @@ farm=127.0.0.1:$port
 run_with() {
   local n=$1 ws=() i
   for i in $(seq "$n"); do
-    "$bin/locus-worker" --coordinator "$farm" --threads 1 2>>"$tmp/workers.log" &
+    "$bin/locus-worker" --coordinator "$farm" --threads 1 --token-file "$tmp/worker.tokens" \
+      --tls-ca "$tls/ca.pem" --tls-cert "$tls/client.pem" --tls-key "$tls/client.key" 2>>"$tmp/workers.log" &
     ws+=($!)
   done
   sleep 0.5
   local job
   job=$("$bin/locus" submit "$scene" --farm "$farm" --size "$size" --method raytrace --spp "$spp" --bands "$bands" \
-    -o "$tmp/out_$n.png" --wait 2>/dev/null | head -1)
+    --tls-ca "$tls/ca.pem" --token-file "$tmp/client.tokens" -o "$tmp/out_$n.png" --wait 2>/dev/null | head -1)
   kill "${ws[@]}"
   wait "${ws[@]}" 2>/dev/null || true
   sed -n "s/.*job $job succeeded in \([0-9.]*\) s.*/\1/p" "$tmp/coord.log"

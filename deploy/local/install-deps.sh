@@ -7,9 +7,12 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   protobuf-compiler libprotobuf-dev protobuf-compiler-grpc libgrpc++-dev
   libglm-dev libopenimageio-dev openimageio-tools libspdlog-dev libgtest-dev libcli11-dev
-  libtinyobjloader-dev libsqlite3-dev
+  libtinyobjloader-dev libsqlite3-dev libssl-dev
   sqlite3 iproute2
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio
+  # TLS test certificates (tests/tls/make_certs.sh); libFuzzer targets:
+  # clang, and libFuzzer itself (libclang_rt.fuzzer) from libclang-rt-14-dev.
+  openssl clang libclang-rt-14-dev
 )
 
 missing=()

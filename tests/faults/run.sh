@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # tests/faults/run.sh [BINDIR]: the farm across three hosts while faults are
-# injected. The hosts are network namespaces made here: one coordinator
+# injected (plaintext with --insecure: security is tested by
+# tests/farm_security_test.cpp; here only faults). The hosts are network
+# namespaces made here: one coordinator
 # host (a bridge, 10.77.0.1) and two worker hosts (10.77.0.2, 10.77.0.3)
 # joined to it by veth pairs. Every address is inside those namespaces;
 # nothing is sent anywhere else.
@@ -74,13 +76,13 @@ scene=$root/scenes/paper/a_glass.json
 job_args=(--size 64x48 --frames 1-6 --orbit 30 --bands 6)
 frames=6 bands_total=36
 in_c() { ip netns exec $C "$@"; }
-locus() { in_c "$bin/locus" "$@" --farm $farm; }
+locus() { in_c "$bin/locus" "$@" --farm $farm --insecure; }
 
 coord_pid=
 start_coordinator() {
   # Not through a shell function: $! must be the coordinator itself (ip
   # netns exec execs it).
-  ip netns exec $C "$bin/locus-coordinator" --listen $farm --data "$data" --lease-ms $lease_ms --heartbeat-ms 400 \
+  ip netns exec $C "$bin/locus-coordinator" --insecure --listen $farm --data "$data" --lease-ms $lease_ms --heartbeat-ms 400 \
     >"$tmp/coord.out" 2>>"$tmp/coord.log" &
   coord_pid=$!
   pids+=($coord_pid)
@@ -93,7 +95,7 @@ start_coordinator() {
 # start_worker NS [MS_PER_BAND]: sets $last_worker.
 last_worker=
 start_worker() {
-  ip netns exec "$1" "$bin/locus-worker" --coordinator $farm --poll-ms 1000 --test-slow-band-ms "${2:-150}" \
+  ip netns exec "$1" "$bin/locus-worker" --insecure --coordinator $farm --poll-ms 1000 --test-slow-band-ms "${2:-150}" \
     2>>"$tmp/worker-$1.log" &
   last_worker=$!
   pids+=($last_worker)

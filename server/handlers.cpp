@@ -1,0 +1,149 @@
+#include "server/handlers.h"
+
+#include <algorithm>
+
+#include "server/rpc.h"
+
+namespace locus::rpc {
+namespace {
+
+// Bounds on what a peer sends, before anything reaches the logic.
+constexpr size_t kMaxIdBytes = 256;
+constexpr size_t kMaxNameBytes = 200;
+constexpr size_t kMaxOutputBytes = 1024;
+constexpr int kMaxLeasesPerHeartbeat = 1024;
+constexpr int kMaxFetchFrames = farm::kMaxFramesPerJob;
+
+Status check_id(const std::string& id, const char* what) {
+  if (id.empty()) return InvalidArgument(std::string(what) + " is required");
+  if (id.size() > kMaxIdBytes) return InvalidArgument(std::string(what) + " is too long");
+  return Status::Ok();
+}
+
+// Names go into logs and tables: bounded, one line, printable.
+std::string printable_name(const std::string& name) {
+  std::string out = name.substr(0, kMaxNameBytes);
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  return out;
+}
+
+}  // namespace
+
+Status Handlers::SubmitJob(const v1::SubmitJobRequest& req, v1::SubmitJobResponse* resp) {
+  if (req.spec().output().size() > kMaxOutputBytes)
+    return InvalidArgument("output: longer than " + std::to_string(kMaxOutputBytes) + " bytes");
+  farm::SubmitRequest r = FromProto(req.spec());
+  r.scene_name = printable_name(r.scene_name);
+  r.request_id = req.request_id();
+  auto job = c_.submit(r);
+  if (!job.ok()) return job.status();
+  resp->set_job_id(job->job_id);
+  *resp->mutable_status() = ToProto(*job);
+  return Status::Ok();
+}
+
+Status Handlers::GetJob(const v1::GetJobRequest& req, v1::JobStatus* resp) {
+  if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
+  auto r = c_.job(req.job_id());
+  if (!r.ok()) return r.status();
+  *resp = ToProto(*r);
+  return Status::Ok();
+}
+
+Status Handlers::ListJobs(const v1::ListJobsRequest&, v1::ListJobsResponse* resp) {
+  for (const farm::JobInfo& j : c_.jobs()) *resp->add_jobs() = ToProto(j);
+  return Status::Ok();
+}
+
+Status Handlers::WatchJob(const v1::WatchJobRequest& req, const farm::CancelledFn& cancelled,
+                          const std::function<bool(const v1::JobStatus&)>& write) {
+  if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
+  const farm::Millis max(req.max_seconds() > 0 ? static_cast<int64_t>(req.max_seconds()) * 1000
+                                               : 30000);
+  return c_.watch(req.job_id(), max, cancelled,
+                  [&write](const farm::JobInfo& j) { return write(ToProto(j)); });
+}
+
+Status Handlers::CancelJob(const v1::CancelJobRequest& req, v1::CancelJobResponse* resp) {
+  if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
+  auto r = c_.cancel(req.job_id());
+  if (!r.ok()) return r.status();
+  *resp->mutable_status() = ToProto(*r);
+  return Status::Ok();
+}
+
+Status Handlers::ListWorkers(const v1::ListWorkersRequest&, v1::ListWorkersResponse* resp) {
+  for (const farm::WorkerInfo& w : c_.workers()) *resp->add_workers() = ToProto(w);
+  return Status::Ok();
+}
+
+Status Handlers::FetchResults(const v1::FetchResultsRequest& req,
+                              const std::function<bool(const v1::FileChunk&)>& write) {
+  if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
+  if (req.frames_size() > kMaxFetchFrames)
+    return InvalidArgument("frames: at most " + std::to_string(kMaxFetchFrames) + " per fetch");
+  std::vector<int> frames(req.frames().begin(), req.frames().end());
+  return c_.fetch(req.job_id(), frames, [&write](const farm::FileChunk& c) {
+    v1::FileChunk p;
+    p.set_frame(c.frame);
+    p.set_file_name(c.file_name);
+    p.set_offset(c.offset);
+    p.set_data(c.data);
+    p.set_last(c.last);
+    return write(p);
+  });
+}
+
+Status Handlers::Register(const v1::RegisterRequest& req, const std::string& peer,
+                          v1::RegisterResponse* resp) {
+  const std::string name = printable_name(req.name().empty() ? peer : req.name());
+  farm::Registration r = c_.register_worker(name, std::clamp(req.threads(), 1, 1024));
+  resp->set_worker_id(r.worker_id);
+  resp->set_heartbeat_ms(static_cast<int32_t>(r.heartbeat.count()));
+  resp->set_lease_ms(static_cast<int32_t>(r.lease.count()));
+  return Status::Ok();
+}
+
+Status Handlers::GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
+                         v1::GetTaskResponse* resp) {
+  if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
+  auto r = c_.get_task(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled);
+  if (!r.ok()) return r.status();
+  if (r->has_value()) *resp->mutable_task() = ToProto(**r);
+  return Status::Ok();
+}
+
+Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp) {
+  if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
+  if (Status s = check_id(req.scene_hash(), "scene_hash"); !s.ok()) return s;
+  auto r = c_.get_scene(req.worker_id(), req.scene_hash());
+  if (!r.ok()) return r.status();
+  *resp->mutable_scene() = **r;
+  return Status::Ok();
+}
+
+Status Handlers::CompleteBand(const v1::CompleteBandRequest& req,
+                              v1::CompleteBandResponse* resp) {
+  if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
+  if (Status s = check_id(req.lease_id(), "lease_id"); !s.ok()) return s;
+  farm::BandOutput output = FromProto(req);
+  output.error = output.error.substr(0, 4096);
+  auto r = c_.complete_band(std::move(output));
+  if (!r.ok()) return r.status();
+  resp->set_accepted(r->accepted);
+  resp->set_reason(r->reason);
+  return Status::Ok();
+}
+
+Status Handlers::Heartbeat(const v1::HeartbeatRequest& req, v1::HeartbeatResponse* resp) {
+  if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
+  if (req.lease_ids_size() > kMaxLeasesPerHeartbeat) return InvalidArgument("too many lease ids");
+  std::vector<std::string> leases(req.lease_ids().begin(), req.lease_ids().end());
+  auto r = c_.heartbeat(req.worker_id(), leases);
+  if (!r.ok()) return r.status();
+  for (const std::string& id : *r) resp->add_revoked_lease_ids(id);
+  return Status::Ok();
+}
+
+}  // namespace locus::rpc

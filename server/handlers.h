@@ -1,0 +1,46 @@
+// Each RPC's work on its request message: bounds on every field a peer
+// controls, FromProto, the Coordinator call, ToProto. No grpc::ServerContext
+// and no network: server/grpc_service.cpp wraps each handler in
+// authentication and exception guarding, and the fuzzer
+// (tests/fuzz/fuzz_coordinator.cpp) and tests call them directly.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "proto/locus.pb.h"
+#include "server/coordinator.h"
+
+namespace locus::rpc {
+
+class Handlers {
+ public:
+  explicit Handlers(farm::Coordinator& coordinator) : c_(coordinator) {}
+
+  // ---- ClientService ----
+  Status SubmitJob(const v1::SubmitJobRequest& req, v1::SubmitJobResponse* resp);
+  Status GetJob(const v1::GetJobRequest& req, v1::JobStatus* resp);
+  Status ListJobs(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp);
+  // `write` returns false when the client has gone.
+  Status WatchJob(const v1::WatchJobRequest& req, const farm::CancelledFn& cancelled,
+                  const std::function<bool(const v1::JobStatus&)>& write);
+  Status CancelJob(const v1::CancelJobRequest& req, v1::CancelJobResponse* resp);
+  Status ListWorkers(const v1::ListWorkersRequest& req, v1::ListWorkersResponse* resp);
+  Status FetchResults(const v1::FetchResultsRequest& req,
+                      const std::function<bool(const v1::FileChunk&)>& write);
+
+  // ---- WorkerService ----
+  // `peer` names an unnamed worker.
+  Status Register(const v1::RegisterRequest& req, const std::string& peer,
+                  v1::RegisterResponse* resp);
+  Status GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
+                 v1::GetTaskResponse* resp);
+  Status GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp);
+  Status CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp);
+  Status Heartbeat(const v1::HeartbeatRequest& req, v1::HeartbeatResponse* resp);
+
+ private:
+  farm::Coordinator& c_;
+};
+
+}  // namespace locus::rpc

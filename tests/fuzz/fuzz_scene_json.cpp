@@ -1,0 +1,11 @@
+// libFuzzer target: the native JSON scene loader (syntax pre-check,
+// protobuf's JSON parser, conversion and validation) on arbitrary text
+// (fuzz_util.h).
+#include <cstddef>
+#include <cstdint>
+
+#include "tests/fuzz/fuzz_util.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return locus::fuzz::fuzz_scene_json(data, size);
+}
