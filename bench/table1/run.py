@@ -33,6 +33,10 @@ def render(locus, scene, method, boxes, size, tmp):
     cmd = [locus, "render", scene, "-o", os.path.join(tmp, "out.png"), "--size", f"{size}x{size}",
            "--method", method, "--boxes", boxes, "--threads", "1", "--workers", "0",
            "--stats", stats]
+    # One sample per pixel in every configuration, as the ray tracer's:
+    # Table 1 compares visibility and shadow search, not anti-aliasing.
+    if method == "local":
+        cmd += ["--aa", "0"]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         return None, r.stderr.strip().splitlines()[-1] if r.stderr.strip() else "failed"
