@@ -45,8 +45,7 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
       // with that one surface, no eye-ray search.
       const ScanFace& f = scan.faces[fi];
       ++stats.tests_ray_object;
-      auto hit = intersect_nearest(ps.prims, f.prim, ray, cam.hither, 1e300);
-      if (hit && !on_face(f, ray.origin, ray.dir, hit->t)) hit.reset();
+      const auto hit = hit_on_face(ps, f, ray);
       if (!hit) {
         // The sample grazes the face's edge, or the surface lies inside
         // hither's sphere: let a ray decide.

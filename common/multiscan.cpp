@@ -74,17 +74,7 @@ void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
   for (int fi : faces) {
     const ScanFace& f = scan.faces[fi];
     if (!(f.ymin <= y && y < f.ymax)) continue;
-    // The same half-open rule as visible_faces(): shared edges give the
-    // same x in both faces, so no cracks and no double coverage.
-    xs.clear();
-    const size_t n = f.outline.size();
-    for (size_t k = 0; k < n; ++k) {
-      Vec2 p = f.outline[k], q = f.outline[(k + 1) % n];
-      if (p.y > q.y || (p.y == q.y && p.x > q.x)) std::swap(p, q);
-      if (!(p.y <= y && y < q.y)) continue;
-      xs.push_back(p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y));
-    }
-    std::sort(xs.begin(), xs.end());
+    outline_crossings(f, y, xs);
     const LineDepth d = line_depth(f, cam, cam.from, b);
     for (size_t k = 0; k + 1 < xs.size(); k += 2) {
       const double xl = std::max(0.0, xs[k]), xr = std::min(width, xs[k + 1]);
@@ -413,8 +403,7 @@ class SubLineBuilder {
     auto colour_at = [&](double x) {
       const Ray ray = eye_ray(x);
       ++stats_.tests_ray_object;
-      auto hit = intersect_nearest(ps_.prims, f.prim, ray, cam_.hither, 1e300);
-      if (hit && !on_face(f, ray.origin, ray.dir, hit->t)) hit.reset();
+      const auto hit = hit_on_face(ps_, f, ray);
       if (!hit) return sample(x).second;
       if (shadows) shadows->set_x(x);
       return tracer_.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr, shadows);
@@ -603,13 +592,11 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
         FigureShadows known(f.lights);
         Ray ray{cam.from, cam.direction(f.cx / f.area, f.cy / f.area)};
         ++stats.tests_ray_object;
-        auto hit = intersect_nearest(ps.prims, face.prim, ray, cam.hither, 1e300);
-        if (hit && !on_face(face, ray.origin, ray.dir, hit->t)) hit.reset();
+        auto hit = hit_on_face(ps, face, ray);
         if (!hit) {
           ray.dir = cam.direction(f.rep_x, f.rep_y);
           ++stats.tests_ray_object;
-          hit = intersect_nearest(ps.prims, face.prim, ray, cam.hither, 1e300);
-          if (hit && !on_face(face, ray.origin, ray.dir, hit->t)) hit.reset();
+          hit = hit_on_face(ps, face, ray);
         }
         Color c;
         if (hit) {

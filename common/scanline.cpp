@@ -168,6 +168,24 @@ LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye,
   return LineDepth{(nw - k * nu) / num, 2.0 * k * nu / (cam.width * num)};
 }
 
+void outline_crossings(const ScanFace& f, double y, std::vector<double>& xs) {
+  xs.clear();
+  const size_t n = f.outline.size();
+  for (size_t k = 0; k < n; ++k) {
+    Vec2 p = f.outline[k], q = f.outline[(k + 1) % n];
+    if (p.y > q.y || (p.y == q.y && p.x > q.x)) std::swap(p, q);
+    if (!(p.y <= y && y < q.y)) continue;
+    xs.push_back(p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y));
+  }
+  std::sort(xs.begin(), xs.end());
+}
+
+std::optional<Crossing> hit_on_face(const PreparedScene& ps, const ScanFace& f, const Ray& ray) {
+  auto hit = intersect_nearest(ps.prims, f.prim, ray, ps.camera.hither, 1e300);
+  if (hit && !on_face(f, ray.origin, ray.dir, hit->t)) hit.reset();
+  return hit;
+}
+
 bool on_face(const ScanFace& f, const Vec3& origin, const Vec3& dir, double t) {
   const double den = glm::dot(f.normal, dir);
   if (den == 0) return false;
@@ -193,18 +211,7 @@ RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const
   std::vector<double> xs;
   for (int fi : scan.rows[row]) {
     const ScanFace& f = scan.faces[fi];
-    // Crossings of the outline with the sample line. Each edge is taken from
-    // its upper to its lower end, so an edge shared by two faces gives the
-    // same x in both: no cracks, no double coverage (half-open rule).
-    xs.clear();
-    const size_t n = f.outline.size();
-    for (size_t k = 0; k < n; ++k) {
-      Vec2 p = f.outline[k], q = f.outline[(k + 1) % n];
-      if (p.y > q.y || (p.y == q.y && p.x > q.x)) std::swap(p, q);
-      if (!(p.y <= yc && yc < q.y)) continue;
-      xs.push_back(p.x + (yc - p.y) * (q.x - p.x) / (q.y - p.y));
-    }
-    std::sort(xs.begin(), xs.end());
+    outline_crossings(f, yc, xs);
     const double nw = glm::dot(f.normal, cam.w) + b * glm::dot(f.normal, cam.v);
     const double nu = glm::dot(f.normal, cam.u);
     const double num = f.offset - glm::dot(f.normal, eye);

@@ -5,7 +5,10 @@
 // the nearest of the intervals covering it.
 #pragma once
 
+#include <optional>
 #include <vector>
+
+#include "common/geometry.h"
 
 #include "common/math.h"
 
@@ -58,6 +61,18 @@ LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye,
 // other (coincident surfaces)? A bounding polyhedron first (its pixels are
 // traced, and the trace finds the truth), then the first-defined surface.
 bool wins_tie(const ScanScene& scan, int fi, int fj);
+
+// The x where face f's outline crosses the sample line y, sorted: pairs
+// [xs[2k], xs[2k+1]) are inside. Each edge is taken from its upper to its
+// lower end (half-open in y), so an edge shared by two faces gives the same
+// x in both: no cracks, no double coverage.
+void outline_crossings(const ScanFace& f, double y, std::vector<double>& xs);
+
+// The visible face's own hit along a sample ray (paper §3.2: a ray-plane
+// intersection, no search), or nullopt when the sample grazes the face's
+// edge or the face lies inside hither's sphere there (see on_face): the
+// caller then traces the ray.
+std::optional<Crossing> hit_on_face(const PreparedScene& ps, const ScanFace& f, const Ray& ray);
 
 // Is the hit at ray parameter t on face f's plane? A convex body's face
 // seen inside hither's sphere is not where the body's nearest crossing
