@@ -4,7 +4,7 @@
 
 #include "common/raytrace.h"
 #include "common/scanline.h"
-#include "common/shadow_volume.h"
+#include "common/span_shadows.h"
 
 namespace locus {
 

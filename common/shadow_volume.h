@@ -16,9 +16,9 @@
 // - every primitive gets the list of occluders that can shadow it (the
 //   front/back relations of §4.1).
 //
-// Rows then find the shadows of their spans (SpanShadows, paper §3.2 step
-// 2), and points reached by secondary rays search the hierarchy
-// (volume_transmittance). Both give exactly what a shadow ray gives
+// Rows then find the shadows of their spans (SpanShadows in
+// common/span_shadows.h, paper §3.2 step 2), and points reached by
+// secondary rays search the hierarchy (volume_transmittance). Both give exactly what a shadow ray gives
 // (Tracer::transmittance), but at points within rounding of a shadow
 // boundary.
 #pragma once
@@ -138,83 +138,10 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search);
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
                            Stats& stats, int* last_occluder = nullptr);
 
-// What reaches a point from each of the first 64 lights (bit j: light j):
-// blocked by an opaque occluder, or through transparent ones (`transparent`
-// hashes which), else unshadowed. Equal states shade alike.
-struct LightStates {
-  uint64_t opaque = 0;
-  uint64_t partial = 0;
-  uint64_t transparent = 0;
-  bool operator==(const LightStates&) const = default;
-};
-
-// The shadows of the spans of one row (paper §3.2 step 2): for a visible
-// span of a flat face, each candidate occluder's volume meets the segment
-// the scan plane cuts from the face in an interval, found once per span and
-// light; a pixel in an opaque interval is in shadow without any ray. Inside
-// the interval of a curved body's bounding polyhedron or of a transparent
-// occluder, the exact segment test decides per pixel (t_pj by eqs. (2), (3)).
-class SpanShadows : public KnownShadows {
- public:
-  // Spans on the sample line at image row coordinate y (row j's pixel
-  // centres: y = j + 0.5; multi-scanning: any sub-scanline).
-  SpanShadows(const PreparedScene& ps, double y, Stats& stats);
-  // Moves to another sample line, keeping the allocations.
-  void set_line(double y);
-
-  // The next samples to shade lie on scanline face `face` (ScanScene::faces)
-  // at image x in [x_first, x_last]; intervals are clipped to that range.
-  void begin_span(int face, double x_first, double x_last);
-  void begin_span(int face, int x0, int x1) { begin_span(face, x0 + 0.5, x1 - 0.5); }
-  // The sample about to be shaded.
-  void set_x(double x) { a_ = image_a(x); }
-  void set_pixel(int x) { set_x(x + 0.5); }
-
-  std::optional<Color> transmittance(const Vec3& p, const Vec3& origin, int light) override;
-
-  // Multi-scanning (paper §3.3): the x where the span's shadow intervals
-  // begin or end, inside (x_first, x_last), appended to `xs`.
-  void breakpoints(std::vector<double>& xs);
-  // Whether some point in (x0, x1) needs an exact test (it lies in the
-  // volume of a curved body's bounding polyhedron or of a transparent
-  // occluder), so its shadows may change inside without a breakpoint.
-  bool uncertain(double x0, double x1);
-  // The state of the first 64 lights at x.
-  LightStates states(double x);
-
- private:
-  // Where the span meets one volume: lo <= a <= hi in the image-plane
-  // coordinate a of the sample direction (outside that range for a
-  // kOutside volume).
-  struct Interval {
-    int prim;
-    bool decides;
-    double lo, hi;
-    bool outside;
-  };
-  void compute_light(int light);
-  double image_a(double x) const;
-  double image_x(double a) const;
-
-  const PreparedScene& ps_;
-  Stats& stats_;
-  double b_ = 0;  // image-plane coordinate of the sample line
-  int lights_ = 0;
-  int face_ = -1;
-  double a_first_ = 0, a_last_ = 0, a_ = 0;
-  double a_line_lo_ = 0, a_line_hi_ = 0;  // the whole sample line
-  // Per face met on this line: per light, whether its intervals are
-  // computed, whether shadow-ray origins lie on the face's front side, and
-  // the intervals.
-  struct Slot {
-    int face = -1;
-    std::vector<char> done;
-    std::vector<char> side;
-    std::vector<std::vector<Interval>> iv;
-  };
-  std::vector<Slot> slots_;
-  int used_ = 0;
-  Slot* s_ = nullptr;
-};
+// The exact segment test of one occluder (a curved body, CSG, a
+// transparent or unformed volume) along `seg` (t in (0, 1)): its crossings
+// are appended; true if one of them is opaque (eq. (2): t_pj = 0).
+bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<Crossing>& crossings,
+                Stats& stats);
 
 }  // namespace locus
