@@ -12,11 +12,11 @@
 namespace locus {
 namespace {
 
-// Adaptive refinement inside ray-traced spans (issue #6 item 3): radiance
-// steps above kContrast between neighbouring samples get kContrastSamples
-// samples in each of the two pieces.
+// Adaptive refinement inside ray-traced spans (issue #6 item 3): a traced
+// piece is interpolated from its pixel's corner samples where they see one
+// material and differ by at most kContrast (largest channel, linear
+// radiance); otherwise it is sampled itself (SubLineBuilder::traced_colour).
 constexpr double kContrast = 0.05;
-constexpr int kContrastSamples = 4;
 
 // A visible figure's piece of one sub-scanline, inside one pixel.
 struct Piece {
@@ -56,9 +56,13 @@ struct DepthInterval {
 
 // Buffers of visible_segments(), kept between calls.
 struct VisibleScratch {
+  struct Range {
+    double lo, hi;
+  };
   std::vector<DepthInterval> ivs;
   std::vector<double> xs, events;
   std::vector<const DepthInterval*> active;
+  std::vector<Range> stack;
 };
 
 void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
@@ -114,10 +118,8 @@ void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
   std::vector<const Interval*>& active = scratch.active;
   active.clear();
   size_t next = 0;
-  struct Range {
-    double lo, hi;
-  };
-  std::vector<Range> stack;
+  using Range = VisibleScratch::Range;
+  std::vector<Range>& stack = scratch.stack;
   for (size_t e = 0; e + 1 < events.size(); ++e) {
     const double lo = events[e], hi = events[e + 1];
     while (next < ivs.size() && ivs[next].xl <= lo) active.push_back(&ivs[next++]);
@@ -184,8 +186,11 @@ class FigureShadows : public KnownShadows {
 
 class SubLineBuilder {
  public:
-  SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats)
-      : ps_(ps), scan_(*ps.scan), cam_(ps.camera), tracer_(tracer), stats_(stats) {}
+  // Lattice rows [j0, j1] (pixel corners y = j0..j1) may be used.
+  SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa, int j0, int j1)
+      : ps_(ps), scan_(*ps.scan), cam_(ps.camera), tracer_(tracer), stats_(stats),
+        refine_x_(std::max(1, aa / 2)), j0_(j0),
+        lattice_(static_cast<size_t>(j1 - j0 + 1) * (ps.camera.width + 1)) {}
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
   void build(double y, int row, SubLine& line) {
@@ -310,9 +315,10 @@ class SubLineBuilder {
   void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill) {
     const size_t n = keys.size();
     if (n == 0) return;
-    std::vector<Piece> run(out_->begin() + static_cast<long>(begin), out_->end());
-    std::vector<Piece> res;
-    res.reserve(run.size() + 4);
+    std::vector<Piece>& run = run_;
+    run.assign(out_->begin() + static_cast<long>(begin), out_->end());
+    std::vector<Piece>& res = res_;
+    res.clear();
     auto mid = [](const Piece& p) { return 0.5 * (p.x0 + p.x1); };
     auto part = [&](double x0, double x1, const Piece& like, const Key& key) {
       Piece q = like;
@@ -372,28 +378,97 @@ class SubLineBuilder {
     out_->insert(out_->end(), res.begin(), res.end());
   }
 
-  // A run of curved bodies' spans: a sample per pixel, refined where the
-  // first surface hit changes (the true silhouettes).
+  // A run of curved bodies' spans: the first surface hit at one point per
+  // pixel, refined where it changes (the true silhouettes); then each
+  // piece's radiance (traced_colour).
   void curved(double x0, double x1) {
     const size_t begin = out_->size();
-    std::vector<int> ids;
+    std::vector<int>& ids = ids_;
+    ids.clear();
     for_pixels(x0, x1, [&](double a, double b) {
       Piece p;
       p.x0 = a;
       p.x1 = b;
       p.kind = Piece::kTraced;
-      const auto [id, c] = sample(0.5 * (a + b));
-      p.colour = c;
-      p.hit = id;
+      p.hit = first_hit(0.5 * (a + b));
       out_->push_back(p);
-      ids.push_back(id);
+      ids.push_back(p.hit);
     });
-    refine(begin, ids, [&](double x) { return first_hit(x); }, [&](Piece& q, int id) {
-      const auto [got, c] = sample(0.5 * (q.x0 + q.x1));
-      q.colour = c;
-      q.hit = got >= 0 ? got : id;
-    });
-    contrast_refine(begin, [&](double x) { return sample(x).second; });
+    refine(begin, ids, [&](double x) { return first_hit(x); }, [](Piece& q, int id) { q.hit = id; });
+    auto direct = [&](double x) { return sample(x).second; };
+    for (size_t k = begin; k < out_->size(); ++k) {
+      Piece& p = (*out_)[k];
+      p.colour = p.hit < 0 ? ps_.scene.background : traced_colour(p, direct);
+    }
+  }
+
+  // The radiance of a traced piece (p.hit >= 0). The paper samples every
+  // piece: one ray per pixel per sub-scanline (§3.3). Where the surface is
+  // smooth, that sample is, within kContrast, the bilinear interpolation of
+  // the samples at the pixel's corners, which all sub-scanlines of the
+  // pixel and of its neighbours share. So if the corners that have a weight
+  // here (each traced once, lazily) all see the piece's material and differ
+  // by at most kContrast, the piece is interpolated; otherwise, where the
+  // reflected or refracted image has an edge or the corners see something
+  // else, it is sampled itself (`direct(x)`: issue #6 item 3's adaptive
+  // refinement, docs/multiscan.md).
+  template <class Direct>
+  Color traced_colour(const Piece& p, Direct&& direct) {
+    const int material = material_of(p.hit);
+    const double xm = 0.5 * (p.x0 + p.x1);
+    const int i = std::min(static_cast<int>(xm), cam_.width - 1);
+    const int j = std::min(static_cast<int>(y_), cam_.height - 1);
+    const double fx = xm - i, fy = y_ - j;
+    const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+    Color lo(kInf), hi(-kInf), acc(0.0);
+    bool smooth = j >= j0_ && static_cast<size_t>(j + 2 - j0_) * (cam_.width + 1) <= lattice_.size();
+    for (int c = 0; c < 4 && smooth; ++c) {
+      if (!(w[c] > 0)) continue;
+      const Corner& k = corner(i + (c & 1), j + (c >> 1));
+      if (k.prim < 0 || material_of(k.prim) != material) {
+        smooth = false;
+        break;
+      }
+      lo = glm::min(lo, k.colour);
+      hi = glm::max(hi, k.colour);
+      acc += w[c] * k.colour;
+    }
+    if (smooth && max_component(hi - lo) <= kContrast) return acc;
+    // An edge inside the reflected or refracted image: N / 2 samples across
+    // the piece (so that, like the sub-scanlines, they grow with N).
+    if (!smooth || refine_x_ <= 1) return direct(xm);
+    Color sum(0.0);
+    const double step = (p.x1 - p.x0) / refine_x_;
+    for (int q = 0; q < refine_x_; ++q) sum += direct(p.x0 + (q + 0.5) * step);
+    return sum / static_cast<double>(refine_x_);
+  }
+
+  int material_of(int prim) const {
+    return ps_.scene.objects[ps_.prims.prims[prim].object].material;
+  }
+
+  // A pixel corner's sample: the first surface along the eye ray through
+  // image point (i, j), and its radiance.
+  struct Corner {
+    bool done = false;
+    int prim = -1;
+    Color colour{0.0};
+  };
+  const Corner& corner(int i, int j) {
+    Corner& k = lattice_[static_cast<size_t>(j - j0_) * (cam_.width + 1) + i];
+    if (!k.done) {
+      k.done = true;
+      ++stats_.rays_eye;
+      const Ray ray{cam_.from, cam_.direction(i, j)};
+      const auto hit = tracer_.nearest(ray, cam_.hither, kInf);
+      if (hit) {
+        k.prim = hit->prim;
+        k.colour = tracer_.shade(ray, *hit, 1, 1.0, nullptr);
+      } else {
+        k.colour = ps_.scene.background;
+      }
+    }
+    return k;
   }
 
   // A mirror's or glass's flat face: the visible face is known, so each
@@ -408,55 +483,15 @@ class SubLineBuilder {
       if (shadows) shadows->set_x(x);
       return tracer_.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr, shadows);
     };
-    const size_t begin = out_->size();
     for_pixels(s.x0, s.x1, [&](double a, double b) {
       Piece p;
       p.x0 = a;
       p.x1 = b;
       p.kind = Piece::kTraced;
       p.hit = f.prim;
-      p.colour = colour_at(0.5 * (a + b));
+      p.colour = traced_colour(p, colour_at);
       out_->push_back(p);
     });
-    contrast_refine(begin, colour_at);
-  }
-
-  // Inside ray-traced spans the reflected or refracted image has edges of
-  // its own: a piece whose sample differs from a neighbour's on the same
-  // surface by more than kContrast is sampled kContrastSamples times
-  // instead of once. (Between different surfaces the silhouette is already
-  // located by bisection.)
-  template <class ColourAt>
-  void contrast_refine(size_t begin, ColourAt&& colour_at) {
-    const size_t end = out_->size();
-    if (end == begin) return;
-    std::vector<char> busy(end - begin, 0);
-    // At the image's border a piece has one neighbour only: a probe at the
-    // border stands in for the other.
-    const Piece& first = (*out_)[begin];
-    const Piece& last = (*out_)[end - 1];
-    if (first.x0 == 0.0 && max_component(glm::abs(colour_at(first.x0 + 1e-6) - first.colour)) > kContrast) {
-      busy[0] = 1;
-    }
-    if (last.x1 == cam_.width &&
-        max_component(glm::abs(colour_at(last.x1 - 1e-6) - last.colour)) > kContrast) {
-      busy[end - 1 - begin] = 1;
-    }
-    for (size_t k = begin + 1; k < end; ++k) {
-      const Piece& a = (*out_)[k - 1];
-      const Piece& b = (*out_)[k];
-      if (a.hit == b.hit && max_component(glm::abs(b.colour - a.colour)) > kContrast) {
-        busy[k - begin] = busy[k - 1 - begin] = 1;
-      }
-    }
-    for (size_t k = begin; k < end; ++k) {
-      if (!busy[k - begin]) continue;
-      Piece& p = (*out_)[k];
-      Color sum(0.0);
-      const double w = (p.x1 - p.x0) / kContrastSamples;
-      for (int q = 0; q < kContrastSamples; ++q) sum += colour_at(p.x0 + (q + 0.5) * w);
-      p.colour = sum / static_cast<double>(kContrastSamples);
-    }
   }
 
   // A diffuse face's span: cut where shadow intervals begin and end (paper
@@ -469,7 +504,8 @@ class SubLineBuilder {
     shadows.breakpoints(cuts_);
     std::sort(cuts_.begin(), cuts_.end());
     cuts_.erase(std::unique(cuts_.begin(), cuts_.end()), cuts_.end());
-    std::vector<LightStates> keys;
+    std::vector<LightStates>& keys = keys_;
+    keys.clear();
     size_t run_begin = out_->size();
     auto end_run = [&] {
       refine(run_begin, keys, [&](double x) { return shadows.states(x); },
@@ -510,6 +546,12 @@ class SubLineBuilder {
   std::optional<SpanShadows> shadows_;
   std::vector<double> cuts_;
   std::vector<char> unsure_;
+  std::vector<int> ids_;
+  std::vector<LightStates> keys_;
+  std::vector<Piece> run_, res_;  // refine()'s buffers
+  int refine_x_;
+  int j0_;
+  std::vector<Corner> lattice_;
 };
 
 // One figure's share of a pixel, summed over the sub-scanlines.
@@ -527,7 +569,7 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
   const CameraFrame& cam = ps.camera;
   const int n = params.aa;
   Tracer tracer(ps, stats);
-  SubLineBuilder builder(ps, tracer, stats);
+  SubLineBuilder builder(ps, tracer, stats, n, r0, r1 + 1);
   // Sub-scanline g lies at y = g / n: the same double in every band.
   auto line_at = [&](int g, SubLine& l) {
     const int row = std::min(g / n, cam.height - 1);

@@ -11,7 +11,9 @@
 // shaded once per pixel, at the centroid of its area there.
 //
 // Ray-traced spans (mirrors, glass, curved bodies' bounding polyhedra) take
-// one sample per pixel per sub-scanline. Inside a bounding polyhedron, where
+// one sample per pixel per sub-scanline, interpolated from shared pixel-
+// corner samples where those agree, and N/2 samples where the reflected or
+// refracted image has an edge (docs/multiscan.md). Inside a bounding polyhedron, where
 // the first surface hit changes between neighbouring samples, bisection
 // finds the true silhouette to kBisectTolerance; so does it where the
 // shadow of a curved or transparent occluder begins.

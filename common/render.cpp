@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <sstream>
 #include <thread>
@@ -90,7 +91,18 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   threads = std::max(1, std::min(threads, y1 - y0));
   std::vector<Stats> stats(threads);
   std::atomic<int> next{y0};
+  std::vector<double> cpu(threads, 0.0);
   auto work = [&](int id) {
+    struct CpuClock {
+      double& out;
+      double start = now();
+      static double now() {
+        timespec ts{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+        return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+      }
+      ~CpuClock() { out = now() - start; }
+    } clock{cpu[id]};
     if (ps.scan && params.aa > 0) {
       // Multi-scanning: chunks of rows, so that inside a chunk each
       // boundary sub-scanline is computed once (common/multiscan.h).
@@ -113,6 +125,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   work(0);
   for (auto& t : pool) t.join();
   for (const Stats& s : stats) result.stats += s;
+  for (const double c : cpu) result.stats.seconds_render_cpu += c;
   result.stats.shadow_method = !ps.volumes ? "rays" : ps.volumes->search ? "volumes" : "volumes+rays";
   result.stats.seconds_render =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -132,6 +145,7 @@ Result<BandResult> render_image(const Scene& scene, const RenderParams& params) 
 Stats& Stats::operator+=(const Stats& o) {
   seconds_prepare += o.seconds_prepare;
   seconds_render += o.seconds_render;
+  seconds_render_cpu += o.seconds_render_cpu;
   rays_eye += o.rays_eye;
   rays_reflected += o.rays_reflected;
   rays_refracted += o.rays_refracted;
@@ -150,6 +164,7 @@ std::string Stats::to_json() const {
   std::ostringstream o;
   o.precision(9);
   o << "{\n  \"seconds\": {\"prepare\": " << seconds_prepare << ", \"render\": " << seconds_render
+    << ", \"render_cpu\": " << seconds_render_cpu
     << "},\n  \"rays\": {\"eye\": " << rays_eye << ", \"reflected\": " << rays_reflected
     << ", \"refracted\": " << rays_refracted << ", \"shadow\": " << rays_shadow
     << "},\n  \"tests\": {\"ray_object\": " << tests_ray_object

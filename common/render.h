@@ -41,6 +41,9 @@ struct Band {
 struct Stats {
   double seconds_prepare = 0;
   double seconds_render = 0;
+  // CPU time of the rendering threads, summed (a load-independent cost for
+  // benchmarks on a shared machine; not carried by the farm).
+  double seconds_render_cpu = 0;
   uint64_t rays_eye = 0;
   uint64_t rays_reflected = 0;
   uint64_t rays_refracted = 0;

@@ -30,9 +30,9 @@
 //       bisection locates curved silhouettes to kBisectTolerance = 1/64 px;
 //       aa_tol covers the reference's own sampling error and shading at
 //       figure centroids. A pixel over that bound is held to the range
-//       inside it instead: aa_coverage of it, or aa_traced (1/4) near
-//       mirrors, glass and curved bodies, whose spans are sampled (one to
-//       four samples per pixel per sub-scanline);
+//       inside it instead: aa_coverage of it, or aa_traced (1/2) near
+//       mirrors, glass and curved bodies, whose spans are sampled or
+//       interpolated from pixel corners (docs/multiscan.md);
 //  3. no speckles: a pixel that differs from each of its neighbours by more
 //     than `speckle` (largest channel) where the reference's 3x3
 //     neighbourhood is smooth (range below speckle / 2) and the scene is
@@ -97,11 +97,14 @@ struct Bounds {
   // detail finer than the 3x3 averages show (a reflection compressed at a
   // mirror's rim, the floor's edge seen through a slab at grazing angles):
   // the error is bounded by this fraction of the function's range inside
-  // the pixel. Ray-traced spans take one sample per pixel per sub-scanline,
-  // four where neighbours differ by more than kContrast = 0.05
-  // (multiscan.cpp): 1/8 of the range in x for one edge, and the trapezoid
-  // rule's 1/8 in y.
-  double aa_traced = 0.25;
+  // the pixel. Ray-traced pieces are interpolated from the pixel's corner
+  // samples where those agree within kContrast = 0.05, else sampled once,
+  // or N/2 times across the piece where the corners see one material but
+  // differ (multiscan.cpp): at aa 4, 1/4 of the range in x for one edge
+  // and the trapezoid rule's 1/8 in y; a feature inside the pixel that no
+  // corner sees may be lost where the corners agree. Was 1/4 with the
+  // earlier four samples per refined piece (docs/multiscan.md).
+  double aa_traced = 0.5;
   // Speckles and cracks.
   double speckle = 0.2;
   double crack_aa = 0.02;
