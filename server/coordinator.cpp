@@ -1,5 +1,8 @@
 #include "server/coordinator.h"
 
+#include "common/animation.h"
+#include "common/band_split.h"
+
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/file.h>
@@ -131,7 +134,7 @@ Status Coordinator::recover() {
     std::vector<RecoveredJob::BandRef> kept;
     for (const RecoveredJob::BandRef& b : j.done_bands) {
       if (written.count(b.frame)) continue;
-      const Band rows = band_rows(s.height, s.bands, b.band);
+      const Band rows = band_rows(s, b.band);
       const uintmax_t want = 32 + static_cast<uintmax_t>(s.width) * (rows.y1 - rows.y0) * 12 + 8;
       if (fs::file_size(band_file_path(dir, b.frame, b.band), ec) == want && !ec) {
         kept.push_back(b);
@@ -388,6 +391,22 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
     return InvalidArgument(std::to_string(spec.frames()) + " frames x " +
                            std::to_string(spec.bands) + " bands: at most " +
                            std::to_string(limits.max_bands) + " bands per job (--max-bands)");
+  }
+  if (options_.cost_bands && spec.bands > 1 && params->method == Method::kLocal) {
+    // Bands of equal predicted cost (issue #9 item 4, docs/farm.md): from
+    // a point-sampled preview of the middle frame, used for every frame.
+    const int middle = spec.frame_first + (spec.frame_last - spec.frame_first) / 2;
+    Scene posed = *scene;
+    posed.camera.width = spec.width;
+    posed.camera.height = spec.height;
+    posed = scene_at_frame(posed, middle, Orbit{spec.orbit_degrees, spec.frame_first, spec.frame_last});
+    Result<std::vector<double>> costs = predict_row_costs(posed, *params);
+    if (costs.ok()) {
+      spec.band_edges = split_rows_by_cost(*costs, spec.bands);
+    } else {
+      spdlog::warn("{}: no cost prediction ({}); bands of equal height", name,
+                   costs.status().message());
+    }
   }
   if (scheduler_.unfinished_jobs() >= static_cast<size_t>(limits.max_jobs)) {
     return Status(Code::kResourceExhausted,

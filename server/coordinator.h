@@ -44,6 +44,9 @@ struct CoordinatorOptions {
   // fsync band files, frames and their directory before the store names
   // them (survives a power loss); without it a kill -9 is still survived.
   bool fsync = true;
+  // Cut frames into bands of equal predicted cost (common/band_split.h)
+  // rather than equal height; local method only.
+  bool cost_bands = true;
   NowFn now = [] { return SteadyClock::now(); };
 };
 

@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   double speculate_factor = 3.0;
   int speculate_min_ms = 1000;
   bool no_fsync = false;
+  bool equal_bands = false;
   locus::farm::CoordinatorOptions options;
   locus::farm::Limits& limits = options.limits;
   locus::rpc::ServerSecurity security;
@@ -68,6 +69,8 @@ int main(int argc, char** argv) {
   app.add_flag("--no-fsync", no_fsync,
                "Do not fsync band and frame files (faster; a crash of the coordinator is still "
                "survived, a power loss may cost finished bands)");
+  app.add_flag("--equal-bands", equal_bands,
+               "Cut frames into bands of equal height instead of equal predicted cost");
   // Security.
   app.add_option("--tls-cert", security.tls_cert, "Server certificate chain (PEM)");
   app.add_option("--tls-key", security.tls_key, "Server certificate's private key (PEM)");
@@ -126,6 +129,7 @@ int main(int argc, char** argv) {
   options.speculate_factor = speculate_factor;
   options.speculate_min = locus::farm::Millis(speculate_min_ms);
   options.fsync = !no_fsync;
+  options.cost_bands = !equal_bands;
   locus::farm::Coordinator coordinator(options);
   if (auto st = coordinator.start(); !st.ok()) {
     std::fprintf(stderr, "locus-coordinator: %s\n", st.message().c_str());

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <sstream>
 
 namespace locus::farm {
 
@@ -75,6 +76,41 @@ Band band_rows(int height, int bands, int index) {
   // 64-bit products: height * index overflows int for tall frames cut finely.
   const auto at = [&](int i) { return static_cast<int>(static_cast<int64_t>(height) * i / bands); };
   return Band{at(index), at(index + 1)};
+}
+
+Band band_rows(const JobSpec& spec, int index) {
+  if (static_cast<int>(spec.band_edges.size()) == spec.bands + 1) {
+    return Band{spec.band_edges[index], spec.band_edges[index + 1]};
+  }
+  return band_rows(spec.height, spec.bands, index);
+}
+
+std::string band_edges_text(const std::vector<int>& edges) {
+  std::string out;
+  for (size_t i = 0; i < edges.size(); ++i) {
+    if (i) out += ' ';
+    out += std::to_string(edges[i]);
+  }
+  return out;
+}
+
+Result<std::vector<int>> band_edges_from_text(const std::string& text, int height, int bands) {
+  std::vector<int> edges;
+  std::istringstream in(text);
+  long long v;
+  while (in >> v) {
+    if (v < 0 || v > height) return InvalidArgument("band edges: " + std::to_string(v) + " is outside 0.." + std::to_string(height));
+    edges.push_back(static_cast<int>(v));
+  }
+  if (!in.eof()) return InvalidArgument("band edges: not a list of integers: '" + text + "'");
+  if (edges.empty()) return edges;
+  bool ok = static_cast<int>(edges.size()) == bands + 1 && edges.front() == 0 && edges.back() == height;
+  for (size_t i = 1; ok && i < edges.size(); ++i) ok = edges[i] > edges[i - 1];
+  if (!ok) {
+    return InvalidArgument("band edges: expected " + std::to_string(bands + 1) +
+                           " increasing rows from 0 to " + std::to_string(height) + ", got '" + text + "'");
+  }
+  return edges;
 }
 
 int min_bands(int width, int height) {

@@ -79,6 +79,10 @@ struct JobSpec {
   int bands = 1;       // per frame, 1..height
   std::string output;  // file-name pattern, e.g. "shot_####.png"
   double orbit_degrees = 0;
+  // Row edges of the bands, bands + 1 of them from 0 to height, when the
+  // coordinator split by predicted cost (common/band_split.h); empty:
+  // equal heights (band_rows(height, bands, i)).
+  std::vector<int> band_edges;
 
   int frames() const { return frame_last - frame_first + 1; }
   int64_t bands_total() const { return static_cast<int64_t>(frames()) * bands; }
@@ -87,6 +91,13 @@ struct JobSpec {
 // Rows of band `index` when `height` rows are cut into `bands` bands: as
 // equal as integers allow, every row in exactly one band.
 Band band_rows(int height, int bands, int index);
+// Rows of band `index` of a job: its band_edges if it has them.
+Band band_rows(const JobSpec& spec, int index);
+// band_edges as text ("0 12 30 ... 512") and back; from_text checks that
+// there are bands + 1 strictly increasing edges from 0 to height, and
+// returns an empty vector (equal split) for empty text.
+std::string band_edges_text(const std::vector<int>& edges);
+Result<std::vector<int>> band_edges_from_text(const std::string& text, int height, int bands);
 
 // The default split when a job does not give --bands: enough bands to keep
 // every worker busy with several each, fewer per frame when the frames
@@ -162,6 +173,7 @@ struct FrameReady {
   int width = 0;
   int height = 0;
   int bands = 0;
+  std::vector<int> band_edges;  // as JobSpec::band_edges
 };
 
 // Hex SHA-256: scenes are addressed by the hash of their serialized form.

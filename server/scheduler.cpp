@@ -136,7 +136,7 @@ std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
       for (auto it = job.frame_bands.begin(); it != job.frame_bands.end();) {
         if (it->second == s.bands) {
           ready.push_back(FrameReady{info.job_id, it->first, frame_path(s.output, it->first),
-                                     s.width, s.height, s.bands});
+                                     s.width, s.height, s.bands, s.band_edges});
           it = job.frame_bands.erase(it);
         } else {
           ++it;
@@ -433,7 +433,7 @@ BandTask Scheduler::make_task(const Job& job, int task, const Lease& lease,
   t.scene_hash = s.scene_hash;
   t.frame = frame_of(job, task);
   t.band = band_of(job, task);
-  const Band rows = band_rows(s.height, s.bands, t.band);
+  const Band rows = band_rows(s, t.band);
   t.y0 = rows.y0;
   t.y1 = rows.y1;
   t.width = s.width;
@@ -558,7 +558,7 @@ std::optional<BandTarget> Scheduler::result_target(const BandOutput& out) const 
   const Job& job = jobs_.at(it->second.job_id);
   const JobSpec& s = job.info.spec;
   const int band = band_of(job, it->second.task);
-  const Band rows = band_rows(s.height, s.bands, band);
+  const Band rows = band_rows(s, band);
   if (out.rgb.size() != static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3) return std::nullopt;
   return BandTarget{job.info.job_id, frame_of(job, it->second.task), band, s.width, rows.y0,
                     rows.y1};
@@ -599,7 +599,7 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   }
   const int band = band_of(job, lease.task);
   const int frame = frame_of(job, lease.task);
-  const Band rows = band_rows(s.height, s.bands, band);
+  const Band rows = band_rows(s, band);
   const size_t expected = static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3;
   if (out.rgb.size() != expected) {
     const std::string why = "band " + std::to_string(band) + " of frame " + std::to_string(frame) +
@@ -638,7 +638,8 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   if (++job.frame_bands[frame] == s.bands) {
     job.frame_bands.erase(frame);
     outcome.frame =
-        FrameReady{job.info.job_id, frame, frame_path(s.output, frame), s.width, s.height, s.bands};
+        FrameReady{job.info.job_id, frame, frame_path(s.output, frame), s.width, s.height, s.bands,
+                   s.band_edges};
   }
   ++version_;
   return outcome;

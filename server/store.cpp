@@ -27,6 +27,8 @@ CREATE TABLE IF NOT EXISTS jobs(
   output TEXT NOT NULL,
   orbit REAL NOT NULL,
   method TEXT NOT NULL, boxes TEXT NOT NULL, spp INTEGER NOT NULL,
+  aa INTEGER NOT NULL DEFAULT -1,
+  band_edges TEXT NOT NULL DEFAULT '',
   state TEXT NOT NULL,
   error TEXT NOT NULL DEFAULT '',
   submitted_at REAL NOT NULL,
@@ -57,7 +59,7 @@ CREATE INDEX IF NOT EXISTS attempts_by_band ON attempts(job_id, frame, band);
 CREATE VIEW IF NOT EXISTS leases AS
   SELECT lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at
   FROM attempts WHERE outcome IS NULL;
-INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '1');
+INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '2');
 )sql";
 
 double wall_now() {
@@ -179,8 +181,24 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   if (Status s = store->exec("PRAGMA synchronous=NORMAL"); !s.ok()) return s;
   if (Status s = store->exec(kSchema); !s.ok())
     return FailedPrecondition(path + ": " + s.message());
-  Statement check(*store, "SELECT value FROM meta WHERE key = 'schema'");
-  if (check.step() != SQLITE_ROW || check.text(0) != "1") {
+  std::string version;
+  {
+    Statement check(*store, "SELECT value FROM meta WHERE key = 'schema'");
+    if (check.step() == SQLITE_ROW) version = check.text(0);
+  }
+  const bool version1 = version == "1";
+  if (version1) {
+    // Version 1 (before cost-aware bands) did not keep a job's --aa or its
+    // band edges: a v1 job keeps the method's default aa and equal bands.
+    if (Status s = store->exec(
+            "BEGIN; ALTER TABLE jobs ADD COLUMN aa INTEGER NOT NULL DEFAULT -1; "
+            "ALTER TABLE jobs ADD COLUMN band_edges TEXT NOT NULL DEFAULT ''; "
+            "UPDATE meta SET value = '2' WHERE key = 'schema'; COMMIT");
+        !s.ok()) {
+      return FailedPrecondition(path + ": upgrading the job store from version 1: " + s.message());
+    }
+  }
+  if (!version1 && version != "2") {
     return FailedPrecondition(path + ": a job store of another version; use another --data");
   }
   return store;
@@ -226,10 +244,12 @@ Status JobStore::apply_one(const Event& e) {
         *this,
         "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
         "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
-        "spp, state, submitted_at) VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "spp, aa, band_edges, state, submitted_at) "
+        "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
-             s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now);
+             s.render.method, s.render.boxes, s.render.spp, s.render.aa,
+             band_edges_text(s.band_edges), job_state_name(JobState::kQueued), now);
     return ins.run();
   }
   if (const auto* c = std::get_if<event::JobStateChanged>(&e)) {
@@ -312,7 +332,7 @@ Result<RecoveredState> JobStore::recover() {
       *this,
       "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
-      "state, error, submitted_at, finished_at, stats FROM jobs ORDER BY seq");
+      "state, error, submitted_at, finished_at, stats, aa, band_edges FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -336,6 +356,16 @@ Result<RecoveredState> JobStore::recover() {
     s.render.method = jobs.text(13);
     s.render.boxes = jobs.text(14);
     s.render.spp = static_cast<int>(jobs.integer(15));
+    s.render.aa = static_cast<int>(jobs.integer(21));
+    {
+      auto edges = band_edges_from_text(jobs.text(22), s.height, s.bands);
+      if (!edges.ok()) {
+        std::string why = "job store: job ";
+        why.append(r.job_id).append(": ").append(edges.status().message());
+        return Internal(why);
+      }
+      s.band_edges = std::move(*edges);
+    }
     j.state = state_from_name(jobs.text(16));
     j.error = jobs.text(17);
     const double submitted = jobs.real(18);

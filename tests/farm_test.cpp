@@ -34,6 +34,12 @@ TEST_F(FarmTest, StitchedFramesEqualSingleProcessForAnySplit) {
   ASSERT_EQ(aa.render.boxes, "eye+shadow");
   const JobInfo with_aa = run(aa);
   expect_identical(with_aa, aa);
+  // ... and its bands are cut by predicted cost (common/band_split.h).
+  auto job_spec = coordinator_->job(with_aa.job_id);
+  ASSERT_TRUE(job_spec.ok());
+  ASSERT_EQ(job_spec->spec.band_edges.size(), 6u);
+  EXPECT_EQ(job_spec->spec.band_edges.front(), 0);
+  EXPECT_EQ(job_spec->spec.band_edges.back(), 48);
   auto resolved = farm::to_render_params(aa.render, 1);
   ASSERT_TRUE(resolved.ok());
   EXPECT_EQ(resolved->aa, farm::kDefaultAa);

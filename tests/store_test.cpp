@@ -4,6 +4,8 @@
 // (crash_for_test), the second resuming its jobs.
 #include "server/store.h"
 
+#include <sqlite3.h>
+
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -85,7 +87,10 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
     auto store = open_store(dir.path);
     ASSERT_TRUE(store.ok()) << store.status().message();
     Scheduler s(SchedulerOptions{}, clock.fn());
-    job = s.add_job(spec(4, 6, 2, 3, 3), "request-7", "fingerprint");
+    JobSpec sp = spec(4, 6, 2, 3, 3);
+    sp.band_edges = {0, 1, 4, 6};  // cost-aware bands, not equal heights
+    sp.render.aa = 16;
+    job = s.add_job(sp, "request-7", "fingerprint");
     w1 = s.add_worker("host:1", 1);
     w2 = s.add_worker("host:2", 1);
     std::vector<BandTask> t;
@@ -119,6 +124,8 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   EXPECT_EQ(j.record.spec.bands, 3);
   EXPECT_EQ(j.record.spec.output, "shot_####.exr");
   EXPECT_EQ(j.record.spec.render.spp, 2);
+  EXPECT_EQ(j.record.spec.render.aa, 16);
+  EXPECT_EQ(j.record.spec.band_edges, (std::vector<int>{0, 1, 4, 6}));
   EXPECT_EQ(j.state, JobState::kRunning);
   EXPECT_EQ(j.frames_written, std::vector<int>{2});
   EXPECT_EQ(j.done_bands.size(), 3u);
@@ -140,12 +147,53 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   const std::string w = again.add_worker("host:3", 1);
   EXPECT_EQ(w, "w0003");  // never a number of the previous run
   std::set<int> bands;
+  const int edges[] = {0, 1, 4, 6};
   while (auto t = *again.next_task(w)) {
     EXPECT_EQ(t->frame, 3);
+    EXPECT_EQ(t->y0, edges[t->band]);
+    EXPECT_EQ(t->y1, edges[t->band + 1]);
     bands.insert(t->band);
   }
   EXPECT_EQ(bands, (std::set<int>{0, 1, 2}));
   EXPECT_EQ(again.add_job(spec(4, 6, 1, 1, 1)), "j0002");
+}
+
+TEST(JobStore, UpgradesAVersion1StoreKeepingItsJobs) {
+  TempDir dir;
+  FakeClock clock;
+  {
+    auto store = open_store(dir.path);
+    ASSERT_TRUE(store.ok());
+    Scheduler s(SchedulerOptions{}, clock.fn());
+    s.add_job(spec(4, 6, 1, 1, 2));
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  // Make it what version 1 wrote: no aa, no band edges.
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir.path / "locus.db").string().c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db,
+                         "ALTER TABLE jobs DROP COLUMN aa; ALTER TABLE jobs DROP COLUMN band_edges; "
+                         "UPDATE meta SET value = '1' WHERE key = 'schema'",
+                         nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok()) << state.status().message();
+  ASSERT_EQ(state->jobs.size(), 1u);
+  EXPECT_EQ(state->jobs[0].record.spec.render.aa, -1);  // the method's default
+  EXPECT_TRUE(state->jobs[0].record.spec.band_edges.empty());
+  EXPECT_EQ(band_rows(state->jobs[0].record.spec, 1).y0, 3);
+}
+
+TEST(BandFiles, EdgesAsTextRoundTripAndAreChecked) {
+  EXPECT_EQ(band_edges_text({0, 2, 7}), "0 2 7");
+  EXPECT_EQ(*band_edges_from_text("0 2 7", 7, 2), (std::vector<int>{0, 2, 7}));
+  EXPECT_TRUE(band_edges_from_text("", 7, 2)->empty());
+  for (const char* bad : {"0 2", "0 3 2 7", "0 2 8", "1 2 7", "0 x 7", "0 2 2 7"}) {
+    EXPECT_FALSE(band_edges_from_text(bad, 7, 2).ok()) << bad;
+  }
 }
 
 TEST(JobStore, RefusesAnotherSchemaAndReportsAnUnwritableDirectory) {
@@ -193,7 +241,7 @@ TEST(BandFiles, WriteCommitReadAndRejectTornFiles) {
 
 TEST(BandFiles, StitchAFrameFromItsBands) {
   TempDir dir;
-  const FrameReady f{"j0001", 4, "f_0004.exr", 5, 7, 3};
+  const FrameReady f{"j0001", 4, "f_0004.exr", 5, 7, 3, {}};
   Image expected(5, 7);
   for (size_t i = 0; i < expected.rgb.size(); ++i) expected.rgb[i] = static_cast<float>(i);
   for (int b = 0; b < 3; ++b) {
