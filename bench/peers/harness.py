@@ -1,0 +1,261 @@
+"""What bench/peers/run.py and scaling.py share: the renderers with their CPU
+times, best-of-N timing, the all-diffuse "floor" copies of scenes, POV-Ray
+files, callgrind instruction counts and the log-log fit.
+
+Image reading, error metrics, the reference cache and the POV-Ray
+translation are bench/accuracy's (run.py, povscene.py), imported, not copied.
+"""
+import importlib.util
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared"))
+SPD = os.path.join(SHARED, "spd")
+ACCURACY = os.path.join(ROOT, "bench", "accuracy")
+
+
+def _load_accuracy():
+    # Loaded under its own name: `import run` would find bench/peers/run.py.
+    spec = importlib.util.spec_from_file_location("accuracy_run", os.path.join(ACCURACY, "run.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+acc = _load_accuracy()
+povscene = acc.povscene
+log = acc.log
+loadavg = acc.loadavg
+read_image = acc.read_image
+metrics = acc.metrics
+edge_mask = acc.edge_mask
+sha256_file = acc.sha256_file
+sha256_text = acc.sha256_text
+Cache = acc.Cache
+fmt = acc.fmt
+
+# POV-Ray's ray depth: SHADING.md "Ray tree" (common/raytrace.cpp kMaxDepth = 5,
+# the primary ray has depth 1) is POV-Ray's max_trace_level 5 (its primary
+# ray is level 1 too). povscene.py writes it into every translated file; the
+# include header sets it for files we do not write (SPD's own .pov).
+POV_DEPTH_INCLUDE = "global_settings { max_trace_level 5 adc_bailout 1/512 }\n"
+
+
+class Locus(acc.Locus):
+    """bench/accuracy's runner; returns the whole --stats JSON."""
+
+    def stats(self, scene, size, args, out, threads=1):
+        acc.Locus.render(self, scene, size, args, out, threads)
+        with open(os.path.join(self.tmp, "stats.json")) as f:
+            return json.load(f)
+
+    def timed(self, scene, size, args, out, threads=1):
+        st = self.stats(scene, size, args, out, threads)
+        s = st["seconds"]
+        return {"cpu": s["render_cpu"], "wall": s["render"], "prepare": s.get("prepare", 0.0),
+                "stats": st}
+
+
+class PovRay(acc.PovRay):
+    """POV-Ray with any anti-aliasing flags; its trace time and CPU-seconds."""
+    CPU = re.compile(r"Trace Time:.*?\(([0-9.]+) seconds\)\s*using (\d+) thread\(s\) with "
+                     r"([0-9.]+) CPU-seconds", re.S)
+    SETUP = re.compile(r"(Parse|Bounding) Time:.*?\(([0-9.]+) seconds\)")
+
+    def __init__(self, tmp):
+        acc.PovRay.__init__(self, tmp)
+        self.include = os.path.join(tmp, "depth5.inc")
+        with open(self.include, "w") as f:
+            f.write(POV_DEPTH_INCLUDE)
+
+    def timed(self, pov, size, flags, out, threads=1, include=False):
+        cmd = ["povray", "-D", "-P", f"+WT{threads}", f"+W{size}", f"+H{size}", f"+I{pov}",
+               f"+O{os.path.basename(out)}", "+FN16", "File_Gamma=1.0"] + list(flags)
+        if include:
+            cmd.append(f"+HI{self.include}")
+        r = subprocess.run(cmd, capture_output=True, text=True, cwd=os.path.dirname(out))
+        m = self.CPU.search(r.stderr)
+        if r.returncode != 0 or not m:
+            lines = [x for x in r.stderr.strip().splitlines() if "rror" in x] or \
+                r.stderr.strip().splitlines()[-1:]
+            raise RuntimeError(lines[-1] if lines else f"exit {r.returncode}")
+        setup = sum(float(s) for _, s in self.SETUP.findall(r.stderr))
+        return {"cpu": float(m.group(3)), "wall": float(m.group(1)), "prepare": setup,
+                "stats": None}
+
+
+def best(runs):
+    """The best of several runs by CPU time (robust to other work on the
+    machine); the wall time reported is the smallest of the walls. Returns
+    the best run's record plus every run's times."""
+    b = dict(min(runs, key=lambda r: r["cpu"]))
+    b["wall"] = min(r["wall"] for r in runs)
+    b["prepare"] = min(r["prepare"] for r in runs)
+    b["all_cpu"] = ";".join(f"{r['cpu']:.4f}" for r in runs)
+    b["all_wall"] = ";".join(f"{r['wall']:.4f}" for r in runs)
+    b["runs"] = len(runs)
+    return b
+
+
+def best_of(fn, n):
+    return best([fn() for _ in range(max(1, n))])
+
+
+# ------------------------------------------------------------------ scenes
+
+def count_primitives(path):
+    """NFF: s, c, p and pp entities; JSON: objects."""
+    if path.endswith(".json"):
+        with open(path) as f:
+            return len(json.load(f).get("objects", []))
+    n = 0
+    with open(path) as f:
+        for line in f:
+            tok = line.split(None, 1)
+            if tok and tok[0] in ("s", "c", "p", "pp"):
+                n += 1
+    return n
+
+
+def diffuse_copy(path, dst_dir):
+    """The floor (issue #9 item 3): the same scene with every material made
+    diffuse, Ks = 0 and T = 0 (NFF `f r g b Kd Ks Shine T ior`; JSON `ks`,
+    `t`), so no reflected or refracted ray is spawned. Kd, colours and
+    geometry are untouched; curved bodies still get their eye rays."""
+    base = os.path.basename(path)
+    stem, ext = os.path.splitext(base)
+    dst = os.path.join(dst_dir, stem + ".diffuse" + ext)
+    if ext == ".json":
+        with open(path) as f:
+            sc = json.load(f)
+        if '"obj"' in json.dumps(sc):
+            raise RuntimeError(f"{path}: refers to an OBJ file by a relative path; "
+                               "the diffuse copy would not find it")
+        for m in sc.get("materials", []):
+            m["ks"] = 0.0
+            m["t"] = 0.0
+        with open(dst, "w") as f:
+            json.dump(sc, f, indent=1)
+        return dst
+    out = []
+    with open(path) as f:
+        for line_no, line in enumerate(f, 1):
+            tok = line.split()
+            if tok and tok[0] == "f":
+                if len(tok) < 9:
+                    raise RuntimeError(f"{path}:{line_no}: `f` with {len(tok) - 1} fields on "
+                                       "one line; expected r g b Kd Ks Shine T ior")
+                tok[5] = "0"   # Ks
+                tok[7] = "0"   # T
+                line = " ".join(tok) + "\n"
+            out.append(line)
+    with open(dst, "w") as f:
+        f.writelines(out)
+    return dst
+
+
+def pov_file(name, path, checked_in, tmp):
+    """Our scenes: bench/accuracy/pov (checked in, with a staleness flag);
+    NFF: translated by povscene.py into tmp. Returns (path, stale)."""
+    if checked_in:
+        p = povscene.paper_pov_path(checked_in)
+        with open(p) as f:
+            stale = povscene.json_to_pov(path) != f.read()
+        return p, stale
+    p = os.path.join(tmp, name + ".pov")
+    with open(p, "w") as f:
+        f.write(povscene.nff_to_pov(path))
+    return p, False
+
+
+# ------------------------------------------------------------------ callgrind
+
+HWY_SHIM = """\
+// Valgrind 3.19 cannot decode RDTSCP, which libhwy (loaded through
+// OpenImageIO) runs in a static initializer, TimerResolution(). This stands in
+// for it under LD_PRELOAD; nothing in Locus uses hwy's timers.
+#include <cstdint>
+namespace hwy { namespace platform { uint64_t TimerResolution() { return 1; } } }
+"""
+
+
+def hwy_shim(tmp):
+    src = os.path.join(tmp, "hwyshim.cc")
+    lib = os.path.join(tmp, "hwyshim.so")
+    with open(src, "w") as f:
+        f.write(HWY_SHIM)
+    subprocess.run(["g++", "-O2", "-shared", "-fPIC", "-o", lib, src], check=True)
+    return lib
+
+
+def callgrind(locus, scene, size, args, tmp, shim):
+    """Instructions executed inside render_band (scene loading, prepare and
+    image writing excluded), and the render's --stats."""
+    out = os.path.join(tmp, "cg.out")
+    stats = os.path.join(tmp, "cg-stats.json")
+    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+           "--toggle-collect=locus::render_band*", locus.binary, "render", scene,
+           "-o", os.path.join(tmp, "cg.exr"), "--size", f"{size}x{size}", "--workers", "0",
+           "--threads", "1", "--stats", stats] + list(args)
+    env = dict(os.environ, LD_PRELOAD=shim)
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if r.returncode != 0:
+        tail = [x for x in r.stderr.splitlines() if not x.startswith("==")][-3:]
+        raise RuntimeError("callgrind: " + " / ".join(tail))
+    ir = None
+    with open(out) as f:
+        for line in f:
+            if line.startswith("summary:") or line.startswith("totals:"):
+                ir = int(line.split()[1])
+    with open(stats) as f:
+        return ir, json.load(f)
+
+
+# ------------------------------------------------------------------ fit
+
+def loglog_slope(xs, ys):
+    """Least-squares slope of log y against log x."""
+    if len(xs) < 2:
+        return float("nan")
+    lx, ly = np.log(np.asarray(xs, float)), np.log(np.asarray(ys, float))
+    return float(np.polyfit(lx, ly, 1)[0])
+
+
+def copy_binary(src, tmp):
+    return acc.snapshot_locus(src, tmp)
+
+
+def git_head():
+    """HEAD, and "+ local changes" when tracked files of the renderer
+    (common/, client/) differ from it: the binary may then not be HEAD's."""
+    r = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True,
+                       text=True)
+    d = subprocess.run(["git", "-C", ROOT, "status", "--porcelain", "--untracked-files=no",
+                        "common", "client"], capture_output=True, text=True)
+    return (r.stdout.strip() or "?") + (" + local changes" if d.stdout.strip() else "")
+
+
+def save_raw(path, obj):
+    with open(path, "w") as f:
+        json.dump(obj, f, indent=1, default=str)
+
+
+def load_raw(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def which(name):
+    return shutil.which(name) is not None
+
+
+def finite(v):
+    return isinstance(v, (int, float)) and math.isfinite(v)
