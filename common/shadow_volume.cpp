@@ -668,6 +668,13 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
     }
     sv.lights.push_back(std::move(lv));
   }
+  for (LightVolumes& lv : sv.lights) {
+    lv.set.cam.clear();
+    for (const HalfSpace& p : lv.set.planes) {
+      lv.set.cam.push_back({glm::dot(p.m, ps.camera.u), glm::dot(p.m, ps.camera.v),
+                            glm::dot(p.m, ps.camera.w), glm::dot(p.m, ps.camera.from) - p.h});
+    }
+  }
   return sv;
 }
 

@@ -55,6 +55,12 @@ struct ShadowVolume {
 struct VolumeSet {
   std::vector<HalfSpace> planes;
   std::vector<ShadowVolume> volumes;
+  // Per plane, its products with the camera frame, for scanline intervals
+  // (span_shadows.cpp): m.u, m.v, m.w and m.E - h (E: the eye).
+  struct CameraDots {
+    double mu, mv, mw, me;
+  };
+  std::vector<CameraDots> cam;
 
   // Is p in volume v? Every plane is moved outward by `slack` (0: the exact
   // volume; > 0: a conservative one, for culling and candidates).

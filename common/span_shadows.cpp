@@ -150,6 +150,8 @@ namespace {
 // face's points on the scan plane are O(a) = E + delta + s(a) D(a), with
 // D(a) = w + a u + b v and s(a) = num / (nw + a nu) > 0 (docs/local.md).
 struct SpanLine {
+  Vec3 delta;      // the shadow-ray origins' offset from the face
+  double b;        // the scan plane's image coordinate
   Vec3 eye_delta;  // E + delta
   Vec3 w_bv;       // w + b v
   Vec3 u;
@@ -166,9 +168,12 @@ void inside_range(const VolumeSet& set, const ShadowVolume& vol, const SpanLine&
   double lo = -kInf, hi = kInf;
   for (int i = vol.first; i < vol.first + vol.count; ++i) {
     const HalfSpace& p = set.planes[i];
-    const double c0 = glm::dot(p.m, l.eye_delta) - (p.h + slack);
-    const double c1 = glm::dot(p.m, l.w_bv);
-    const double c2 = glm::dot(p.m, l.u);
+    // m . (E + delta) - h, m . (w + b v) and m . u, from the plane's
+    // products with the camera frame (VolumeSet::cam).
+    const VolumeSet::CameraDots& k = set.cam[i];
+    const double c0 = k.me + glm::dot(p.m, l.delta) - slack;
+    const double c1 = k.mw + l.b * k.mv;
+    const double c2 = k.mu;
     const double alpha = l.sigma * (c0 * l.nw + l.num * c1);
     const double beta = l.sigma * (c0 * l.nu + l.num * c2);
     if (beta > 0) {
@@ -207,6 +212,8 @@ void SpanShadows::compute_light(int j) {
   s_->side[j] = glm::dot(n, lv.position) - f.offset >= 0;
   const Vec3 delta = (s_->side[j] ? ps_.eps : -ps_.eps) * n;
   SpanLine l;
+  l.delta = delta;
+  l.b = b_;
   l.eye_delta = cam.from + delta;
   l.w_bv = cam.w + b_ * cam.v;
   l.u = cam.u;
