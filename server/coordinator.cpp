@@ -17,6 +17,7 @@
 #include "common/animation.h"
 #include "common/image.h"
 #include "common/scene_io.h"
+#include "common/validate.h"
 #include "server/band_files.h"
 #include "server/paths.h"
 
@@ -367,7 +368,11 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
                    std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
                    std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
                    std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" + r.output +
-                   "|" + std::to_string(r.orbit_degrees));
+                   "|" + std::to_string(r.orbit_degrees) +
+                   // Added later: a job at the default stays fingerprinted as before.
+                   (spec.render.tess_tol != kDefaultTessTol
+                        ? "|tess-tol " + format_number(spec.render.tess_tol)
+                        : std::string()));
 
   std::lock_guard lk(mu_);
   if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");

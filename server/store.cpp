@@ -31,7 +31,9 @@ CREATE TABLE IF NOT EXISTS jobs(
   error TEXT NOT NULL DEFAULT '',
   submitted_at REAL NOT NULL,
   finished_at REAL,
-  stats TEXT NOT NULL DEFAULT '');
+  stats TEXT NOT NULL DEFAULT '',
+  aa INTEGER NOT NULL DEFAULT -1,
+  tess_tol REAL NOT NULL DEFAULT 0.25);
 CREATE TABLE IF NOT EXISTS bands(
   job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
   done INTEGER NOT NULL DEFAULT 0,
@@ -72,7 +74,8 @@ std::string encode_stats(const Stats& s) {
   o << s.seconds_prepare << ' ' << s.seconds_render << ' ' << s.rays_eye << ' ' << s.rays_reflected
     << ' ' << s.rays_refracted << ' ' << s.rays_shadow << ' ' << s.tests_ray_object << ' '
     << s.tests_shadow_volume << ' ' << s.pixels_total << ' ' << s.pixels_ray_traced << ' '
-    << s.spans_total << ' ' << s.spans_ray_traced << ' ' << s.shadow_method;
+    << s.spans_total << ' ' << s.spans_ray_traced << ' ' << s.shadow_method << ' '
+    << s.seconds_tessellate << ' ' << s.geometry_triangles;
   return o.str();
 }
 
@@ -84,6 +87,13 @@ Stats decode_stats(const std::string& text) {
       s.pixels_total >> s.pixels_ray_traced >> s.spans_total >> s.spans_ray_traced >>
       s.shadow_method;
   if (!i && !text.empty()) return Stats();
+  // Written by later versions only: absent in older stores.
+  double tessellate = 0;
+  uint64_t triangles = 0;
+  if (i >> tessellate >> triangles) {
+    s.seconds_tessellate = tessellate;
+    s.geometry_triangles = triangles;
+  }
   return s;
 }
 
@@ -183,6 +193,19 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   if (check.step() != SQLITE_ROW || check.text(0) != "1") {
     return FailedPrecondition(path + ": a job store of another version; use another --data");
   }
+  // Columns added since schema 1 was first written: a store from before
+  // them gets them with the defaults (jobs then used).
+  for (const auto& [column, definition] :
+       {std::pair{"aa", "aa INTEGER NOT NULL DEFAULT -1"},
+        {"tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"}}) {
+    Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info('jobs') WHERE name = ?");
+    has.bind(column);
+    if (has.step() != SQLITE_ROW) return has.error();
+    if (has.integer(0) == 0) {
+      const std::string alter = std::string("ALTER TABLE jobs ADD COLUMN ") + definition;
+      if (Status s = store->exec(alter.c_str()); !s.ok()) return s;
+    }
+  }
   return store;
 }
 
@@ -226,10 +249,12 @@ Status JobStore::apply_one(const Event& e) {
         *this,
         "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
         "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
-        "spp, state, submitted_at) VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "spp, state, submitted_at, aa, tess_tol) "
+        "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
-             s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now);
+             s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,
+             s.render.aa, s.render.tess_tol);
     return ins.run();
   }
   if (const auto* c = std::get_if<event::JobStateChanged>(&e)) {
@@ -312,7 +337,7 @@ Result<RecoveredState> JobStore::recover() {
       *this,
       "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
-      "state, error, submitted_at, finished_at, stats FROM jobs ORDER BY seq");
+      "state, error, submitted_at, finished_at, stats, aa, tess_tol FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -341,6 +366,8 @@ Result<RecoveredState> JobStore::recover() {
     const double submitted = jobs.real(18);
     j.seconds_elapsed = (jobs.null(19) ? now : jobs.real(19)) - submitted;
     j.stats = decode_stats(jobs.text(20));
+    s.render.aa = static_cast<int>(jobs.integer(21));
+    s.render.tess_tol = jobs.real(22);
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {

@@ -569,6 +569,11 @@ void expect_same(const Scene& a, const Scene& b) {
           } else if constexpr (std::is_same_v<T, Patch>) {
             EXPECT_EQ(s.vertices, t.vertices);
             EXPECT_EQ(s.normals, t.normals);
+          } else if constexpr (std::is_same_v<T, BezierSurface>) {
+            ASSERT_EQ(s.patches.size(), t.patches.size());
+            for (size_t k = 0; k < s.patches.size(); ++k) {
+              EXPECT_EQ(s.patches[k].points, t.patches[k].points);
+            }
           } else {
             EXPECT_EQ(s.op, t.op);
             EXPECT_EQ(s.left, t.left);
@@ -616,6 +621,14 @@ TEST(SceneProto, NffScenesRoundTrip) {
   Result<Scene> back = scene_from_proto(scene_to_proto(*nff), "wire");
   ASSERT_TRUE(back.ok()) << back.status().message();
   expect_same(*nff, *back);
+}
+
+TEST(SceneProto, BezierSurfacesRoundTrip) {
+  Result<Scene> teapot = load_scene(std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json");
+  ASSERT_TRUE(teapot.ok()) << teapot.status().message();
+  Result<Scene> back = scene_from_proto(scene_to_proto(*teapot), "wire");
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  expect_same(*teapot, *back);
 }
 
 TEST(SceneProto, FromProtoValidates) {

@@ -60,6 +60,8 @@ JobSpec spec(int w, int h, int first, int last, int bands) {
   s.bands = bands;
   s.output = "shot_####.exr";
   s.render.spp = 2;
+  s.render.aa = 3;
+  s.render.tess_tol = 0.5;
   return s;
 }
 
@@ -69,6 +71,7 @@ BandOutput pixels(const std::string& worker, const BandTask& t) {
   o.lease_id = t.lease_id;
   o.rgb.assign(static_cast<size_t>(t.width) * (t.y1 - t.y0) * 3, 0.5f);
   o.stats.pixels_total = static_cast<uint64_t>(t.width) * (t.y1 - t.y0);
+  o.stats.geometry_triangles = 100;
   return o;
 }
 
@@ -119,10 +122,13 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   EXPECT_EQ(j.record.spec.bands, 3);
   EXPECT_EQ(j.record.spec.output, "shot_####.exr");
   EXPECT_EQ(j.record.spec.render.spp, 2);
+  EXPECT_EQ(j.record.spec.render.aa, 3);
+  EXPECT_EQ(j.record.spec.render.tess_tol, 0.5);
   EXPECT_EQ(j.state, JobState::kRunning);
   EXPECT_EQ(j.frames_written, std::vector<int>{2});
   EXPECT_EQ(j.done_bands.size(), 3u);
   EXPECT_EQ(j.stats.pixels_total, 3u * 8);
+  EXPECT_EQ(j.stats.geometry_triangles, 100u);  // every band's frame, not their sum
   ASSERT_EQ(j.failures.size(), 1u);
   EXPECT_EQ(j.failures[0].frame, 3);
   EXPECT_EQ(j.failures[0].band, 0);
