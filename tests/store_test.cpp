@@ -5,6 +5,7 @@
 #include "server/store.h"
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -166,6 +167,35 @@ TEST(JobStore, RefusesAnotherSchemaAndReportsAnUnwritableDirectory) {
   std::ofstream((dir.path / "junk.db").string()) << "not a database at all, just text";
   auto junk = JobStore::open((dir.path / "junk.db").string());
   EXPECT_FALSE(junk.ok());
+}
+
+TEST(JobStore, AStoreFromBeforeTheRenderColumnsGetsThemWithTheOldDefaults) {
+  TempDir dir;
+  FakeClock clock;
+  {
+    auto store = open_store(dir.path);
+    ASSERT_TRUE(store.ok());
+    Scheduler s(SchedulerOptions{}, clock.fn());
+    s.add_job(spec(4, 6, 1, 1, 1));
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  {
+    // The jobs table as written before `aa` and `tess_tol` were stored.
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir.path / "locus.db").string().c_str(), &db), SQLITE_OK);
+    EXPECT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN aa; ALTER TABLE jobs DROP COLUMN tess_tol",
+                           nullptr, nullptr, nullptr),
+              SQLITE_OK)
+        << sqlite3_errmsg(db);
+    sqlite3_close(db);
+  }
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok()) << state.status().message();
+  ASSERT_EQ(state->jobs.size(), 1u);
+  EXPECT_EQ(state->jobs[0].record.spec.render.aa, -1);  // the method's default
+  EXPECT_EQ(state->jobs[0].record.spec.render.tess_tol, kDefaultTessTol);
 }
 
 TEST(BandFiles, WriteCommitReadAndRejectTornFiles) {
