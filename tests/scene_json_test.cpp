@@ -615,20 +615,16 @@ TEST(SceneProto, RoundTripGivesTheSameScene) {
   EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(proto, scene_to_proto(*back)));
 }
 
-TEST(SceneProto, NffScenesRoundTrip) {
-  Result<Scene> nff = load_nff(std::string(LOCUS_SHARED_DIR) + "/spd/s1/rings.nff");
-  ASSERT_TRUE(nff.ok()) << nff.status().message();
-  Result<Scene> back = scene_from_proto(scene_to_proto(*nff), "wire");
-  ASSERT_TRUE(back.ok()) << back.status().message();
-  expect_same(*nff, *back);
-}
-
-TEST(SceneProto, BezierSurfacesRoundTrip) {
-  Result<Scene> teapot = load_scene(std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json");
-  ASSERT_TRUE(teapot.ok()) << teapot.status().message();
-  Result<Scene> back = scene_from_proto(scene_to_proto(*teapot), "wire");
-  ASSERT_TRUE(back.ok()) << back.status().message();
-  expect_same(*teapot, *back);
+TEST(SceneProto, NffScenesAndBezierSurfacesRoundTrip) {
+  for (const std::string path : {std::string(LOCUS_SHARED_DIR) + "/spd/s1/rings.nff",
+                                 std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json"}) {
+    SCOPED_TRACE(path);
+    Result<Scene> scene = load_scene(path);
+    ASSERT_TRUE(scene.ok()) << scene.status().message();
+    Result<Scene> back = scene_from_proto(scene_to_proto(*scene), "wire");
+    ASSERT_TRUE(back.ok()) << back.status().message();
+    expect_same(*scene, *back);
+  }
 }
 
 TEST(SceneProto, FromProtoValidates) {

@@ -313,12 +313,8 @@ def chart(path, rows, size):
             for t, e, n in pts:
                 ax.annotate(f"{n:g}", (t, e), textcoords="offset points", xytext=(3, 3),
                             fontsize=7, color=col)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.grid(True, which="both", alpha=0.25)
-        ax.set_title(f"teapot, {view}, {size}x{size}", fontsize=9)
-        ax.set_xlabel("prepare + render, 1 thread (s)", fontsize=8)
-        ax.set_ylabel("RMSE", fontsize=8)
+        acc.log_axes(ax, f"teapot, {view}, {size}x{size}", "prepare + render, 1 thread (s)",
+                     "RMSE")
         ax.legend(fontsize=7)
     ax = axes[2]
     for view, col in zip([v for v, _ in VIEWS], ["C3", "C4"]):
@@ -327,12 +323,7 @@ def chart(path, rows, size):
         if pts:
             ax.plot([p[0] for p in pts], [p[1] for p in pts], color=col, marker="s",
                     markersize=4, label=view)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.grid(True, which="both", alpha=0.25)
-    ax.set_title("triangles after tessellation", fontsize=9)
-    ax.set_xlabel("--tess-tol (pixels)", fontsize=8)
-    ax.set_ylabel("geometry.triangles", fontsize=8)
+    acc.log_axes(ax, "triangles after tessellation", "--tess-tol (pixels)", "geometry.triangles")
     ax.legend(fontsize=7)
     fig.suptitle("Tessellation against accuracy (lower left is better)", fontsize=10)
     fig.tight_layout()
