@@ -616,7 +616,7 @@ TEST(SceneProto, RoundTripGivesTheSameScene) {
 }
 
 TEST(SceneProto, NffScenesAndBezierSurfacesRoundTrip) {
-  for (const std::string path : {std::string(LOCUS_SHARED_DIR) + "/spd/s1/rings.nff",
+  for (const std::string& path : {std::string(LOCUS_SHARED_DIR) + "/spd/s1/rings.nff",
                                  std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json"}) {
     SCOPED_TRACE(path);
     Result<Scene> scene = load_scene(path);
