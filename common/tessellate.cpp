@@ -328,9 +328,19 @@ SurfaceTessellation tessellate_surface(const std::vector<BezierPatch>& patches,
   // it needs, so both neighbours sample it alike.
   std::map<EdgeKey, int> edge_rate;
   out.rates.resize(n);
+  int64_t estimate = 0;
   for (int k = 0; k < n; ++k) {
     const PatchScale s = patch_scale(view, patches[k]);
     out.rates[k] = patch_rates(patches[k], s.pixels_per_unit, view.tolerance);
+    estimate += 2 * int64_t{out.rates[k][0]} * out.rates[k][1];
+  }
+  if (estimate > view.max_triangles) {
+    const double f = std::sqrt(static_cast<double>(view.max_triangles) / estimate);
+    for (auto& r : out.rates) {
+      for (int& x : r) x = std::max(2, static_cast<int>(x * f));
+    }
+  }
+  for (int k = 0; k < n; ++k) {
     for (int side = 0; side < 4; ++side) {
       // A collapsed row is sampled at its patch's rate too: its samples
       // coincide, but their parameters keep the fan next to it within one

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "common/math.h"
@@ -19,6 +20,10 @@ namespace locus {
 // Segments per patch side: a patch cut by the eye plane could ask for any
 // number; this caps it (docs/tessellation.md "Limits").
 inline constexpr int kMaxTessRate = 256;
+// Triangles one surface may become: beyond it every rate is scaled down
+// alike (the tolerance is then not met), so a scene cannot exhaust a
+// worker's memory with patches seen from very close.
+inline constexpr int64_t kMaxTessTriangles = int64_t{1} << 24;
 
 // Patches that neither the eye nor a mirror or glass can show (outside the
 // view frustum or behind hither, in a scene without ks > 0 or t > 0) are cut
@@ -42,6 +47,7 @@ struct TessView {
   // The scene holds a mirror or glass (ks > 0 or t > 0): any patch may be
   // seen in it, so none is cut coarsely.
   bool mirrors = false;
+  int64_t max_triangles = kMaxTessTriangles;  // per surface
 };
 TessView make_tess_view(const Scene& scene, double tolerance);
 

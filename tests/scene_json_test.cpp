@@ -340,7 +340,7 @@ TEST(SceneJson, DerivedShapesNameTheFieldsWritten) {
         "1024 vertices, got 3",
         "scene.json: objects[6].cone.base_radius: must not be negative, got -1",
         "scene.json: objects[7]: has no shape (expected one of sphere, cylinder, cone, box, prism, "
-        "polyhedron, polygon, mesh, patch, csg)"}) {
+        "polyhedron, polygon, mesh, patch, csg, bezier)"}) {
     EXPECT_CONTAINS(e, want);
   }
 }

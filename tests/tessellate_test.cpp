@@ -367,6 +367,18 @@ TEST(Bezier, TriangleCountFallsWithDistance) {
   EXPECT_GE(triangle_count(s, 0.25), 3 * triangle_count(s, 1.0));
 }
 
+TEST(Bezier, ASurfaceHasATriangleBudget) {
+  const Scene s = teapot(256, 256);
+  TessView view = make_tess_view(s, 0.25);
+  const std::vector<BezierPatch> patches = world_patches(s, teapot_object(s));
+  const size_t full = tessellate_surface(patches, view).mesh.triangles.size();
+  view.max_triangles = 4000;
+  const size_t capped = tessellate_surface(patches, view).mesh.triangles.size();
+  EXPECT_GT(full, 20000u);
+  EXPECT_LE(capped, 5000u);  // the budget counts 2 nu nv a patch; stitching adds a few
+  EXPECT_GT(capped, 2000u);
+}
+
 TEST(Bezier, MirrorsRefineWhatTheEyeDoesNotSee) {
   // One patch behind the camera: coarse, unless a mirror could show it.
   Scene s = teapot(64, 64);
