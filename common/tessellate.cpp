@@ -56,10 +56,18 @@ std::array<Vec3, 4> boundary(const BezierPatch& p, int side) {
   std::array<Vec3, 4> c;
   for (int k = 0; k < 4; ++k) {
     switch (side) {
-      case 0: c[k] = p.points[k]; break;
-      case 1: c[k] = p.points[4 * k + 3]; break;
-      case 2: c[k] = p.points[12 + k]; break;
-      default: c[k] = p.points[4 * k]; break;
+      case 0:
+        c[k] = p.points[k];
+        break;
+      case 1:
+        c[k] = p.points[4 * k + 3];
+        break;
+      case 2:
+        c[k] = p.points[12 + k];
+        break;
+      default:
+        c[k] = p.points[4 * k];
+        break;
     }
   }
   return c;
@@ -148,10 +156,14 @@ class PatchMesher {
   // 1 is u = 1 upwards, 2 is v = 1 from u = 1 to 0, 3 is u = 0 downwards.
   static Vec2 side_uv(int side, double t) {
     switch (side) {
-      case 0: return {t, 0.0};
-      case 1: return {1.0, t};
-      case 2: return {1.0 - t, 1.0};
-      default: return {0.0, 1.0 - t};
+      case 0:
+        return {t, 0.0};
+      case 1:
+        return {1.0, t};
+      case 2:
+        return {1.0 - t, 1.0};
+      default:
+        return {0.0, 1.0 - t};
     }
   }
 
@@ -172,18 +184,26 @@ class PatchMesher {
     for (int b = 0; b + 1 < n; ++b) {
       const int k = b + 1;
       switch (side) {
-        case 0: in[b] = inner_[index(k, 1)]; break;
-        case 1: in[b] = inner_[index(nu_ - 1, k)]; break;
-        case 2: in[b] = inner_[index(nu_ - k, nv_ - 1)]; break;
-        default: in[b] = inner_[index(1, nv_ - k)]; break;
+        case 0:
+          in[b] = inner_[index(k, 1)];
+          break;
+        case 1:
+          in[b] = inner_[index(nu_ - 1, k)];
+          break;
+        case 2:
+          in[b] = inner_[index(nu_ - k, nv_ - 1)];
+          break;
+        default:
+          in[b] = inner_[index(1, nv_ - k)];
+          break;
       }
     }
     const int last = n - 2;
     int a = 0, b = 0;
     while (a < m || b < last) {
       // Outer step ends at a+1 / m, inner at (b+2) / n: take the nearer.
-      const bool outer_step = b == last || (a < m && static_cast<double>(a + 1) / m <=
-                                                         static_cast<double>(b + 2) / n);
+      const bool outer_step =
+          b == last || (a < m && static_cast<double>(a + 1) / m <= static_cast<double>(b + 2) / n);
       if (outer_step) {
         triangle(o[a], o[a + 1], in[b]);
         ++a;
@@ -250,7 +270,8 @@ PatchScale patch_scale(const TessView& view, const BezierPatch& p) {
   // A displacement d at a point of depth z moves its image by at most
   // |d| focal k / z while the moved point stays in the frustum, k being the
   // secant of the frustum corner's angle off the axis (docs/tessellation.md).
-  const double k = std::sqrt(1.0 + view.tan_half * view.tan_half * (1.0 + view.aspect * view.aspect));
+  const double k =
+      std::sqrt(1.0 + view.tan_half * view.tan_half * (1.0 + view.aspect * view.aspect));
   double zmin = 1e300;
   bool out_right = true, out_left = true, out_top = true, out_bottom = true, behind = true;
   Vec3 lo(1e300), hi(-1e300);
@@ -271,8 +292,8 @@ PatchScale patch_scale(const TessView& view, const BezierPatch& p) {
   const double dist = glm::length(glm::max(glm::max(lo - view.eye, view.eye - hi), Vec3(0.0)));
   // No depth below this counts: a patch through the eye plane is cut to
   // the rate cap instead of infinitely finely.
-  const double floor = std::max({view.hither, 1e-9 * (glm::length(view.eye) + glm::length(hi - lo)),
-                                 1e-300});
+  const double floor =
+      std::max({view.hither, 1e-9 * (glm::length(view.eye) + glm::length(hi - lo)), 1e-300});
   PatchScale s;
   s.in_view = !(behind || out_right || out_left || out_top || out_bottom);
   // Seen in a plane mirror, a point at distance d from the eye appears at

@@ -67,9 +67,9 @@ std::array<int, 2> patch_rates(const BezierPatch& world_patch, double pixels_per
 
 // One surface cut into triangles, in world space.
 struct SurfaceTessellation {
-  Mesh mesh;                          // positions, analytic normals, triangles (u x v front)
-  std::vector<Vec2> uv;               // per vertex: its parameters on its patch
-  std::vector<int> vertex_patch;      // per vertex: its patch
+  Mesh mesh;                              // positions, analytic normals, triangles (u x v front)
+  std::vector<Vec2> uv;                   // per vertex: its parameters on its patch
+  std::vector<int> vertex_patch;          // per vertex: its patch
   std::vector<std::array<int, 2>> rates;  // per patch: the interior grid's (nu, nv)
 };
 SurfaceTessellation tessellate_surface(const std::vector<BezierPatch>& world_patches,

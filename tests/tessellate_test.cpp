@@ -99,7 +99,8 @@ TEST(Bezier, JsonErrorsNameTheirPath) {
   auto csg = parse_scene_json(
       R"({"camera": {"from": [0, 0, 5], "at": [0, 0, 0], "width": 8, "height": 8},
           "materials": [{}], "objects": [
-            {"bezier": {"patches": [{"points": [)" + numbers(48) + R"(]}]}},
+            {"bezier": {"patches": [{"points": [)" +
+          numbers(48) + R"(]}]}},
             {"sphere": {"radius": 1}},
             {"csg": {"left": 0, "right": 1}}]})",
       "s.json", "");
@@ -203,8 +204,8 @@ double measured_deviation(const Scene& s, const SurfaceTessellation& t,
         if (!in_frustum(view, q)) continue;
         const Vec2 uv = l0 * t.uv[tri[0]] + l1 * t.uv[tri[1]] + l2 * t.uv[tri[2]];
         const Vec3 p = bezier_point(patches[patch], uv.x, uv.y);
-        worst = std::max(worst, glm::length(project(view, s.camera, p) -
-                                            project(view, s.camera, q)));
+        worst =
+            std::max(worst, glm::length(project(view, s.camera, p) - project(view, s.camera, q)));
       }
     }
   }
@@ -283,7 +284,8 @@ TEST(Bezier, NoBackgroundLeaksThroughAClosedSurfaceAtAnyTolerance) {
   methods[2].aa = 4;
   size_t rates_differ = 0;
   for (double tol : {8.0, 4.0, 1.0, 0.25, 0.05}) {
-    const SurfaceTessellation t = tessellate_surface(closed_surface().patches, make_tess_view(s, tol));
+    const SurfaceTessellation t =
+        tessellate_surface(closed_surface().patches, make_tess_view(s, tol));
     for (const auto& r : t.rates) rates_differ += r != t.rates[0];
     for (RenderParams p : methods) {
       p.tess_tol = tol;
@@ -339,7 +341,8 @@ TEST(Bezier, TeapotHasNoCracksAtAnyTolerance) {
           if (!is_bg(img->pixels, x, y)) continue;
           bool near_bg = false;
           for (int dy = -r; dy <= r && !near_bg; ++dy) {
-            for (int dx = -r; dx <= r && !near_bg; ++dx) near_bg = is_bg(ref->pixels, x + dx, y + dy);
+            for (int dx = -r; dx <= r && !near_bg; ++dx)
+              near_bg = is_bg(ref->pixels, x + dx, y + dy);
           }
           EXPECT_TRUE(near_bg) << "crack at " << x << "," << y << ", --tess-tol " << tol;
         }
@@ -445,8 +448,9 @@ TEST(Bezier, TolerancesAreCheckedAndStatsCountTriangles) {
   EXPECT_GE(r->stats.seconds_tessellate, 0.0);
   EXPECT_LE(r->stats.seconds_tessellate, r->stats.seconds_prepare);
   const std::string json = r->stats.to_json();
-  EXPECT_NE(json.find("\"geometry\": {\"triangles\": " + std::to_string(r->stats.geometry_triangles)),
-            std::string::npos)
+  EXPECT_NE(
+      json.find("\"geometry\": {\"triangles\": " + std::to_string(r->stats.geometry_triangles)),
+      std::string::npos)
       << json;
   EXPECT_NE(json.find("\"tessellate\": "), std::string::npos) << json;
 }
