@@ -293,8 +293,8 @@ std::string format_vec(const Vec3& v) {
 }
 
 const char* shape_name(const Shape& shape) {
-  static constexpr const char* kNames[] = {"sphere", "cone", "polyhedron", "polygon",
-                                           "mesh",   "patch", "csg",  "bezier"};
+  static constexpr const char* kNames[] = {"sphere", "cone",  "polyhedron", "polygon",
+                                           "mesh",   "patch", "csg",        "bezier"};
   static_assert(std::size(kNames) == std::variant_size_v<Shape>);
   return kNames[shape.index()];
 }

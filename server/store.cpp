@@ -195,9 +195,8 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   }
   // Columns added since schema 1 was first written: a store from before
   // them gets them with the defaults (jobs then used).
-  for (const auto& [column, definition] :
-       {std::pair{"aa", "aa INTEGER NOT NULL DEFAULT -1"},
-        {"tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"}}) {
+  for (const auto& [column, definition] : {std::pair{"aa", "aa INTEGER NOT NULL DEFAULT -1"},
+                                           {"tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"}}) {
     Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info('jobs') WHERE name = ?");
     has.bind(column);
     if (has.step() != SQLITE_ROW) return has.error();
@@ -245,12 +244,11 @@ Status JobStore::apply_one(const Event& e) {
   if (const auto* a = std::get_if<event::JobAdded>(&e)) {
     const JobRecord& r = a->job;
     const JobSpec& s = r.spec;
-    Statement ins(
-        *this,
-        "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
-        "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
-        "spp, state, submitted_at, aa, tess_tol) "
-        "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    Statement ins(*this,
+                  "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
+                  "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
+                  "spp, state, submitted_at, aa, tess_tol) "
+                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,

@@ -617,7 +617,7 @@ TEST(SceneProto, RoundTripGivesTheSameScene) {
 
 TEST(SceneProto, NffScenesAndBezierSurfacesRoundTrip) {
   for (const std::string& path : {std::string(LOCUS_SHARED_DIR) + "/spd/s1/rings.nff",
-                                 std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json"}) {
+                                  std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json"}) {
     SCOPED_TRACE(path);
     Result<Scene> scene = load_scene(path);
     ASSERT_TRUE(scene.ok()) << scene.status().message();

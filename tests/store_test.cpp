@@ -183,9 +183,10 @@ TEST(JobStore, AStoreFromBeforeTheRenderColumnsGetsThemWithTheOldDefaults) {
     // The jobs table as written before `aa` and `tess_tol` were stored.
     sqlite3* db = nullptr;
     ASSERT_EQ(sqlite3_open((dir.path / "locus.db").string().c_str(), &db), SQLITE_OK);
-    EXPECT_EQ(sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN aa; ALTER TABLE jobs DROP COLUMN tess_tol",
-                           nullptr, nullptr, nullptr),
-              SQLITE_OK)
+    EXPECT_EQ(
+        sqlite3_exec(db, "ALTER TABLE jobs DROP COLUMN aa; ALTER TABLE jobs DROP COLUMN tess_tol",
+                     nullptr, nullptr, nullptr),
+        SQLITE_OK)
         << sqlite3_errmsg(db);
     sqlite3_close(db);
   }
