@@ -38,6 +38,7 @@ struct JobArgs {
   std::string boxes = "eye+shadow";
   int spp = 1;
   int aa = -1;  // -1: the method's default
+  double tess_tol = kDefaultTessTol;
   std::string frames;
   double orbit = 0;
   int bands = 0;
@@ -128,6 +129,7 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
   r.render.boxes = a.boxes;
   r.render.spp = a.spp;
   r.render.aa = a.aa;  // -1: the method's default
+  r.render.tess_tol = a.tess_tol;
   r.width = job.scene.camera.width;
   r.height = job.scene.camera.height;
   r.bands = a.bands;
@@ -417,6 +419,9 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
                   "local: N sub-scanlines per pixel row (multi-scanning, paper §3.3; default 4); "
                   "0 = point sampling at pixel centres")
       ->check(CLI::Range(0, kMaxAa));
+  cmd->add_option("--tess-tol", a.tess_tol,
+                  "Bezier surfaces: largest screen-space deviation of their triangles from the "
+                  "surface, in pixels (default 0.25)");
   cmd->add_option("--frames", a.frames, "Frames A-B of the animation (default 1)");
   cmd->add_option("--orbit", a.orbit,
                   "The camera orbits `at` about `up` by DEG degrees over the frames");

@@ -33,7 +33,8 @@ class PreparedScene {
  public:
   PreparedScene(const Scene& s, const RenderParams& params);
 
-  Scene scene;
+  double seconds_tessellate = 0;  // set first: the scene below is tessellated
+  Scene scene;                    // Bezier surfaces already cut into meshes
   CameraFrame camera;
   PrimitiveSet prims;
   Bvh bvh;

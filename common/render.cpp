@@ -13,6 +13,8 @@
 #include "common/prepared.h"
 #include "common/raytrace.h"
 #include "common/shadow_volume.h"
+#include "common/tessellate.h"
+#include "common/validate.h"
 
 namespace locus {
 
@@ -28,8 +30,21 @@ CameraFrame::CameraFrame(const Camera& c)
   v = glm::cross(u, w);
 }
 
+namespace {
+// Free-form surfaces become triangles first (METHOD.md §3): everything after
+// this sees a mesh.
+Scene tessellated(const Scene& s, const RenderParams& params, double* seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  Scene out = tessellate_scene(s, params.tess_tol);
+  *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+}  // namespace
+
 PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
-    : scene(s), camera(s.camera), prims(build_primitives(s)) {
+    : scene(tessellated(s, params, &seconds_tessellate)),
+      camera(scene.camera),
+      prims(build_primitives(scene)) {
   bvh_for_rays = params.boxes != Boxes::kNone;
   bvh_for_shadows = params.boxes == Boxes::kEyeShadow;
   if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
@@ -67,6 +82,10 @@ Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
   if (params.method == Method::kRaytrace && params.aa != 0) {
     return InvalidArgument("--aa " + std::to_string(params.aa) +
                            ": multi-scanning belongs to --method local; the ray tracer uses --spp N");
+  }
+  if (!(params.tess_tol > 0.0 && std::isfinite(params.tess_tol))) {
+    return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
+                           format_number(params.tess_tol));
   }
   if (scene.camera.width < 1 || scene.camera.height < 1) {
     return InvalidArgument("image size must be positive");
@@ -126,6 +145,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   for (auto& t : pool) t.join();
   for (const Stats& s : stats) result.stats += s;
   for (const double c : cpu) result.stats.seconds_render_cpu += c;
+  result.stats.geometry_triangles = ps.prims.triangles.size();
   result.stats.shadow_method = !ps.volumes ? "rays" : ps.volumes->search ? "volumes" : "volumes+rays";
   result.stats.seconds_render =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -139,6 +159,7 @@ Result<BandResult> render_image(const Scene& scene, const RenderParams& params) 
   const double prep = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   BandResult r = render_band(**prepared, Band{0, scene.camera.height}, params);
   r.stats.seconds_prepare = prep;
+  r.stats.seconds_tessellate = (*prepared)->seconds_tessellate;
   return r;
 }
 
@@ -146,6 +167,8 @@ Stats& Stats::operator+=(const Stats& o) {
   seconds_prepare += o.seconds_prepare;
   seconds_render += o.seconds_render;
   seconds_render_cpu += o.seconds_render_cpu;
+  seconds_tessellate += o.seconds_tessellate;
+  geometry_triangles = std::max(geometry_triangles, o.geometry_triangles);
   rays_eye += o.rays_eye;
   rays_reflected += o.rays_reflected;
   rays_refracted += o.rays_refracted;
@@ -165,6 +188,8 @@ std::string Stats::to_json() const {
   o.precision(9);
   o << "{\n  \"seconds\": {\"prepare\": " << seconds_prepare << ", \"render\": " << seconds_render
     << ", \"render_cpu\": " << seconds_render_cpu
+    << ", \"tessellate\": " << seconds_tessellate
+    << "},\n  \"geometry\": {\"triangles\": " << geometry_triangles
     << "},\n  \"rays\": {\"eye\": " << rays_eye << ", \"reflected\": " << rays_reflected
     << ", \"refracted\": " << rays_refracted << ", \"shadow\": " << rays_shadow
     << "},\n  \"tests\": {\"ray_object\": " << tests_ray_object

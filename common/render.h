@@ -19,6 +19,9 @@ enum class Method { kRaytrace, kLocal };
 enum class Boxes { kNone, kEye, kEyeShadow };
 
 inline constexpr int kMaxAa = 64;
+// `--tess-tol`: largest screen-space deviation of a tessellated free-form
+// surface from the true one, in pixels (docs/tessellation.md).
+inline constexpr double kDefaultTessTol = 0.25;
 
 struct RenderParams {
   Method method = Method::kRaytrace;
@@ -28,6 +31,7 @@ struct RenderParams {
   // §3.3); 0 = point sampling at pixel centres.
   int aa = 0;
   int threads = 0;   // 0 = all cores
+  double tess_tol = kDefaultTessTol;  // Bezier surfaces: pixels, > 0
 };
 
 // Rows [y0, y1) of the frame.
@@ -44,6 +48,11 @@ struct Stats {
   // CPU time of the rendering threads, summed (a load-independent cost for
   // benchmarks on a shared machine; not carried by the farm).
   double seconds_render_cpu = 0;
+  // Cutting Bezier surfaces into triangles, part of seconds_prepare.
+  double seconds_tessellate = 0;
+  // Triangles the frame is made of after tessellation (meshes, patch fans
+  // and tessellated surfaces). Summing bands or frames keeps the largest.
+  uint64_t geometry_triangles = 0;
   uint64_t rays_eye = 0;
   uint64_t rays_reflected = 0;
   uint64_t rays_refracted = 0;

@@ -93,6 +93,22 @@ struct Patch {
   std::vector<Vec3> normals;
 };
 
+// A free-form surface (METHOD.md §3): bicubic Bezier patches sharing one
+// material and transform. A patch's 16 control points are listed in rows of
+// four: points[4 * i + j] = P_ij, and the patch is
+// S(u, v) = sum_ij B_i(v) B_j(u) P_ij with Bernstein polynomials B of degree
+// 3, so u runs along a row and v across the rows. Neighbouring patches join
+// where their boundary rows or columns hold the same four points (as when
+// both are written from one vertex table, like the Utah teapot). The
+// renderer tessellates the surface per frame to a screen-space tolerance
+// (common/tessellate.h, docs/tessellation.md).
+struct BezierPatch {
+  std::array<Vec3, 16> points{};
+};
+struct BezierSurface {
+  std::vector<BezierPatch> patches;
+};
+
 enum class CsgOp { kUnion, kIntersection, kDifference };
 
 // A set operation of two solids, given as indices into Scene::objects. The
@@ -103,7 +119,7 @@ struct Csg {
   int right = -1;
 };
 
-using Shape = std::variant<Sphere, Cone, Polyhedron, Polygon, Mesh, Patch, Csg>;
+using Shape = std::variant<Sphere, Cone, Polyhedron, Polygon, Mesh, Patch, Csg, BezierSurface>;
 
 struct Object {
   Shape shape;

@@ -565,13 +565,38 @@ class SceneFromProto {
         c.right = p.csg().right();
         return c;
       }
+      case Object::kBezier:
+        return bezier(p.bezier(), path + ".bezier");
       case Object::SHAPE_NOT_SET:
         break;
     }
     error(path,
           "has no shape (expected one of sphere, cylinder, cone, box, prism, polyhedron, "
-          "polygon, mesh, patch, csg)");
+          "polygon, mesh, patch, csg, bezier)");
     return std::nullopt;
+  }
+
+  // Each patch is exactly 16 control points; their values are checked by
+  // validate_scene (finite).
+  std::optional<Shape> bezier(const v1::BezierSurface& p, const std::string& at) {
+    BezierSurface out;
+    bool ok = true;
+    for (int k = 0; k < p.patches_size(); ++k) {
+      const RepeatedField<double>& f = p.patches(k).points();
+      if (f.size() != 48) {
+        error(fmt::format("{}.patches[{}].points", at, k),
+              fmt::format("must hold 48 numbers (16 control points x, y, z in rows of four), "
+                          "got {}",
+                          f.size()));
+        ok = false;
+        continue;
+      }
+      BezierPatch patch;
+      for (int i = 0; i < 16; ++i) patch.points[i] = Vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]);
+      out.patches.push_back(patch);
+    }
+    if (!ok) return std::nullopt;
+    return out;
   }
 
   std::optional<Shape> hull(const std::vector<Vec3>& vertices, const std::string& at) {
@@ -751,6 +776,13 @@ struct ShapeToProto {
   void operator()(const Patch& p) const {
     put(o->mutable_patch()->mutable_vertices(), p.vertices);
     put(o->mutable_patch()->mutable_normals(), p.normals);
+  }
+  void operator()(const BezierSurface& b) const {
+    v1::BezierSurface* q = o->mutable_bezier();
+    for (const BezierPatch& patch : b.patches) {
+      put(q->add_patches()->mutable_points(),
+          std::vector<Vec3>(patch.points.begin(), patch.points.end()));
+    }
   }
   void operator()(const Csg& c) const {
     v1::Csg* q = o->mutable_csg();

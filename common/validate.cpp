@@ -245,6 +245,18 @@ Problems check(const Csg& c) {
   return out;
 }
 
+Problems check(const BezierSurface& b) {
+  Problems out;
+  if (b.patches.empty()) out.push_back({"patches", "the surface has no patches"});
+  for (size_t k = 0; k < b.patches.size(); ++k) {
+    for (size_t i = 0; i < b.patches[k].points.size(); ++i) {
+      check_finite(b.patches[k].points[i], fmt::format("patches[{}].points[{}]", k, i), out);
+      if (out.size() >= kMaxReported) return out;
+    }
+  }
+  return out;
+}
+
 bool is_solid(const Shape& s) {
   return std::visit(
       Overloaded{[](const Sphere&) { return true; }, [](const Cone& c) { return c.capped; },
@@ -282,7 +294,7 @@ std::string format_vec(const Vec3& v) {
 
 const char* shape_name(const Shape& shape) {
   static constexpr const char* kNames[] = {"sphere", "cone",  "polyhedron", "polygon",
-                                           "mesh",   "patch", "csg"};
+                                           "mesh",   "patch", "csg",        "bezier"};
   static_assert(std::size(kNames) == std::variant_size_v<Shape>);
   return kNames[shape.index()];
 }

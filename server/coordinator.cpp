@@ -20,6 +20,7 @@
 #include "common/animation.h"
 #include "common/image.h"
 #include "common/scene_io.h"
+#include "common/validate.h"
 #include "server/band_files.h"
 #include "server/paths.h"
 
@@ -364,13 +365,17 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
   std::string bytes;
   stored->SerializeToString(&bytes);
   spec.scene_hash = content_hash(bytes);
-  // What makes a retry a retry: the same scene and the same request.
+  // What makes a retry a retry: the same scene and the same request. The
+  // tolerance came later: at its default a job keeps the fingerprint it had.
+  const std::string tess_tol = spec.render.tess_tol != kDefaultTessTol
+                                   ? "|tess-tol " + format_number(spec.render.tess_tol)
+                                   : "";
   const std::string fingerprint =
       content_hash(spec.scene_hash + "|" + spec.render.method + "|" + spec.render.boxes + "|" +
                    std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
                    std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
                    std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" + r.output +
-                   "|" + std::to_string(r.orbit_degrees));
+                   "|" + std::to_string(r.orbit_degrees) + tess_tol);
 
   std::lock_guard lk(mu_);
   if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");

@@ -3,8 +3,11 @@
 #include <openssl/evp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
+
+#include "common/validate.h"
 
 namespace locus::farm {
 
@@ -43,6 +46,11 @@ Result<RenderParams> to_render_params(const RenderSettings& s, int threads) {
     return InvalidArgument("--aa " + std::to_string(p.aa) +
                            ": multi-scanning needs --method local; the ray tracer uses --spp N");
   }
+  if (!(s.tess_tol > 0.0 && std::isfinite(s.tess_tol))) {
+    return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
+                           format_number(s.tess_tol));
+  }
+  p.tess_tol = s.tess_tol;
   p.threads = threads;
   return p;
 }
@@ -53,6 +61,7 @@ RenderSettings from_render_params(const RenderParams& p) {
   s.boxes = p.boxes == Boxes::kNone ? "none" : (p.boxes == Boxes::kEye ? "eye" : "eye+shadow");
   s.spp = p.spp;
   s.aa = p.aa;
+  s.tess_tol = p.tess_tol;
   return s;
 }
 

@@ -54,6 +54,7 @@ struct RenderSettings {
   // local only: sub-scanlines per pixel row, 0 = point sampling; -1: the
   // method's default (kDefaultAa for local).
   int aa = -1;
+  double tess_tol = kDefaultTessTol;  // pixels (--tess-tol)
 };
 
 // Checks the names and ranges; the thread count is the worker's own.

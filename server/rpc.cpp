@@ -224,6 +224,7 @@ v1::RenderSettings ToProto(const farm::RenderSettings& s) {
   p.set_boxes(s.boxes);
   p.set_spp(s.spp);
   p.set_aa(s.aa);
+  p.set_tess_tol(s.tess_tol);
   return p;
 }
 
@@ -233,6 +234,7 @@ farm::RenderSettings FromProto(const v1::RenderSettings& p) {
   s.boxes = p.boxes().empty() ? farm::RenderSettings{}.boxes : p.boxes();
   s.spp = p.spp() == 0 ? 1 : p.spp();
   s.aa = p.has_aa() ? p.aa() : farm::RenderSettings{}.aa;
+  s.tess_tol = p.has_tess_tol() ? p.tess_tol() : farm::RenderSettings{}.tess_tol;
   return s;
 }
 
@@ -246,6 +248,8 @@ v1::RenderStats ToProto(const Stats& s) {
   p.set_rays_shadow(s.rays_shadow);
   p.set_tests_ray_object(s.tests_ray_object);
   p.set_tests_shadow_volume(s.tests_shadow_volume);
+  p.set_seconds_tessellate(s.seconds_tessellate);
+  p.set_geometry_triangles(s.geometry_triangles);
   p.set_pixels_total(s.pixels_total);
   p.set_pixels_ray_traced(s.pixels_ray_traced);
   p.set_spans_total(s.spans_total);
@@ -264,6 +268,8 @@ Stats FromProto(const v1::RenderStats& p) {
   s.rays_shadow = p.rays_shadow();
   s.tests_ray_object = p.tests_ray_object();
   s.tests_shadow_volume = p.tests_shadow_volume();
+  s.seconds_tessellate = p.seconds_tessellate();
+  s.geometry_triangles = p.geometry_triangles();
   s.pixels_total = p.pixels_total();
   s.pixels_ray_traced = p.pixels_ray_traced();
   s.spans_total = p.spans_total();

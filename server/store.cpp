@@ -27,13 +27,14 @@ CREATE TABLE IF NOT EXISTS jobs(
   output TEXT NOT NULL,
   orbit REAL NOT NULL,
   method TEXT NOT NULL, boxes TEXT NOT NULL, spp INTEGER NOT NULL,
-  aa INTEGER NOT NULL DEFAULT -1,
   band_edges TEXT NOT NULL DEFAULT '',
   state TEXT NOT NULL,
   error TEXT NOT NULL DEFAULT '',
   submitted_at REAL NOT NULL,
   finished_at REAL,
-  stats TEXT NOT NULL DEFAULT '');
+  stats TEXT NOT NULL DEFAULT '',
+  aa INTEGER NOT NULL DEFAULT -1,
+  tess_tol REAL NOT NULL DEFAULT 0.25);
 CREATE TABLE IF NOT EXISTS bands(
   job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
   done INTEGER NOT NULL DEFAULT 0,
@@ -59,7 +60,7 @@ CREATE INDEX IF NOT EXISTS attempts_by_band ON attempts(job_id, frame, band);
 CREATE VIEW IF NOT EXISTS leases AS
   SELECT lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at
   FROM attempts WHERE outcome IS NULL;
-INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '2');
+INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '1');
 )sql";
 
 double wall_now() {
@@ -74,7 +75,8 @@ std::string encode_stats(const Stats& s) {
   o << s.seconds_prepare << ' ' << s.seconds_render << ' ' << s.rays_eye << ' ' << s.rays_reflected
     << ' ' << s.rays_refracted << ' ' << s.rays_shadow << ' ' << s.tests_ray_object << ' '
     << s.tests_shadow_volume << ' ' << s.pixels_total << ' ' << s.pixels_ray_traced << ' '
-    << s.spans_total << ' ' << s.spans_ray_traced << ' ' << s.shadow_method;
+    << s.spans_total << ' ' << s.spans_ray_traced << ' ' << s.shadow_method << ' '
+    << s.seconds_tessellate << ' ' << s.geometry_triangles;
   return o.str();
 }
 
@@ -86,6 +88,13 @@ Stats decode_stats(const std::string& text) {
       s.pixels_total >> s.pixels_ray_traced >> s.spans_total >> s.spans_ray_traced >>
       s.shadow_method;
   if (!i && !text.empty()) return Stats();
+  // Written by later versions only: absent in older stores.
+  double tessellate = 0;
+  uint64_t triangles = 0;
+  if (i >> tessellate >> triangles) {
+    s.seconds_tessellate = tessellate;
+    s.geometry_triangles = triangles;
+  }
   return s;
 }
 
@@ -181,25 +190,22 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   if (Status s = store->exec("PRAGMA synchronous=NORMAL"); !s.ok()) return s;
   if (Status s = store->exec(kSchema); !s.ok())
     return FailedPrecondition(path + ": " + s.message());
-  std::string version;
-  {
-    Statement check(*store, "SELECT value FROM meta WHERE key = 'schema'");
-    if (check.step() == SQLITE_ROW) version = check.text(0);
-  }
-  const bool version1 = version == "1";
-  if (version1) {
-    // Version 1 (before cost-aware bands) did not keep a job's --aa or its
-    // band edges: a v1 job keeps the method's default aa and equal bands.
-    if (Status s = store->exec(
-            "BEGIN; ALTER TABLE jobs ADD COLUMN aa INTEGER NOT NULL DEFAULT -1; "
-            "ALTER TABLE jobs ADD COLUMN band_edges TEXT NOT NULL DEFAULT ''; "
-            "UPDATE meta SET value = '2' WHERE key = 'schema'; COMMIT");
-        !s.ok()) {
-      return FailedPrecondition(path + ": upgrading the job store from version 1: " + s.message());
-    }
-  }
-  if (!version1 && version != "2") {
+  Statement check(*store, "SELECT value FROM meta WHERE key = 'schema'");
+  if (check.step() != SQLITE_ROW || check.text(0) != "1") {
     return FailedPrecondition(path + ": a job store of another version; use another --data");
+  }
+  // Columns added since schema 1 was first written: a store from before
+  // them gets them with the defaults (jobs then used).
+  for (const auto& [column, definition] : {std::pair{"aa", "aa INTEGER NOT NULL DEFAULT -1"},
+                                           {"tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"},
+                                           {"band_edges", "band_edges TEXT NOT NULL DEFAULT ''"}}) {
+    Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info('jobs') WHERE name = ?");
+    has.bind(column);
+    if (has.step() != SQLITE_ROW) return has.error();
+    if (has.integer(0) == 0) {
+      const std::string alter = std::string("ALTER TABLE jobs ADD COLUMN ") + definition;
+      if (Status s = store->exec(alter.c_str()); !s.ok()) return s;
+    }
   }
   return store;
 }
@@ -240,16 +246,15 @@ Status JobStore::apply_one(const Event& e) {
   if (const auto* a = std::get_if<event::JobAdded>(&e)) {
     const JobRecord& r = a->job;
     const JobSpec& s = r.spec;
-    Statement ins(
-        *this,
-        "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
-        "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
-        "spp, aa, band_edges, state, submitted_at) "
-        "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    Statement ins(*this,
+                  "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
+                  "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
+                  "spp, state, submitted_at, aa, tess_tol, band_edges) "
+                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
-             s.render.method, s.render.boxes, s.render.spp, s.render.aa,
-             band_edges_text(s.band_edges), job_state_name(JobState::kQueued), now);
+             s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,
+             s.render.aa, s.render.tess_tol, band_edges_text(s.band_edges));
     return ins.run();
   }
   if (const auto* c = std::get_if<event::JobStateChanged>(&e)) {
@@ -332,7 +337,7 @@ Result<RecoveredState> JobStore::recover() {
       *this,
       "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
-      "state, error, submitted_at, finished_at, stats, aa, band_edges FROM jobs ORDER BY seq");
+      "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -356,9 +361,8 @@ Result<RecoveredState> JobStore::recover() {
     s.render.method = jobs.text(13);
     s.render.boxes = jobs.text(14);
     s.render.spp = static_cast<int>(jobs.integer(15));
-    s.render.aa = static_cast<int>(jobs.integer(21));
     {
-      auto edges = band_edges_from_text(jobs.text(22), s.height, s.bands);
+      auto edges = band_edges_from_text(jobs.text(23), s.height, s.bands);
       if (!edges.ok()) {
         std::string why = "job store: job ";
         why.append(r.job_id).append(": ").append(edges.status().message());
@@ -371,6 +375,8 @@ Result<RecoveredState> JobStore::recover() {
     const double submitted = jobs.real(18);
     j.seconds_elapsed = (jobs.null(19) ? now : jobs.real(19)) - submitted;
     j.stats = decode_stats(jobs.text(20));
+    s.render.aa = static_cast<int>(jobs.integer(21));
+    s.render.tess_tol = jobs.real(22);
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {

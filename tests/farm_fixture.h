@@ -33,6 +33,7 @@ inline const std::string kBalls = std::string(LOCUS_SHARED_DIR) + "/spd/s1/balls
 inline const std::string kSpheres = std::string(LOCUS_SOURCE_DIR) + "/scenes/simple/spheres.json";
 inline const std::string kGlass = std::string(LOCUS_SOURCE_DIR) + "/scenes/paper/a_glass.json";
 inline const std::string kAnim = std::string(LOCUS_SOURCE_DIR) + "/scenes/anim/glass_and_mirror.json";
+inline const std::string kTeapot = std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json";
 
 inline fs::path temp_dir() {
   std::string t = (fs::temp_directory_path() / "locus-farm-test-XXXXXX").string();

@@ -190,6 +190,16 @@ locus submit "$tmp/bad.json" --farm "$farm" -o "$tmp/x.png" 2>"$tmp/err" && bad 
     { bad "bad scene message"; cat "$tmp/err"; }; }
 jobs_after=$(locus status --farm "$farm" | wc -l)
 [ "$jobs_before" = "$jobs_after" ] && ok "the bad scene created no job" || bad "the bad scene created a job"
+for tol in 0 -1 nan; do
+  locus submit "$src/scenes/teapot.json" --farm "$farm" --tess-tol "$tol" -o "$tmp/x.png" 2>"$tmp/err" &&
+    bad "--tess-tol $tol accepted" ||
+    { grep -q -- "--tess-tol must be a positive number of pixels" "$tmp/err" &&
+      ok "--tess-tol $tol at submit: $(head -1 "$tmp/err")" || { bad "--tess-tol $tol message"; cat "$tmp/err"; }; }
+done
+"$bin/locus" render "$src/scenes/teapot.json" --workers 0 --tess-tol 0 -o "$tmp/x.png" 2>"$tmp/err" &&
+  bad "render --tess-tol 0 accepted" ||
+  { grep -q -- "--tess-tol must be a positive number of pixels" "$tmp/err" &&
+    ok "render --tess-tol 0: $(head -1 "$tmp/err")" || { bad "render --tess-tol 0 message"; cat "$tmp/err"; }; }
 locus status j9999 --farm "$farm" 2>"$tmp/err" && bad "unknown job accepted" ||
   { grep -q "unknown" "$tmp/err" && ok "unknown job: $(cat "$tmp/err")" || bad "unknown job message"; }
 "$bin/locus" workers --farm 127.0.0.1:1 2>"$tmp/err" && bad "unreachable farm accepted" ||

@@ -64,6 +64,28 @@ TEST_F(FarmTest, StitchedFramesEqualSingleProcessForAnySplit) {
   EXPECT_EQ(iv.stats.shadow_method, "volumes");
 }
 
+TEST_F(FarmTest, BezierPatchesTravelAndTessellateAlikeOnEveryWorker) {
+  // Workers get the patches and cut them themselves, per frame, at the
+  // job's --tess-tol: any band split gives the single-process image.
+  start();
+  add_workers(2);
+  for (int bands : {3, 48}) {
+    SubmitRequest r = request(kTeapot, 64, 48, 1, 2, bands, "tp_####.exr", 40.0);
+    r.render.tess_tol = 0.5;
+    const JobInfo job = run(r);
+    expect_identical(job, r);
+    EXPECT_GT(job.stats.geometry_triangles, 32u * 8);
+  }
+  // The tolerance is checked at submission, naming the flag.
+  SubmitRequest bad = request(kTeapot, 64, 48, 1, 1, 1, "bad.png");
+  bad.render.tess_tol = 0;
+  auto refused = client_->submit(bad);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("--tess-tol must be a positive number of pixels"),
+            std::string::npos)
+      << refused.status().message();
+}
+
 TEST_F(FarmTest, TenFrameAnimationOverTwoWorkers) {
   start();
   add_workers(2);

@@ -136,6 +136,7 @@ inline Exceptions expect_agreement(const Scene& s, const RenderParams& local,
   Exceptions ex;
   RenderParams rp;
   rp.threads = local.threads;
+  rp.tess_tol = local.tess_tol;  // the same triangles
   auto ref_ps = prepare_scene(s, rp);
   auto loc_ps = prepare_scene(s, local);
   EXPECT_TRUE(ref_ps.ok() && loc_ps.ok()) << what;

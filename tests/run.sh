@@ -4,12 +4,13 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/local/build.sh
-# Loader tests, and the farm's scheduling, store and restart logic, again under
+# Loader tests, the farm's scheduling, store and restart logic, and the
+# tessellation of Bezier surfaces (without rendering), again under
 # AddressSanitizer and UndefinedBehaviorSanitizer.
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*'
+  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*'
 # libFuzzer targets (clang, ASan+UBSan): the NFF loader, the JSON scene
 # loader and the coordinator's request handling, each FUZZ_SECONDS (30) on
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and

@@ -340,7 +340,7 @@ TEST(SceneJson, DerivedShapesNameTheFieldsWritten) {
         "1024 vertices, got 3",
         "scene.json: objects[6].cone.base_radius: must not be negative, got -1",
         "scene.json: objects[7]: has no shape (expected one of sphere, cylinder, cone, box, prism, "
-        "polyhedron, polygon, mesh, patch, csg)"}) {
+        "polyhedron, polygon, mesh, patch, csg, bezier)"}) {
     EXPECT_CONTAINS(e, want);
   }
 }
@@ -569,6 +569,11 @@ void expect_same(const Scene& a, const Scene& b) {
           } else if constexpr (std::is_same_v<T, Patch>) {
             EXPECT_EQ(s.vertices, t.vertices);
             EXPECT_EQ(s.normals, t.normals);
+          } else if constexpr (std::is_same_v<T, BezierSurface>) {
+            ASSERT_EQ(s.patches.size(), t.patches.size());
+            for (size_t k = 0; k < s.patches.size(); ++k) {
+              EXPECT_EQ(s.patches[k].points, t.patches[k].points);
+            }
           } else {
             EXPECT_EQ(s.op, t.op);
             EXPECT_EQ(s.left, t.left);
@@ -610,12 +615,16 @@ TEST(SceneProto, RoundTripGivesTheSameScene) {
   EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(proto, scene_to_proto(*back)));
 }
 
-TEST(SceneProto, NffScenesRoundTrip) {
-  Result<Scene> nff = load_nff(std::string(LOCUS_SHARED_DIR) + "/spd/s1/rings.nff");
-  ASSERT_TRUE(nff.ok()) << nff.status().message();
-  Result<Scene> back = scene_from_proto(scene_to_proto(*nff), "wire");
-  ASSERT_TRUE(back.ok()) << back.status().message();
-  expect_same(*nff, *back);
+TEST(SceneProto, NffScenesAndBezierSurfacesRoundTrip) {
+  for (const std::string& path : {std::string(LOCUS_SHARED_DIR) + "/spd/s1/rings.nff",
+                                  std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json"}) {
+    SCOPED_TRACE(path);
+    Result<Scene> scene = load_scene(path);
+    ASSERT_TRUE(scene.ok()) << scene.status().message();
+    Result<Scene> back = scene_from_proto(scene_to_proto(*scene), "wire");
+    ASSERT_TRUE(back.ok()) << back.status().message();
+    expect_same(*scene, *back);
+  }
 }
 
 TEST(SceneProto, FromProtoValidates) {

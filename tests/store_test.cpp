@@ -62,6 +62,8 @@ JobSpec spec(int w, int h, int first, int last, int bands) {
   s.bands = bands;
   s.output = "shot_####.exr";
   s.render.spp = 2;
+  s.render.aa = 3;
+  s.render.tess_tol = 0.5;
   return s;
 }
 
@@ -71,6 +73,7 @@ BandOutput pixels(const std::string& worker, const BandTask& t) {
   o.lease_id = t.lease_id;
   o.rgb.assign(static_cast<size_t>(t.width) * (t.y1 - t.y0) * 3, 0.5f);
   o.stats.pixels_total = static_cast<uint64_t>(t.width) * (t.y1 - t.y0);
+  o.stats.geometry_triangles = 100;
   return o;
 }
 
@@ -125,11 +128,13 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   EXPECT_EQ(j.record.spec.output, "shot_####.exr");
   EXPECT_EQ(j.record.spec.render.spp, 2);
   EXPECT_EQ(j.record.spec.render.aa, 16);
+  EXPECT_EQ(j.record.spec.render.tess_tol, 0.5);
   EXPECT_EQ(j.record.spec.band_edges, (std::vector<int>{0, 1, 4, 6}));
   EXPECT_EQ(j.state, JobState::kRunning);
   EXPECT_EQ(j.frames_written, std::vector<int>{2});
   EXPECT_EQ(j.done_bands.size(), 3u);
   EXPECT_EQ(j.stats.pixels_total, 3u * 8);
+  EXPECT_EQ(j.stats.geometry_triangles, 100u);  // every band's frame, not their sum
   ASSERT_EQ(j.failures.size(), 1u);
   EXPECT_EQ(j.failures[0].frame, 3);
   EXPECT_EQ(j.failures[0].band, 0);
@@ -158,35 +163,6 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   EXPECT_EQ(again.add_job(spec(4, 6, 1, 1, 1)), "j0002");
 }
 
-TEST(JobStore, UpgradesAVersion1StoreKeepingItsJobs) {
-  TempDir dir;
-  FakeClock clock;
-  {
-    auto store = open_store(dir.path);
-    ASSERT_TRUE(store.ok());
-    Scheduler s(SchedulerOptions{}, clock.fn());
-    s.add_job(spec(4, 6, 1, 1, 2));
-    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
-  }
-  // Make it what version 1 wrote: no aa, no band edges.
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open((dir.path / "locus.db").string().c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db,
-                         "ALTER TABLE jobs DROP COLUMN aa; ALTER TABLE jobs DROP COLUMN band_edges; "
-                         "UPDATE meta SET value = '1' WHERE key = 'schema'",
-                         nullptr, nullptr, nullptr),
-            SQLITE_OK);
-  sqlite3_close(db);
-  auto store = open_store(dir.path);
-  ASSERT_TRUE(store.ok()) << store.status().message();
-  auto state = (*store)->recover();
-  ASSERT_TRUE(state.ok()) << state.status().message();
-  ASSERT_EQ(state->jobs.size(), 1u);
-  EXPECT_EQ(state->jobs[0].record.spec.render.aa, -1);  // the method's default
-  EXPECT_TRUE(state->jobs[0].record.spec.band_edges.empty());
-  EXPECT_EQ(band_rows(state->jobs[0].record.spec, 1).y0, 3);
-}
-
 TEST(BandFiles, EdgesAsTextRoundTripAndAreChecked) {
   EXPECT_EQ(band_edges_text({0, 2, 7}), "0 2 7");
   EXPECT_EQ(*band_edges_from_text("0 2 7", 7, 2), (std::vector<int>{0, 2, 7}));
@@ -208,6 +184,41 @@ TEST(JobStore, RefusesAnotherSchemaAndReportsAnUnwritableDirectory) {
   std::ofstream((dir.path / "junk.db").string()) << "not a database at all, just text";
   auto junk = JobStore::open((dir.path / "junk.db").string());
   EXPECT_FALSE(junk.ok());
+}
+
+TEST(JobStore, AStoreFromBeforeTheRenderColumnsGetsThemWithTheOldDefaults) {
+  TempDir dir;
+  FakeClock clock;
+  {
+    auto store = open_store(dir.path);
+    ASSERT_TRUE(store.ok());
+    Scheduler s(SchedulerOptions{}, clock.fn());
+    s.add_job(spec(4, 6, 1, 1, 2));
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  {
+    // The jobs table as written before `aa`, `tess_tol` and `band_edges`
+    // were stored.
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir.path / "locus.db").string().c_str(), &db), SQLITE_OK);
+    EXPECT_EQ(
+        sqlite3_exec(db,
+                     "ALTER TABLE jobs DROP COLUMN aa; ALTER TABLE jobs DROP COLUMN tess_tol; "
+                     "ALTER TABLE jobs DROP COLUMN band_edges",
+                     nullptr, nullptr, nullptr),
+        SQLITE_OK)
+        << sqlite3_errmsg(db);
+    sqlite3_close(db);
+  }
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok()) << state.status().message();
+  ASSERT_EQ(state->jobs.size(), 1u);
+  EXPECT_EQ(state->jobs[0].record.spec.render.aa, -1);  // the method's default
+  EXPECT_EQ(state->jobs[0].record.spec.render.tess_tol, kDefaultTessTol);
+  EXPECT_TRUE(state->jobs[0].record.spec.band_edges.empty());  // equal heights
+  EXPECT_EQ(band_rows(state->jobs[0].record.spec, 1).y0, 3);
 }
 
 TEST(BandFiles, WriteCommitReadAndRejectTornFiles) {

@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "common/animation.h"
+#include "common/prepared.h"
 #include "common/scene_io.h"
 #include "proto/scene.pb.h"
 #include "server/paths.h"
@@ -54,11 +55,13 @@ Result<BandOutput> BandRenderer::render(const BandTask& t) {
   }
   // Everything prepare_scene depends on: the bands of one frame share it.
   char key[512];
-  std::snprintf(key, sizeof key, "%s|%d|%dx%d|%.17g|%d-%d|%s|%s|%d", t.scene_hash.c_str(), t.frame,
-                t.width, t.height, t.orbit_degrees, t.frame_first, t.frame_last,
-                t.render.method.c_str(), t.render.boxes.c_str(), params->spp);
+  std::snprintf(key, sizeof key, "%s|%d|%dx%d|%.17g|%d-%d|%s|%s|%d|%d|%.17g", t.scene_hash.c_str(),
+                t.frame, t.width, t.height, t.orbit_degrees, t.frame_first, t.frame_last,
+                t.render.method.c_str(), t.render.boxes.c_str(), params->spp, params->aa,
+                params->tess_tol);
   std::shared_ptr<const PreparedScene> prepared;
   double prepare_seconds = 0;
+  bool fresh = false;
   for (auto p = prepared_.begin(); p != prepared_.end(); ++p) {
     if (p->key == key) {
       prepared = p->scene;
@@ -74,6 +77,7 @@ Result<BandOutput> BandRenderer::render(const BandTask& t) {
     if (!r.ok()) return r.status();
     prepared = *r;
     ++prepares_;
+    fresh = true;
     prepare_seconds = std::chrono::duration<double>(SteadyClock::now() - start).count();
     prepared_.push_front(Prepared{key, prepared});
     while (prepared_.size() > max_prepared_) prepared_.pop_back();
@@ -83,6 +87,8 @@ Result<BandOutput> BandRenderer::render(const BandTask& t) {
   out.rgb = std::move(band.pixels.rgb);
   out.stats = band.stats;
   out.stats.seconds_prepare = prepare_seconds;
+  // Like prepare time, tessellation is counted by the band that prepared.
+  out.stats.seconds_tessellate = fresh ? prepared->seconds_tessellate : 0.0;
   return out;
 }
 

@@ -668,6 +668,17 @@ def write_md(path, rows, conv, cross, checks, info):
         f.write("\n".join(L))
 
 
+def log_axes(ax, title, xlabel, ylabel, size=7):
+    """Log-log axes with a light grid, as every chart of the benches has."""
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_title(title, fontsize=size + 2)
+    ax.tick_params(labelsize=size)
+    ax.grid(True, which="both", alpha=0.25)
+    ax.set_xlabel(xlabel, fontsize=size)
+    ax.set_ylabel(ylabel, fontsize=size)
+
+
 def chart(path, rows, conv, plan, metric):
     import matplotlib
     matplotlib.use("Agg")
@@ -703,13 +714,8 @@ def chart(path, rows, conv, plan, metric):
                     and c.get(metric, 0) > 0:
                 h = ax.axhline(c[metric], color="0.5", linestyle=":", linewidth=1)
                 handles["Locus reference: spp16 vs spp32"] = h
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_title(f"{scene} {size}x{size}", fontsize=9)
-        ax.tick_params(labelsize=7)
-        ax.grid(True, which="both", alpha=0.25)
-        ax.set_xlabel("render time, 1 thread (s)", fontsize=7)
-        ax.set_ylabel("RMSE" if metric == "rmse" else "RMSE over edge pixels", fontsize=7)
+        log_axes(ax, f"{scene} {size}x{size}", "render time, 1 thread (s)",
+                 "RMSE" if metric == "rmse" else "RMSE over edge pixels")
     for ax in list(axes.flat)[len(panels):]:
         ax.axis("off")
     fig.legend(list(handles.values()), list(handles.keys()), loc="lower center",
