@@ -8,6 +8,8 @@ PACKAGES=(
   protobuf-compiler libprotobuf-dev protobuf-compiler-grpc libgrpc++-dev
   libglm-dev libopenimageio-dev openimageio-tools libspdlog-dev libgtest-dev libcli11-dev
   libtinyobjloader-dev libsqlite3-dev libssl-dev
+  # Metrics (prometheus-cpp: core and the pull endpoint).
+  prometheus-cpp-dev
   sqlite3 iproute2
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio
   # TLS test certificates (tests/tls/make_certs.sh); libFuzzer targets:
