@@ -4,12 +4,19 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/local/build.sh
-# Loader tests, and the farm's scheduling, store and restart logic, again under
-# AddressSanitizer and UndefinedBehaviorSanitizer.
+# The container test's images (tests/container/run.sh) build in the
+# background meanwhile: debootstrap and apt mostly wait on the network and
+# dpkg, and the fuzzers below leave a core free. Its result is the
+# container_farm test's, which finds the layers cached.
+bash tests/container/run.sh --prepare build/bin . >build/container-prepare.log 2>&1 &
+container_prepare=$!
+trap 'kill "$container_prepare" 2>/dev/null || true' EXIT
+# Loader tests, the farm's scheduling, store, restart, drain and metrics logic
+# and the log formatter, again under AddressSanitizer and UndefinedBehaviorSanitizer.
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*'
+  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*'
 # libFuzzer targets (clang, ASan+UBSan): the NFF loader, the JSON scene
 # loader and the coordinator's request handling, each FUZZ_SECONDS (30) on
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and
@@ -25,5 +32,7 @@ for pair in nff:nff scene_json:json coordinator:coordinator; do
     { tail -60 "build-fuzz/$target.log"; echo "fuzz: $target failed; input in build-fuzz/$target-*"; exit 1; }
   grep -E "^stat::number_of_executed_units|^Done" "build-fuzz/$target.log" || true
 done
+wait "$container_prepare" || true
+tail -3 build/container-prepare.log
 cd build
 ctest --output-on-failure -j "$(nproc)"

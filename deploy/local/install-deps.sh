@@ -11,10 +11,13 @@ PACKAGES=(
   # Metrics (prometheus-cpp: core and the pull endpoint).
   prometheus-cpp-dev
   sqlite3 iproute2
-  python3 python3-numpy python3-pil python3-matplotlib python3-openimageio
+  python3 python3-numpy python3-pil python3-matplotlib python3-openimageio python3-yaml
   # TLS test certificates (tests/tls/make_certs.sh); libFuzzer targets:
   # clang, and libFuzzer itself (libclang_rt.fuzzer) from libclang-rt-14-dev.
   openssl clang libclang-rt-14-dev
+  # Containers (tests/container/run.sh, deploy/): the engine, compose, and
+  # debootstrap for the base image (deploy/docker/make-base.sh).
+  docker.io docker-compose debootstrap
 )
 
 missing=()
