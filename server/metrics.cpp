@@ -16,6 +16,33 @@ const prometheus::Histogram::BucketBoundaries& band_seconds_buckets() {
   return buckets;
 }
 
+prometheus::Family<prometheus::Counter>& counters(prometheus::Registry& registry,
+                                                  const std::string& name,
+                                                  const std::string& help) {
+  return prometheus::BuildCounter().Name(name).Help(help).Register(registry);
+}
+
+prometheus::Family<prometheus::Gauge>& gauges(prometheus::Registry& registry,
+                                              const std::string& name, const std::string& help) {
+  return prometheus::BuildGauge().Name(name).Help(help).Register(registry);
+}
+
+prometheus::Counter& counter(prometheus::Registry& registry, const std::string& name,
+                             const std::string& help) {
+  return counters(registry, name, help).Add({});
+}
+
+prometheus::Gauge& gauge(prometheus::Registry& registry, const std::string& name,
+                         const std::string& help) {
+  return gauges(registry, name, help).Add({});
+}
+
+prometheus::Histogram& band_seconds(prometheus::Registry& registry, const std::string& name,
+                                    const std::string& help) {
+  return prometheus::BuildHistogram().Name(name).Help(help).Register(registry).Add(
+      {}, band_seconds_buckets());
+}
+
 std::string metrics_text(const prometheus::Registry& registry) {
   return prometheus::TextSerializer().Serialize(registry.Collect());
 }
@@ -69,68 +96,37 @@ constexpr std::array<JobState, 5> kJobStates = {JobState::kQueued, JobState::kRu
 
 CoordinatorMetrics::CoordinatorMetrics()
     : registry_(std::make_shared<prometheus::Registry>()),
-      bands_(prometheus::BuildGauge()
-                 .Name("locus_bands")
-                 .Help("Bands of the jobs the coordinator holds, by state: queued (waiting for a "
-                       "worker), running (leased), done")
-                 .Register(*registry_)),
+      bands_(gauges(*registry_, "locus_bands",
+                    "Bands of the jobs the coordinator holds, by state: queued (waiting for a "
+                    "worker), running (leased), done")),
       bands_queued_(bands_.Add({{"state", "queued"}})),
       bands_running_(bands_.Add({{"state", "running"}})),
       bands_done_(bands_.Add({{"state", "done"}})),
-      jobs_(prometheus::BuildGauge()
-                .Name("locus_jobs")
-                .Help("Jobs the coordinator holds, by state")
-                .Register(*registry_)),
-      workers_(prometheus::BuildGauge()
-                   .Name("locus_workers_connected")
-                   .Help("Workers registered and not dropped for silence")
-                   .Register(*registry_)
-                   .Add({})),
-      jobs_submitted_(prometheus::BuildCounter()
-                          .Name("locus_jobs_submitted_total")
-                          .Help("Jobs accepted since the coordinator started")
-                          .Register(*registry_)
-                          .Add({})),
-      jobs_finished_(prometheus::BuildCounter()
-                         .Name("locus_jobs_finished_total")
-                         .Help("Jobs that ended since the coordinator started, by final state")
-                         .Register(*registry_)),
-      bands_completed_(prometheus::BuildCounter()
-                           .Name("locus_bands_completed_total")
-                           .Help("Band results accepted since the coordinator started")
-                           .Register(*registry_)
-                           .Add({})),
-      band_seconds_(prometheus::BuildHistogram()
-                        .Name("locus_band_render_seconds")
-                        .Help("Seconds from a band's lease to its accepted result (rendering, "
-                              "scene fetch and transfer)")
-                        .Register(*registry_)
-                        .Add({}, band_seconds_buckets())),
-      failures_(prometheus::BuildCounter()
-                    .Name("locus_band_failures_total")
-                    .Help("Failed band attempts charged to the band, by reason: failed (the "
-                          "worker's error), malformed (pixels), lapsed (lease not renewed), "
-                          "silent (worker dropped)")
-                    .Register(*registry_)),
-      retries_(prometheus::BuildCounter()
-                   .Name("locus_band_retries_total")
-                   .Help("Bands put back in the queue to be leased again (after a failure, a "
-                         "lapse, a silent worker or a hand-back)")
-                   .Register(*registry_)
-                   .Add({})),
-      speculative_(prometheus::BuildCounter()
-                       .Name("locus_speculative_leases_total")
-                       .Help("Second leases of bands running far longer than their peers")
-                       .Register(*registry_)
-                       .Add({})),
-      received_(prometheus::BuildCounter()
-                    .Name("locus_rpc_received_bytes_total")
-                    .Help("Bytes of request messages received, by call")
-                    .Register(*registry_)),
-      sent_(prometheus::BuildCounter()
-                .Name("locus_rpc_sent_bytes_total")
-                .Help("Bytes of response messages sent, by call")
-                .Register(*registry_)) {
+      jobs_(gauges(*registry_, "locus_jobs", "Jobs the coordinator holds, by state")),
+      workers_(gauge(*registry_, "locus_workers_connected",
+                     "Workers registered and not dropped for silence")),
+      jobs_submitted_(counter(*registry_, "locus_jobs_submitted_total",
+                              "Jobs accepted since the coordinator started")),
+      jobs_finished_(counters(*registry_, "locus_jobs_finished_total",
+                              "Jobs that ended since the coordinator started, by final state")),
+      bands_completed_(counter(*registry_, "locus_bands_completed_total",
+                               "Band results accepted since the coordinator started")),
+      band_seconds_(band_seconds(*registry_, "locus_band_render_seconds",
+                                 "Seconds from a band's lease to its accepted result (rendering, "
+                                 "scene fetch and transfer)")),
+      failures_(counters(*registry_, "locus_band_failures_total",
+                         "Failed band attempts charged to the band, by reason: failed (the "
+                         "worker's error), malformed (pixels), lapsed (lease not renewed), "
+                         "silent (worker dropped)")),
+      retries_(counter(*registry_, "locus_band_retries_total",
+                       "Bands put back in the queue to be leased again (after a failure, a "
+                       "lapse, a silent worker or a hand-back)")),
+      speculative_(counter(*registry_, "locus_speculative_leases_total",
+                           "Second leases of bands running far longer than their peers")),
+      received_(counters(*registry_, "locus_rpc_received_bytes_total",
+                         "Bytes of request messages received, by call")),
+      sent_(counters(*registry_, "locus_rpc_sent_bytes_total",
+                     "Bytes of response messages sent, by call")) {
   // Every series exists from the start, at zero.
   for (JobState s : kJobStates) {
     jobs_by_state_[static_cast<size_t>(s)] = &jobs_.Add({{"state", job_state_name(s)}});

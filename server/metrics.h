@@ -34,6 +34,20 @@ namespace locus::farm {
 // take from milliseconds (a row of sky) to minutes (glass at 16k).
 const prometheus::Histogram::BucketBoundaries& band_seconds_buckets();
 
+// A family registered in `registry`, and the series of a family without
+// labels: the one-liners every series below is made with.
+prometheus::Family<prometheus::Counter>& counters(prometheus::Registry& registry,
+                                                  const std::string& name, const std::string& help);
+prometheus::Family<prometheus::Gauge>& gauges(prometheus::Registry& registry,
+                                              const std::string& name, const std::string& help);
+prometheus::Counter& counter(prometheus::Registry& registry, const std::string& name,
+                             const std::string& help);
+prometheus::Gauge& gauge(prometheus::Registry& registry, const std::string& name,
+                         const std::string& help);
+// A histogram of band seconds (band_seconds_buckets()).
+prometheus::Histogram& band_seconds(prometheus::Registry& registry, const std::string& name,
+                                    const std::string& help);
+
 // A registry in the text exposition format, as GET /metrics returns it.
 std::string metrics_text(const prometheus::Registry& registry);
 

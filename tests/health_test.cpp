@@ -10,7 +10,7 @@
 #include <future>
 #include <thread>
 
-#include "farm_fixture.h"
+#include "tests/farm_fixture.h"
 
 namespace locus::farm {
 namespace {

@@ -13,12 +13,16 @@
 #include <regex>
 #include <string>
 
-#include "farm_fixture.h"
 #include "server/scheduler.h"
+#include "tests/farm_fixture.h"
+#include "tests/scheduler_doubles.h"
 #include "worker/worker_metrics.h"
 
 namespace locus::farm {
 namespace {
+
+using test_doubles::FakeClock;
+using test_doubles::pixels;
 
 // The value of the sample `series` (name and labels, as written) in a text
 // exposition, or -1 when absent.
@@ -85,13 +89,6 @@ const std::vector<std::string> kWorkerSeries = {
     "locus_worker_sent_bytes_total",
 };
 
-struct FakeClock {
-  TimePoint t{};
-  NowFn fn() {
-    return [this] { return t; };
-  }
-};
-
 JobSpec spec(int frames, int bands) {
   JobSpec s;
   s.scene_hash = "hash";
@@ -103,14 +100,6 @@ JobSpec spec(int frames, int bands) {
   s.bands = bands;
   s.output = "m_####.png";
   return s;
-}
-
-BandOutput pixels(const std::string& worker, const BandTask& t) {
-  BandOutput o;
-  o.worker_id = worker;
-  o.lease_id = t.lease_id;
-  o.rgb.assign(static_cast<size_t>(t.width) * (t.y1 - t.y0) * 3, 0.5f);
-  return o;
 }
 
 // Scheduler events in, series out: what each event counts.

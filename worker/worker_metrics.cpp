@@ -23,46 +23,22 @@ const char* band_end_name(WorkerMetrics::BandEnd end) {
 
 WorkerMetrics::WorkerMetrics()
     : registry_(std::make_shared<prometheus::Registry>()),
-      connected_(prometheus::BuildGauge()
-                     .Name("locus_worker_connected")
-                     .Help("1 while the worker is registered with its coordinator and reaches it")
-                     .Register(*registry_)
-                     .Add({})),
-      busy_(prometheus::BuildGauge()
-                .Name("locus_worker_busy")
-                .Help("1 while the worker holds a band")
-                .Register(*registry_)
-                .Add({})),
-      registrations_(prometheus::BuildCounter()
-                         .Name("locus_worker_registrations_total")
-                         .Help("Registrations with the coordinator (again after a restart of it)")
-                         .Register(*registry_)
-                         .Add({})),
-      bands_(prometheus::BuildCounter()
-                 .Name("locus_worker_bands_total")
-                 .Help("Bands this worker took, by how they ended: done (result sent), failed "
-                       "(error sent), dropped (lease revoked or result refused), handed_back")
-                 .Register(*registry_)),
-      render_seconds_(prometheus::BuildHistogram()
-                          .Name("locus_worker_band_render_seconds")
-                          .Help("Seconds spent rendering one band on this worker")
-                          .Register(*registry_)
-                          .Add({}, band_seconds_buckets())),
-      scenes_(prometheus::BuildCounter()
-                  .Name("locus_worker_scenes_fetched_total")
-                  .Help("Scenes fetched from the coordinator (once per scene, cached after)")
-                  .Register(*registry_)
-                  .Add({})),
-      received_(prometheus::BuildCounter()
-                    .Name("locus_worker_received_bytes_total")
-                    .Help("Bytes of messages received from the coordinator")
-                    .Register(*registry_)
-                    .Add({})),
-      sent_(prometheus::BuildCounter()
-                .Name("locus_worker_sent_bytes_total")
-                .Help("Bytes of messages sent to the coordinator")
-                .Register(*registry_)
-                .Add({})) {
+      connected_(gauge(*registry_, "locus_worker_connected",
+                       "1 while the worker is registered with its coordinator and reaches it")),
+      busy_(gauge(*registry_, "locus_worker_busy", "1 while the worker holds a band")),
+      registrations_(counter(*registry_, "locus_worker_registrations_total",
+                             "Registrations with the coordinator (again after a restart of it)")),
+      bands_(counters(*registry_, "locus_worker_bands_total",
+                      "Bands this worker took, by how they ended: done (result sent), failed "
+                      "(error sent), dropped (lease revoked or result refused), handed_back")),
+      render_seconds_(band_seconds(*registry_, "locus_worker_band_render_seconds",
+                                   "Seconds spent rendering one band on this worker")),
+      scenes_(counter(*registry_, "locus_worker_scenes_fetched_total",
+                      "Scenes fetched from the coordinator (once per scene, cached after)")),
+      received_(counter(*registry_, "locus_worker_received_bytes_total",
+                        "Bytes of messages received from the coordinator")),
+      sent_(counter(*registry_, "locus_worker_sent_bytes_total",
+                    "Bytes of messages sent to the coordinator")) {
   for (BandEnd e : {BandEnd::kDone, BandEnd::kFailed, BandEnd::kDropped, BandEnd::kHandedBack})
     bands_.Add({{"outcome", band_end_name(e)}});
 }
