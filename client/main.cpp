@@ -1,7 +1,7 @@
 // locus: the command-line client. `render` renders in process (--workers 0)
 // or on an embedded local farm; `validate` checks a scene; `submit`,
-// `status`, `watch`, `cancel`, `workers` and `fetch` talk to a coordinator.
-#include <spdlog/sinks/stdout_color_sinks.h>
+// `status`, `watch`, `cancel`, `workers` and `fetch` talk to a coordinator;
+// `health` asks a coordinator's or a worker's health service (probes).
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -18,10 +18,12 @@
 #include "client/local_farm.h"
 #include "client/progress.h"
 #include "common/animation.h"
+#include "common/log.h"
 #include "common/render.h"
 #include "common/scene_io.h"
 #include "proto/scene.pb.h"
 #include "server/auth.h"
+#include "server/health.h"
 #include "worker/band_renderer.h"
 
 namespace {
@@ -402,6 +404,15 @@ int run_fetch(const std::string& address, const farm::Credentials& creds, const 
   return 0;
 }
 
+// Exit status 0 when SERVING (Docker's HEALTHCHECK, scripts), 1 otherwise.
+int run_health(const std::string& address, const std::string& service,
+               const farm::Credentials& creds) {
+  auto serving = rpc::check_health(address, service, creds, farm::Millis(5000));
+  if (!serving.ok()) return fail(serving.status());
+  std::printf("%s\n", *serving ? "SERVING" : "NOT_SERVING");
+  return *serving ? 0 : 1;
+}
+
 void add_job_flags(CLI::App* cmd, JobArgs& a) {
   cmd->add_option("scene", a.scene, "Scene file (.nff or .json)")->required();
   cmd->add_option(
@@ -494,16 +505,26 @@ int main(int argc, char** argv) {
   fetch->add_option("job", job_id, "Job id")->required();
   fetch->add_option("dir", dir, "Directory")->required();
   add_farm(fetch);
+  std::string health_address, health_service;
+  auto* health = app.add_subcommand(
+      "health", "Ask a coordinator's or worker's gRPC health service; exit 0 when SERVING");
+  health->add_option("address", health_address, "HOST:PORT of its --health port (plaintext)")
+      ->required();
+  health->add_option("--service", health_service,
+                     "\"\" (default): ready; \"liveness\": the process runs");
+  health->add_option("--tls-ca", creds.tls_ca,
+                     "Ask the coordinator's main, TLS port instead, verified with this CA");
 
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
-  spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
+  setup_logging(LogFormat::kText);
   if (render->parsed()) {
     ra.threads_given = render->count("--threads") > 0;
     ra.workers_given = render->count("--workers") > 0;
     return run_render(ra);
   }
   if (validate->parsed()) return run_validate(vpath);
+  if (health->parsed()) return run_health(health_address, health_service, creds);
   auto token = farm::load_token(token_file);
   if (!token.ok()) return fail(token.status());
   creds.token = *token;

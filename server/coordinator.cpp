@@ -19,9 +19,11 @@
 
 #include "common/animation.h"
 #include "common/image.h"
+#include "common/log.h"
 #include "common/scene_io.h"
 #include "common/validate.h"
 #include "server/band_files.h"
+#include "server/metrics.h"
 #include "server/paths.h"
 
 namespace locus::farm {
@@ -78,7 +80,8 @@ Coordinator::Coordinator(CoordinatorOptions options)
       scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts,
                                   options_.quarantine_after, options_.speculate_factor,
                                   options_.speculate_min},
-                 options_.now) {}
+                 options_.now),
+      metrics_(std::make_unique<CoordinatorMetrics>()) {}
 
 Coordinator::~Coordinator() { shutdown(); }
 
@@ -169,6 +172,7 @@ Status Coordinator::recover() {
 Status Coordinator::persist() {
   const std::vector<Event> events = scheduler_.take_events();
   if (crashed_) return Status(Code::kAborted, "crashed (test)");
+  metrics_->observe(events);
   Status s = store_ ? store_->apply(events) : Status::Ok();
   if (!s.ok()) spdlog::error("{} ({} changes not recorded)", s.message(), events.size());
   return s;
@@ -177,6 +181,51 @@ Status Coordinator::persist() {
 LatencySummary Coordinator::dispatch_latency() {
   std::lock_guard lk(mu_);
   return dispatch_.summary();
+}
+
+void Coordinator::refresh_metrics() {
+  std::lock_guard lk(mu_);
+  metrics_->set_counts(scheduler_.counts());
+}
+
+std::string Coordinator::metrics_text() {
+  refresh_metrics();
+  return farm::metrics_text(*metrics_->registry());
+}
+
+void Coordinator::drain() {
+  {
+    std::lock_guard lk(mu_);
+    if (draining_) return;
+    draining_ = true;
+  }
+  spdlog::info("draining: no new jobs, no new leases; waiting for the bands in flight");
+  changed_.notify_all();
+}
+
+bool Coordinator::wait_drained(Millis max) {
+  std::unique_lock lk(mu_);
+  const bool drained = changed_.wait_for(lk, max, [&] {
+    return stopping_ || (scheduler_.counts().bands_running == 0 && to_write_.empty() && !writing_);
+  });
+  const FarmCounts c = scheduler_.counts();
+  if (drained) {
+    spdlog::info("drained: no band in flight, every finished frame written");
+  } else {
+    spdlog::warn(
+        "drain: {} bands still in flight after {} ms; their leases are voided by the "
+        "next start on this data directory",
+        c.bands_running, max.count());
+  }
+  return drained;
+}
+
+void Coordinator::stop_waiting() {
+  {
+    std::lock_guard lk(mu_);
+    closing_ = true;
+  }
+  changed_.notify_all();
 }
 
 void Coordinator::shutdown() {
@@ -269,6 +318,7 @@ void Coordinator::write_loop() {
     if (to_write_.empty()) return;  // stopping, and nothing left
     const FrameReady f = std::move(to_write_.front());
     to_write_.pop_front();
+    writing_ = true;
     lk.unlock();
     // Bounded memory: this is the only frame image the coordinator holds;
     // it is stitched from the band files and freed before the next.
@@ -281,13 +331,14 @@ void Coordinator::write_loop() {
     lk.lock();
     scheduler_.frame_written(f.job_id, f.frame, st);
     const bool recorded = persist().ok();
-    changed_.notify_all();
     // Once the store says "written", the frame's bands are of no more use.
     if (st.ok() && recorded) {
       lk.unlock();
       remove_band_files(dir, f.frame, f.bands);
       lk.lock();
     }
+    writing_ = false;
+    changed_.notify_all();
   }
 }
 
@@ -378,7 +429,10 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
                    "|" + std::to_string(r.orbit_degrees) + tess_tol);
 
   std::lock_guard lk(mu_);
-  if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");
+  if (stopping_ || draining_) {
+    return Status(Code::kUnavailable,
+                  "the coordinator is shutting down; submit again once it is back");
+  }
   if (auto earlier = scheduler_.job_for_request(r.request_id)) {
     if (earlier->fingerprint != fingerprint) {
       return Status(Code::kAlreadyExists, "request id '" + r.request_id +
@@ -482,12 +536,13 @@ Status Coordinator::watch(const std::string& job_id, Millis max, const Cancelled
     lk.lock();
     // Throttle, then wait for a change; wake regularly to notice a client
     // that went away.
-    changed_.wait_until(lk, std::min(next, end), [&] { return stopping_; });
-    while (!stopping_ && scheduler_.version() == seen && SteadyClock::now() < end) {
+    changed_.wait_until(lk, std::min(next, end), [&] { return stopping_ || closing_; });
+    while (!stopping_ && !closing_ && scheduler_.version() == seen && SteadyClock::now() < end) {
       if (cancelled && cancelled()) return Status::Ok();
       changed_.wait_for(lk, Millis(200));
     }
-    if (stopping_) return Status(Code::kUnavailable, "the coordinator is shutting down");
+    if (stopping_ || closing_)
+      return Status(Code::kUnavailable, "the coordinator is shutting down");
     if (SteadyClock::now() >= end) {
       auto last = scheduler_.job(job_id);
       lk.unlock();
@@ -561,10 +616,20 @@ Result<std::optional<BandTask>> Coordinator::get_task(const std::string& worker_
   const auto end = since + std::clamp(wait, Millis(0), options_.max_poll);
   std::unique_lock lk(mu_);
   for (;;) {
+    // A worker polling a coordinator that is going away waits elsewhere
+    // (its retry backoff) rather than here.
+    if (closing_) return Status(Code::kUnavailable, "the coordinator is shutting down");
     // Checked before leasing: a band leased to a poll whose worker has gone
     // would sit idle until its lease lapsed.
     if (stopping_ || (cancelled && cancelled())) return std::optional<BandTask>();
-    auto r = scheduler_.next_task(worker_id);
+    // Draining: no new leases; the poll waits out its time as on an idle farm
+    // (the worker still counts as seen).
+    Result<std::optional<BandTask>> r = std::optional<BandTask>();
+    if (!draining_) {
+      r = scheduler_.next_task(worker_id);
+    } else if (Status alive = scheduler_.touch(worker_id); !alive.ok()) {
+      r = alive;
+    }
     if (!r.ok() || r->has_value()) {
       if (r.ok()) {
         persist();
@@ -593,6 +658,8 @@ Result<std::shared_ptr<const v1::Scene>> Coordinator::get_scene(const std::strin
 Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {
   std::unique_lock lk(mu_);
   std::optional<BandTarget> target = scheduler_.result_target(output);
+  std::optional<BandLogScope> log_scope;
+  if (target) log_scope.emplace(target->job_id, target->frame, target->band);
   std::string temp;
   if (target) {
     // The pixels go to disk (and to the platter when fsync is on) outside

@@ -25,6 +25,8 @@
 
 namespace locus::farm {
 
+class CoordinatorMetrics;
+
 struct CoordinatorOptions {
   // The job store (DATA/locus.db) and the pixels: DATA/jobs/<job>/bands/
   // for bands of frames in progress; frames go to ROOT/<job>/<file>.
@@ -96,7 +98,18 @@ class Coordinator {
   // Opens the job store in the data directory, resumes the jobs it holds
   // and starts the ticker and writer threads.
   Status start();
-  // Ends long polls and watches, writes the frames already complete, joins.
+  // SIGTERM, step 1: refuses new jobs and leases no more bands (a worker's
+  // long poll waits out its time empty-handed); results, heartbeats and
+  // everything else go on as before.
+  void drain();
+  // Step 2: waits until no band is leased and every finished frame is
+  // written, or `max` passes. Returns whether it got there.
+  bool wait_drained(Millis max);
+  // Step 3: long polls and watches end now (and new ones are refused as
+  // UNAVAILABLE), so that the server's in-flight calls can finish.
+  void stop_waiting();
+  // Last: writes the frames already complete, records everything in the
+  // store, closes it and joins the threads.
   void shutdown();
   // Tests only: stops like a kill -9 would, as far as the data directory
   // can tell: frames waiting to be written are dropped, nothing more is
@@ -134,6 +147,13 @@ class Coordinator {
   LatencySummary dispatch_latency();
   std::string output_root() const;
 
+  // The Prometheus series (server/metrics.h); refresh_metrics() sets the
+  // gauges from the scheduler, as each scrape does first.
+  CoordinatorMetrics& metrics() { return *metrics_; }
+  void refresh_metrics();
+  // refresh_metrics(), then the text exposition format (GET /metrics).
+  std::string metrics_text();
+
  private:
   Status recover();          // start(), before the threads
   void tick_loop();
@@ -152,7 +172,11 @@ class Coordinator {
   std::set<std::string> scenes_stored_;  // the store's scenes, as last trimmed
   std::deque<FrameReady> to_write_;
   LatencyHistogram dispatch_;
+  std::unique_ptr<CoordinatorMetrics> metrics_;
   std::condition_variable write_ready_;
+  bool writing_ = false;   // the writer thread holds a frame
+  bool draining_ = false;  // drain()
+  bool closing_ = false;   // stop_waiting()
   bool stopping_ = false;
   bool crashed_ = false;  // crash_for_test()
   bool started_ = false;

@@ -2,16 +2,17 @@
 // that dial in, stitches and writes the frames under its output root.
 // Serves TLS with bearer tokens, or plaintext only with --insecure
 // (docs/farm.md "Security").
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
 
+#include "common/log.h"
 #include "server/auth.h"
 #include "server/coordinator.h"
 #include "server/grpc_service.h"
+#include "server/metrics.h"
 
 namespace {
 
@@ -34,6 +35,9 @@ int main(int argc, char** argv) {
   int speculate_min_ms = 1000;
   bool no_fsync = false;
   bool equal_bands = false;
+  std::string health_address, metrics_address;
+  std::string log_format = "text", log_level = "info";
+  int drain_ms = 20000;
   locus::farm::CoordinatorOptions options;
   locus::farm::Limits& limits = options.limits;
   locus::rpc::ServerSecurity security;
@@ -82,6 +86,17 @@ int main(int argc, char** argv) {
                  "File of worker tokens (take and return bands), one per line");
   app.add_flag("--insecure", security.insecure,
                "Allow serving without TLS, and without tokens (a trusted network only)");
+  // Operations (docs/deploy.md).
+  app.add_option("--health", health_address,
+                 "Also serve the gRPC health service alone, plaintext, on HOST:PORT (probes)");
+  app.add_option("--metrics", metrics_address,
+                 "Serve Prometheus metrics at http://HOST:PORT/metrics");
+  app.add_option("--drain-ms", drain_ms,
+                 "On SIGTERM, wait this long at most for the bands in flight before exiting")
+      ->check(CLI::Range(0, 3600000));
+  app.add_option("--log-format", log_format, "Log lines as text or json (one object per line)")
+      ->check(CLI::IsMember({"text", "json"}));
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off");
   // Limits.
   app.add_option("--max-resolution", limits.max_resolution, "Largest image side, in pixels")
       ->check(CLI::Range(1, locus::kMaxResolution));
@@ -95,7 +110,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000000));
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
-  spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
+  if (auto st = locus::setup_logging(*locus::parse_log_format(log_format), log_level); !st.ok())
+    return fail(st.message());
   if (heartbeat_ms * 2 > lease_ms) {
     return fail("--heartbeat-ms " + std::to_string(heartbeat_ms) +
                 " must be at most half of --lease-ms " + std::to_string(lease_ms));
@@ -150,10 +166,24 @@ int main(int argc, char** argv) {
   // Scripts that start it on port 0 read the port from stdout.
   std::printf("listening on port %d\n", *port);
   std::fflush(stdout);
+  if (!health_address.empty()) {
+    auto health_port = server.serve_health(health_address);
+    if (!health_port.ok()) return fail(health_port.status().message());
+    spdlog::info("health service on {} (port {})", health_address, *health_port);
+  }
+  std::unique_ptr<locus::farm::MetricsEndpoint> metrics;
+  if (!metrics_address.empty()) {
+    auto m = locus::farm::MetricsEndpoint::start(metrics_address, coordinator.metrics().registry(),
+                                                 [&coordinator] { coordinator.refresh_metrics(); });
+    if (!m.ok()) return fail(m.status().message());
+    metrics = std::move(*m);
+    spdlog::info("metrics on http://{}/metrics (port {})", metrics_address, metrics->port());
+  }
 
   int sig = 0;
   sigwait(&signals, &sig);
-  spdlog::info("signal {}: shutting down", sig);
-  server.shutdown(locus::farm::Millis(2000));
+  spdlog::info("signal {}: draining, then shutting down", sig);
+  server.drain(locus::farm::Millis(drain_ms), locus::farm::Millis(2000));
+  spdlog::info("stopped");
   return 0;
 }

@@ -3,6 +3,7 @@
 // server/grpc_service.cpp converts between these and proto/locus.proto.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -175,6 +176,16 @@ struct FrameReady {
   int height = 0;
   int bands = 0;
   std::vector<int> band_edges;  // as JobSpec::band_edges
+};
+
+// The state of the farm at one moment (Scheduler::counts()), for the
+// metrics' gauges.
+struct FarmCounts {
+  int64_t bands_queued = 0;       // waiting for a worker
+  int64_t bands_running = 0;      // under a lease (a speculated band counts once)
+  int64_t bands_done = 0;         // of the jobs the coordinator holds
+  std::array<int64_t, 5> jobs{};  // by JobState
+  int64_t workers = 0;            // registered and not dropped
 };
 
 // Hex SHA-256: scenes are addressed by the hash of their serialized form.

@@ -4,9 +4,11 @@
 
 #include <chrono>
 #include <exception>
-#include <mutex>
 #include <fstream>
+#include <mutex>
 #include <sstream>
+
+#include "server/metrics.h"
 
 namespace locus::rpc {
 namespace {
@@ -56,21 +58,40 @@ void log_refusal(const std::string& peer, const Status& why) {
 
 // Every call: credentials first, then the handler; whatever escapes it (a
 // bad_alloc from an absurd request) becomes an error for that call, never
-// the end of the coordinator.
+// the end of the coordinator. The request's bytes and the response's
+// (`response` null for a stream, whose writes count their own) go to the
+// metrics.
 template <typename F>
-grpc::Status serve(const farm::Authenticator& auth, const grpc::ServerContext& ctx,
-                   farm::Role role, const char* rpc, F&& body) {
+grpc::Status serve(const farm::Authenticator& auth, farm::CoordinatorMetrics& metrics,
+                   const grpc::ServerContext& ctx, farm::Role role, const char* rpc,
+                   const google::protobuf::Message& request,
+                   const google::protobuf::Message* response, F&& body) {
   const Status allowed = auth.check(role, authorization(ctx), peer_certificate_verified(ctx), rpc);
   if (!allowed.ok()) {
+    metrics.add_bytes(rpc, request.ByteSizeLong(), 0);
     log_refusal(ctx.peer(), allowed);
     return ToGrpc(allowed);
   }
+  grpc::Status status;
   try {
-    return ToGrpc(body());
+    status = ToGrpc(body());
   } catch (const std::exception& e) {
     spdlog::error("{}: {}", rpc, e.what());
-    return grpc::Status(grpc::StatusCode::INTERNAL, std::string(rpc) + ": " + e.what());
+    status = grpc::Status(grpc::StatusCode::INTERNAL, std::string(rpc) + ": " + e.what());
   }
+  metrics.add_bytes(rpc, request.ByteSizeLong(),
+                    status.ok() && response ? response->ByteSizeLong() : 0);
+  return status;
+}
+
+// A stream's writes, counted.
+template <typename Message>
+auto counted_writer(farm::CoordinatorMetrics& metrics, const char* rpc,
+                    grpc::ServerWriter<Message>* writer) {
+  return [&metrics, rpc, writer](const Message& m) {
+    metrics.add_bytes(rpc, 0, m.ByteSizeLong());
+    return writer->Write(m);
+  };
 }
 
 constexpr farm::Role kClient = farm::Role::kClient;
@@ -80,104 +101,108 @@ constexpr farm::Role kWorker = farm::Role::kWorker;
 
 class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
  public:
-  ClientImpl(Handlers& h, const farm::Authenticator& auth) : h_(h), auth_(auth) {}
+  ClientImpl(Handlers& h, const farm::Authenticator& auth, farm::CoordinatorMetrics& m)
+      : h_(h), auth_(auth), m_(m) {}
 
   grpc::Status SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
                          v1::SubmitJobResponse* resp) override {
-    return serve(auth_, *ctx, kClient, "ClientService.SubmitJob",
+    return serve(auth_, m_, *ctx, kClient, "ClientService.SubmitJob", *req, resp,
                  [&] { return h_.SubmitJob(*req, resp); });
   }
 
   grpc::Status GetJob(grpc::ServerContext* ctx, const v1::GetJobRequest* req,
                       v1::JobStatus* resp) override {
-    return serve(auth_, *ctx, kClient, "ClientService.GetJob",
+    return serve(auth_, m_, *ctx, kClient, "ClientService.GetJob", *req, resp,
                  [&] { return h_.GetJob(*req, resp); });
   }
 
   grpc::Status ListJobs(grpc::ServerContext* ctx, const v1::ListJobsRequest* req,
                         v1::ListJobsResponse* resp) override {
-    return serve(auth_, *ctx, kClient, "ClientService.ListJobs",
+    return serve(auth_, m_, *ctx, kClient, "ClientService.ListJobs", *req, resp,
                  [&] { return h_.ListJobs(*req, resp); });
   }
 
   grpc::Status WatchJob(grpc::ServerContext* ctx, const v1::WatchJobRequest* req,
                         grpc::ServerWriter<v1::JobStatus>* writer) override {
-    return serve(auth_, *ctx, kClient, "ClientService.WatchJob", [&] {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.WatchJob", *req, nullptr, [&] {
       return h_.WatchJob(
           *req, [ctx] { return ctx->IsCancelled(); },
-          [writer](const v1::JobStatus& s) { return writer->Write(s); });
+          counted_writer(m_, "ClientService.WatchJob", writer));
     });
   }
 
   grpc::Status CancelJob(grpc::ServerContext* ctx, const v1::CancelJobRequest* req,
                          v1::CancelJobResponse* resp) override {
-    return serve(auth_, *ctx, kClient, "ClientService.CancelJob",
+    return serve(auth_, m_, *ctx, kClient, "ClientService.CancelJob", *req, resp,
                  [&] { return h_.CancelJob(*req, resp); });
   }
 
   grpc::Status ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest* req,
                            v1::ListWorkersResponse* resp) override {
-    return serve(auth_, *ctx, kClient, "ClientService.ListWorkers",
+    return serve(auth_, m_, *ctx, kClient, "ClientService.ListWorkers", *req, resp,
                  [&] { return h_.ListWorkers(*req, resp); });
   }
 
   grpc::Status FetchResults(grpc::ServerContext* ctx, const v1::FetchResultsRequest* req,
                             grpc::ServerWriter<v1::FileChunk>* writer) override {
-    return serve(auth_, *ctx, kClient, "ClientService.FetchResults", [&] {
-      return h_.FetchResults(*req, [writer](const v1::FileChunk& c) { return writer->Write(c); });
+    return serve(auth_, m_, *ctx, kClient, "ClientService.FetchResults", *req, nullptr, [&] {
+      return h_.FetchResults(*req, counted_writer(m_, "ClientService.FetchResults", writer));
     });
   }
 
  private:
   Handlers& h_;
   const farm::Authenticator& auth_;
+  farm::CoordinatorMetrics& m_;
 };
 
 class CoordinatorServer::WorkerImpl final : public v1::WorkerService::Service {
  public:
-  WorkerImpl(Handlers& h, const farm::Authenticator& auth) : h_(h), auth_(auth) {}
+  WorkerImpl(Handlers& h, const farm::Authenticator& auth, farm::CoordinatorMetrics& m)
+      : h_(h), auth_(auth), m_(m) {}
 
   grpc::Status Register(grpc::ServerContext* ctx, const v1::RegisterRequest* req,
                         v1::RegisterResponse* resp) override {
-    return serve(auth_, *ctx, kWorker, "WorkerService.Register",
+    return serve(auth_, m_, *ctx, kWorker, "WorkerService.Register", *req, resp,
                  [&] { return h_.Register(*req, ctx->peer(), resp); });
   }
 
   grpc::Status GetTask(grpc::ServerContext* ctx, const v1::GetTaskRequest* req,
                        v1::GetTaskResponse* resp) override {
-    return serve(auth_, *ctx, kWorker, "WorkerService.GetTask", [&] {
+    return serve(auth_, m_, *ctx, kWorker, "WorkerService.GetTask", *req, resp, [&] {
       return h_.GetTask(*req, [ctx] { return ctx->IsCancelled(); }, resp);
     });
   }
 
   grpc::Status GetScene(grpc::ServerContext* ctx, const v1::GetSceneRequest* req,
                         v1::GetSceneResponse* resp) override {
-    return serve(auth_, *ctx, kWorker, "WorkerService.GetScene",
+    return serve(auth_, m_, *ctx, kWorker, "WorkerService.GetScene", *req, resp,
                  [&] { return h_.GetScene(*req, resp); });
   }
 
   grpc::Status CompleteBand(grpc::ServerContext* ctx, const v1::CompleteBandRequest* req,
                             v1::CompleteBandResponse* resp) override {
-    return serve(auth_, *ctx, kWorker, "WorkerService.CompleteBand",
+    return serve(auth_, m_, *ctx, kWorker, "WorkerService.CompleteBand", *req, resp,
                  [&] { return h_.CompleteBand(*req, resp); });
   }
 
   grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req,
                          v1::HeartbeatResponse* resp) override {
-    return serve(auth_, *ctx, kWorker, "WorkerService.Heartbeat",
+    return serve(auth_, m_, *ctx, kWorker, "WorkerService.Heartbeat", *req, resp,
                  [&] { return h_.Heartbeat(*req, resp); });
   }
 
  private:
   Handlers& h_;
   const farm::Authenticator& auth_;
+  farm::CoordinatorMetrics& m_;
 };
 
 CoordinatorServer::CoordinatorServer(farm::Coordinator& coordinator)
     : coordinator_(coordinator),
       handlers_(coordinator),
-      client_(std::make_unique<ClientImpl>(handlers_, auth_)),
-      worker_(std::make_unique<WorkerImpl>(handlers_, auth_)) {}
+      client_(std::make_unique<ClientImpl>(handlers_, auth_, coordinator.metrics())),
+      worker_(std::make_unique<WorkerImpl>(handlers_, auth_, coordinator.metrics())) {}
 
 CoordinatorServer::~CoordinatorServer() { shutdown(farm::Millis(0)); }
 
@@ -223,6 +248,7 @@ Result<int> CoordinatorServer::start(const std::string& address, ServerSecurity 
   configure_server(builder);
   builder.RegisterService(client_.get());
   builder.RegisterService(worker_.get());
+  builder.RegisterService(&health_service_);
   server_ = builder.BuildAndStart();
   if (!server_ || port == 0) {
     server_.reset();
@@ -231,16 +257,39 @@ Result<int> CoordinatorServer::start(const std::string& address, ServerSecurity 
                       (security.tls_cert.empty() ? "" : " Or --tls-cert/--tls-key do not match.") +
                       ")");
   }
+  health_service_.set_ready(true);
+  health_.set_ready(true);
   return port;
+}
+
+Result<int> CoordinatorServer::serve_health(const std::string& address) {
+  auto port = health_.start(address);
+  if (port.ok()) health_.set_ready(server_ != nullptr);
+  return port;
+}
+
+void CoordinatorServer::drain(farm::Millis max, farm::Millis grace) {
+  if (!server_) return;
+  // Load balancers and probes first, so that nothing new is sent here.
+  health_service_.set_ready(false);
+  health_.set_ready(false);
+  coordinator_.drain();
+  coordinator_.wait_drained(max);
+  shutdown(grace);
 }
 
 void CoordinatorServer::shutdown(farm::Millis grace) {
   if (!server_) return;
-  // Long polls and watches return once the coordinator stops.
-  coordinator_.shutdown();
+  health_service_.shutdown();
+  health_.set_ready(false);
+  // Long polls and watches return now; calls in flight (a band's result)
+  // get until `grace`, and the store is still open for them.
+  coordinator_.stop_waiting();
   server_->Shutdown(std::chrono::system_clock::now() + grace);
   server_->Wait();
   server_.reset();
+  coordinator_.shutdown();
+  health_.shutdown();
 }
 
 void CoordinatorServer::wait() {

@@ -1,7 +1,9 @@
 // The coordinator's gRPC adapter: ClientService and WorkerService check
 // each call's credentials (server/auth.h) and forward to the handlers
-// (server/handlers.h). Lifecycle: start (bind, with TLS or explicitly
-// insecure), serve, shutdown with a deadline, wait.
+// (server/handlers.h), counting each call's bytes (server/metrics.h).
+// Lifecycle: start (bind, with TLS or explicitly insecure), serve, drain
+// (SIGTERM), shutdown with a deadline, wait. The standard health service
+// answers on the main port and, plaintext, on --health (server/health.h).
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -11,6 +13,7 @@
 
 #include "server/coordinator.h"
 #include "server/handlers.h"
+#include "server/health.h"
 #include "server/rpc.h"
 
 namespace locus::rpc {
@@ -23,8 +26,15 @@ class CoordinatorServer {
   // Binds `address` ("127.0.0.1:0" picks a free port) and serves; returns
   // the bound port. Refuses what check_server_security() refuses.
   Result<int> start(const std::string& address, ServerSecurity security);
-  // Refuses new calls, gives running ones until `grace` to finish, then
-  // cancels them.
+  // The health service alone on a plaintext port of its own (--health),
+  // for probes; returns the bound port.
+  Result<int> serve_health(const std::string& address);
+  // SIGTERM: not ready (health), no new jobs or leases, waits up to
+  // `max` for the bands in flight (Coordinator::drain()), then shutdown().
+  void drain(farm::Millis max, farm::Millis grace);
+  // Not ready; ends long polls and watches; refuses new calls, gives
+  // running ones until `grace` to finish, then cancels them; then shuts
+  // the coordinator down (frames written, store closed).
   void shutdown(farm::Millis grace);
   void wait();
 
@@ -36,7 +46,9 @@ class CoordinatorServer {
   farm::Authenticator auth_;
   std::unique_ptr<ClientImpl> client_;
   std::unique_ptr<WorkerImpl> worker_;
+  HealthService health_service_;  // on the main port
   std::unique_ptr<grpc::Server> server_;
+  HealthServer health_;  // --health
 };
 
 }  // namespace locus::rpc

@@ -62,6 +62,7 @@ struct LeaseEnded {
   int band = 0;
   LeaseOutcome outcome = LeaseOutcome::kRevoked;
   std::string error;
+  bool requeued = false;  // the band went back to the queue (not the store's concern)
 };
 // The band's pixels are in its band file; the lease that delivered them ends.
 struct BandDone {
@@ -71,6 +72,7 @@ struct BandDone {
   std::string lease_id;
   std::string worker_id;
   Stats job_stats;  // the job's total after this band
+  double seconds = 0;  // from the lease to the result (not the store's concern)
 };
 struct FrameWritten {
   std::string job_id;

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "common/animation.h"
+#include "common/log.h"
 
 namespace locus::farm {
 namespace {
@@ -346,6 +347,22 @@ size_t Scheduler::unfinished_jobs() const {
   }));
 }
 
+FarmCounts Scheduler::counts() const {
+  FarmCounts c;
+  for (const auto& [id, job] : jobs_) {
+    ++c.jobs[static_cast<size_t>(job.info.state)];
+    c.bands_done += job.info.bands_done;
+    if (is_terminal(job.info.state)) continue;
+    c.bands_queued += static_cast<int64_t>(job.retry.size()) +
+                      static_cast<int64_t>(job.tasks.size()) - job.next_fresh;
+  }
+  std::set<std::pair<std::string, int>> running;  // a band with two leases is one band
+  for (const auto& [id, l] : leases_) running.emplace(l.job_id, l.task);
+  c.bands_running = static_cast<int64_t>(running.size());
+  c.workers = static_cast<int64_t>(workers_.size());
+  return c;
+}
+
 bool Scheduler::has_queued_bands() const {
   for (const auto& [id, job] : jobs_) {
     if (!is_terminal(job.info.state) && queued(job)) return true;
@@ -453,6 +470,7 @@ Result<std::optional<BandTask>> Scheduler::grant(Job& job, int task, Worker& wor
   if (speculative) {
     t.speculated = 1;
     ++job.info.speculative_leases;
+    BandLogScope log_scope(job.info.job_id, frame_of(job, task), band_of(job, task));
     spdlog::info("job {}: {} runs far longer than its peers; second lease to worker {}",
                  job.info.job_id, band_name(job, task), worker.info.worker_id);
   }
@@ -520,10 +538,15 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
   if (w != workers_.end()) w->second.leases.erase(lease_id);
   Job* job = find_job(lease.job_id);
   if (!job) return;
-  events_.push_back(event::LeaseEnded{lease_id, lease.job_id, frame_of(*job, lease.task),
-                                      band_of(*job, lease.task), outcome, why});
+  const int frame = frame_of(*job, lease.task);
+  const int band = band_of(*job, lease.task);
+  BandLogScope log_scope(lease.job_id, frame, band);
+  event::LeaseEnded ended{lease_id, lease.job_id, frame, band, outcome, why, false};
   ++version_;
-  if (is_terminal(job->info.state)) return;
+  if (is_terminal(job->info.state)) {
+    events_.push_back(std::move(ended));
+    return;
+  }
   Task& t = job->tasks[lease.task];
   if (t.leases > 0) --t.leases;
   if (outcome == LeaseOutcome::kDiscarded) ++job->info.results_discarded;
@@ -539,9 +562,15 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
                    lease.worker_id, lease.worker_name, n);
     }
   }
-  if (t.state == TaskState::kDone || t.leases > 0) return;  // the other lease goes on
+  // The band goes back to the queue unless it is done or its other lease
+  // goes on; past the attempt limit its job fails instead.
+  const bool free = t.state != TaskState::kDone && t.leases == 0;
+  const bool failed = free && t.failures >= options_.max_attempts;
+  ended.requeued = free && !failed;
+  events_.push_back(std::move(ended));
+  if (!free) return;
   t.state = TaskState::kQueued;
-  if (t.failures >= options_.max_attempts) {
+  if (failed) {
     end_job(*job, JobState::kFailed,
             band_name(*job, lease.task) + " failed " + std::to_string(t.failures) +
                 " times; last: " + why);
@@ -619,10 +648,11 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   if (t.leases > 0) --t.leases;
   ++job.info.bands_done;
   job.info.stats += out.stats;
-  job.durations.push_back(seconds(now_() - lease.granted));
+  const double took = seconds(now_() - lease.granted);
+  job.durations.push_back(took);
   if (job.durations.size() > kDurationsKept) job.durations.pop_front();
-  events_.push_back(
-      event::BandDone{job.info.job_id, frame, band, out.lease_id, out.worker_id, job.info.stats});
+  events_.push_back(event::BandDone{job.info.job_id, frame, band, out.lease_id, out.worker_id,
+                                    job.info.stats, took});
   // The first result wins: the band's other lease (a speculative copy, or
   // the original it copied) is discarded, counted once here.
   if (t.leases > 0) {

@@ -106,6 +106,8 @@ class Scheduler {
   std::set<std::string> scenes_in_use() const;
   // Jobs queued or running (the --max-jobs limit).
   size_t unfinished_jobs() const;
+  // Bands and jobs by state, workers: the metrics' gauges.
+  FarmCounts counts() const;
 
   // Every durable change since the last call, oldest first.
   std::vector<Event> take_events() { return std::exchange(events_, {}); }

@@ -6,16 +6,12 @@
 
 #include <set>
 
+#include "tests/scheduler_doubles.h"
+
 namespace locus::farm {
 namespace {
 
-struct FakeClock {
-  TimePoint t{};
-  NowFn fn() {
-    return [this] { return t; };
-  }
-  void advance(int ms) { t += Millis(ms); }
-};
+using test_doubles::FakeClock;
 
 JobSpec spec(int w, int h, int first, int last, int bands) {
   JobSpec s;

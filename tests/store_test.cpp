@@ -23,11 +23,14 @@
 #include "server/band_files.h"
 #include "server/coordinator.h"
 #include "server/scheduler.h"
+#include "tests/scheduler_doubles.h"
 #include "worker/band_renderer.h"
 
 namespace locus::farm {
 namespace {
 namespace fs = std::filesystem;
+using test_doubles::FakeClock;
+using test_doubles::pixels;
 
 const std::string kSpheres = std::string(LOCUS_SOURCE_DIR) + "/scenes/simple/spheres.json";
 
@@ -41,13 +44,6 @@ struct TempDir {
   ~TempDir() {
     std::error_code ec;
     fs::remove_all(path, ec);
-  }
-};
-
-struct FakeClock {
-  TimePoint t{};
-  NowFn fn() {
-    return [this] { return t; };
   }
 };
 
@@ -65,16 +61,6 @@ JobSpec spec(int w, int h, int first, int last, int bands) {
   s.render.aa = 3;
   s.render.tess_tol = 0.5;
   return s;
-}
-
-BandOutput pixels(const std::string& worker, const BandTask& t) {
-  BandOutput o;
-  o.worker_id = worker;
-  o.lease_id = t.lease_id;
-  o.rgb.assign(static_cast<size_t>(t.width) * (t.y1 - t.y0) * 3, 0.5f);
-  o.stats.pixels_total = static_cast<uint64_t>(t.width) * (t.y1 - t.y0);
-  o.stats.geometry_triangles = 100;
-  return o;
 }
 
 Result<std::unique_ptr<JobStore>> open_store(const fs::path& dir) {

@@ -1,16 +1,30 @@
 // locus-worker: a stateless render worker. It dials the coordinator, takes
 // bands, renders them and returns the pixels until SIGTERM/SIGINT, after
-// which it finishes the band in hand and exits.
-#include <spdlog/sinks/stdout_color_sinks.h>
+// which it finishes the band in hand and exits. It is a gRPC client of the
+// coordinator; --health serves the standard health service (for probes)
+// and --metrics its Prometheus series (docs/deploy.md).
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <csignal>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <thread>
 
+#include "common/log.h"
+#include "server/health.h"
+#include "server/metrics.h"
 #include "worker/worker_client.h"
+#include "worker/worker_metrics.h"
+
+namespace {
+
+int fail(const std::string& message) {
+  std::fprintf(stderr, "locus-worker: %s\n", message.c_str());
+  return 2;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"locus-worker: renders bands for a Locus coordinator"};
@@ -40,16 +54,24 @@ int main(int argc, char** argv) {
                "Plaintext to a non-loopback coordinator (a trusted network only)");
   app.add_option("--mesh-root", options.mesh_root,
                  "Directory of OBJ files scenes may name (default: none, meshes inline)");
+  std::string health_address, metrics_address;
+  std::string log_format = "text", log_level = "info";
+  app.add_option("--health", health_address,
+                 "Serve the gRPC health service, plaintext, on HOST:PORT (probes; ready while "
+                 "registered with the coordinator)");
+  app.add_option("--metrics", metrics_address,
+                 "Serve Prometheus metrics at http://HOST:PORT/metrics");
+  app.add_option("--log-format", log_format, "Log lines as text or json (one object per line)")
+      ->check(CLI::IsMember({"text", "json"}));
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off");
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
-  spdlog::set_default_logger(spdlog::stderr_color_mt("locus"));
+  if (auto st = locus::setup_logging(*locus::parse_log_format(log_format), log_level); !st.ok())
+    return fail(st.message());
   options.poll = locus::farm::Millis(poll_ms);
   options.slow_band = locus::farm::Millis(slow_band_ms);
   auto token = locus::farm::load_token(token_file);
-  if (!token.ok()) {
-    std::fprintf(stderr, "locus-worker: %s\n", token.status().message().c_str());
-    return 2;
-  }
+  if (!token.ok()) return fail(token.status().message());
   c.token = *token;
 
   sigset_t signals;
@@ -58,13 +80,28 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
+  locus::rpc::HealthServer health;
+  if (!health_address.empty()) {
+    auto port = health.start(health_address);
+    if (!port.ok()) return fail(port.status().message());
+    spdlog::info("health service on {} (port {})", health_address, *port);
+    options.on_ready = [&health](bool ready) { health.set_ready(ready); };
+  }
   locus::farm::WorkerClient worker(options);
+  std::unique_ptr<locus::farm::MetricsEndpoint> metrics;
+  if (!metrics_address.empty()) {
+    auto m = locus::farm::MetricsEndpoint::start(metrics_address, worker.metrics().registry());
+    if (!m.ok()) return fail(m.status().message());
+    metrics = std::move(*m);
+    spdlog::info("metrics on http://{}/metrics (port {})", metrics_address, metrics->port());
+  }
   // The first signal: finish the band in hand (or hand it back if not yet
   // started), then exit. A second one: hand it back now and exit.
   std::thread waiter([&] {
     int sig = 0;
     sigwait(&signals, &sig);
     spdlog::info("signal {}: finishing the band in hand, then exiting", sig);
+    health.set_ready(false);
     worker.stop();
     sigwait(&signals, &sig);
     spdlog::info("signal {} again: handing the band back and exiting now", sig);

@@ -4,12 +4,16 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <optional>
 #include <thread>
 
+#include "common/log.h"
 #include "server/rpc.h"
 #include "worker/band_renderer.h"
+#include "worker/worker_metrics.h"
 
 namespace locus::farm {
 namespace {
@@ -46,13 +50,26 @@ class WorkerClient::Impl {
   }
 
   void hand_back();
+  WorkerMetrics& metrics() { return metrics_; }
 
  private:
+  using BandEnd = WorkerMetrics::BandEnd;
   bool register_worker();
   void heartbeat_loop();
   void handle(const BandTask& task);
-  bool fetch_scene(const BandTask& task);
-  void send(BandOutput output);
+  // Nothing when the scene is at hand; otherwise how the band ended.
+  std::optional<BandEnd> fetch_scene(const BandTask& task);
+  BandEnd send(BandOutput output);
+  // Ready: registered, and the last call reached the coordinator.
+  void set_ready(bool ready) {
+    {
+      std::lock_guard lk(mu_);
+      if (ready == ready_) return;
+      ready_ = ready;
+    }
+    metrics_.set_connected(ready);
+    if (o_.on_ready) o_.on_ready(ready);
+  }
   // Sleeps, but wakes at once on stop().
   void pause(Millis d) {
     std::unique_lock lk(mu_);
@@ -73,9 +90,11 @@ class WorkerClient::Impl {
   void unreachable(const Status& s) {
     if (!outage_) spdlog::warn("{}; retrying", s.message());
     outage_ = true;
+    set_ready(false);
   }
 
   WorkerOptions o_;
+  WorkerMetrics metrics_;
   BandRenderer renderer_;
   rpc::Connection conn_;
   Status broken_;
@@ -93,6 +112,7 @@ class WorkerClient::Impl {
   grpc::ClientContext* poll_ctx_ = nullptr;
   bool outage_ = false;
   bool refused_ = false;
+  bool ready_ = false;
 };
 
 bool WorkerClient::Impl::register_worker() {
@@ -103,17 +123,22 @@ bool WorkerClient::Impl::register_worker() {
   grpc::ClientContext ctx;
   rpc::prepare(ctx, conn_, rpc::kShortCall);
   const Status s = rpc::FromGrpc(stub_->Register(&ctx, req, &resp), peer_);
+  metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
   if (!s.ok()) {
     if (refused(s)) return false;
     unreachable(s);
     return false;
   }
   outage_ = false;
-  std::lock_guard lk(mu_);
-  worker_id_ = resp.worker_id();
-  heartbeat_ = Millis(std::max(50, resp.heartbeat_ms()));
-  spdlog::info("registered with {} as {} ({}, {} threads per band)", o_.coordinator, worker_id_,
-               o_.name, o_.threads);
+  metrics_.registered();
+  {
+    std::lock_guard lk(mu_);
+    worker_id_ = resp.worker_id();
+    heartbeat_ = Millis(std::max(50, resp.heartbeat_ms()));
+  }
+  spdlog::info("registered with {} as {} ({}, {} threads per band)", o_.coordinator,
+               resp.worker_id(), o_.name, o_.threads);
+  set_ready(true);
   return true;
 }
 
@@ -152,6 +177,7 @@ int WorkerClient::Impl::run() {
       poll_ctx_ = &ctx;
     }
     const grpc::Status gs = stub_->GetTask(&ctx, req, &resp);
+    metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
     {
       std::lock_guard lk(mu_);
       poll_ctx_ = nullptr;
@@ -162,6 +188,7 @@ int WorkerClient::Impl::run() {
       if (s.code() == Code::kNotFound) {
         // Dropped after silence, or the coordinator restarted: start afresh.
         spdlog::info("{}; registering again", s.message());
+        set_ready(false);
         std::lock_guard lk(mu_);
         worker_id_.clear();
         continue;
@@ -173,6 +200,7 @@ int WorkerClient::Impl::run() {
       continue;
     }
     outage_ = false;
+    set_ready(true);
     backoff = Millis(100);
     if (!resp.has_task()) continue;
     bool stopping;
@@ -195,6 +223,7 @@ int WorkerClient::Impl::run() {
     stopping_ = true;
     cv_.notify_all();
   }
+  set_ready(false);
   heartbeats.join();
   return refused_ ? 1 : 0;
 }
@@ -213,6 +242,7 @@ void WorkerClient::Impl::heartbeat_loop() {
     grpc::ClientContext ctx;
     rpc::prepare(ctx, conn_, std::max(period * 2, Millis(1000)));
     const grpc::Status gs = stub_->Heartbeat(&ctx, req, &resp);
+    metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
     lk.lock();
     if (!gs.ok()) {
       // The main loop reports outages and re-registers.
@@ -230,8 +260,8 @@ void WorkerClient::Impl::heartbeat_loop() {
   }
 }
 
-bool WorkerClient::Impl::fetch_scene(const BandTask& t) {
-  if (renderer_.has_scene(t.scene_hash)) return true;
+std::optional<WorkerClient::Impl::BandEnd> WorkerClient::Impl::fetch_scene(const BandTask& t) {
+  if (renderer_.has_scene(t.scene_hash)) return std::nullopt;
   v1::GetSceneRequest req;
   req.set_scene_hash(t.scene_hash);
   {
@@ -242,25 +272,26 @@ bool WorkerClient::Impl::fetch_scene(const BandTask& t) {
   grpc::ClientContext ctx;
   rpc::prepare(ctx, conn_, rpc::kDataCall);
   const Status s = rpc::FromGrpc(stub_->GetScene(&ctx, req, &resp), peer_);
+  metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
   if (!s.ok()) {
-    if (refused(s)) return false;
+    if (refused(s)) return BandEnd::kDropped;
     // The band's lease lapses and it goes to another worker (or this one
     // again once the coordinator is back).
     spdlog::warn("job {}: cannot fetch scene {}: {}", t.job_id, t.scene_hash.substr(0, 12),
                  s.message());
-    return false;
+    return BandEnd::kDropped;
   }
   const Status added =
       renderer_.add_scene(t.scene_hash, resp.scene(), "job " + t.job_id + " scene");
   if (!added.ok()) {
     BandOutput o;
     o.error = added.message();
-    send(std::move(o));
-    return false;
+    return send(std::move(o));
   }
+  metrics_.scene_fetched();
   spdlog::info("job {}: scene {} fetched ({} bytes)", t.job_id, t.scene_hash.substr(0, 12),
                resp.ByteSizeLong());
-  return true;
+  return std::nullopt;
 }
 
 void WorkerClient::Impl::hand_back() {
@@ -277,6 +308,8 @@ void WorkerClient::Impl::hand_back() {
   grpc::ClientContext ctx;
   rpc::prepare(ctx, conn_, Millis(3000));
   const Status s = rpc::FromGrpc(stub_->CompleteBand(&ctx, req, &resp), peer_);
+  metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
+  metrics_.band_ended(BandEnd::kHandedBack, -1);
   if (s.ok()) {
     spdlog::info("band of lease {} handed back", req.lease_id());
   } else {
@@ -286,6 +319,9 @@ void WorkerClient::Impl::hand_back() {
 }
 
 void WorkerClient::Impl::handle(const BandTask& t) {
+  // Every line logged about this band carries its ids.
+  BandLogScope log_scope(t.job_id, t.frame, t.band);
+  metrics_.band_started();
   if (o_.slow_band.count() > 0) {
     pause(o_.slow_band);
     bool stopping;
@@ -300,29 +336,36 @@ void WorkerClient::Impl::handle(const BandTask& t) {
       return;
     }
   }
-  if (fetch_scene(t)) {
+  if (const std::optional<BandEnd> unrendered = fetch_scene(t)) {
+    metrics_.band_ended(*unrendered, -1);
+  } else {
+    const auto start = SteadyClock::now();
     auto r = renderer_.render(t);
+    const double seconds = std::chrono::duration<double>(SteadyClock::now() - start).count();
     BandOutput o;
     if (r.ok()) {
       o = std::move(*r);
     } else {
       o.error = r.status().message();
-      spdlog::warn("job {} frame {} band {}: {}", t.job_id, t.frame, t.band, o.error);
+      spdlog::warn("cannot render the band: {}", o.error);
     }
-    send(std::move(o));
+    const BandEnd end = send(std::move(o));
+    metrics_.band_ended(end, seconds);
+    if (end == BandEnd::kDone) spdlog::info("rendered in {:.3f} s and returned", seconds);
   }
   std::lock_guard lk(mu_);
   lease_.clear();
 }
 
-void WorkerClient::Impl::send(BandOutput o) {
+WorkerClient::Impl::BandEnd WorkerClient::Impl::send(BandOutput o) {
   {
     std::lock_guard lk(mu_);
-    if (revoked_) return;
+    if (revoked_) return BandEnd::kDropped;
     sending_ = true;
     o.worker_id = worker_id_;
     o.lease_id = lease_;
   }
+  const BandEnd sent = o.error.empty() ? BandEnd::kDone : BandEnd::kFailed;
   const v1::CompleteBandRequest req = rpc::ToProto(std::move(o));
   // A brief outage should not cost the band: retry while the lease may
   // still stand.
@@ -331,19 +374,23 @@ void WorkerClient::Impl::send(BandOutput o) {
     grpc::ClientContext ctx;
     rpc::prepare(ctx, conn_, rpc::kDataCall);
     const Status s = rpc::FromGrpc(stub_->CompleteBand(&ctx, req, &resp), peer_);
+    metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
     if (s.ok()) {
-      if (!resp.accepted())
+      if (!resp.accepted()) {
         spdlog::info("result for lease {} dropped: {}", req.lease_id(), resp.reason());
-      return;
+        return BandEnd::kDropped;
+      }
+      return sent;
     }
-    if (refused(s)) return;
+    if (refused(s)) return BandEnd::kDropped;
     if (s.code() != Code::kUnavailable && s.code() != Code::kDeadlineExceeded) {
       spdlog::warn("result for lease {} refused: {}", req.lease_id(), s.message());
-      return;
+      return BandEnd::kDropped;
     }
     unreachable(s);
     pause(Millis(500));
   }
+  return BandEnd::kDropped;
 }
 
 WorkerClient::WorkerClient(WorkerOptions options)
@@ -352,5 +399,6 @@ WorkerClient::~WorkerClient() = default;
 int WorkerClient::run() { return impl_->run(); }
 void WorkerClient::stop() { impl_->stop(); }
 void WorkerClient::hand_back() { impl_->hand_back(); }
+WorkerMetrics& WorkerClient::metrics() { return impl_->metrics(); }
 
 }  // namespace locus::farm

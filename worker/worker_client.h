@@ -6,6 +6,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -24,7 +25,13 @@ struct WorkerOptions {
   // Test only (tests/faults/run.sh): wait this long before rendering each
   // band, to play a slow worker.
   Millis slow_band{0};
+  // Called when the worker becomes ready (registered, and its last call
+  // reached the coordinator) or stops being ready: the health service's
+  // readiness. From the worker's threads.
+  std::function<void(bool ready)> on_ready;
 };
+
+class WorkerMetrics;
 
 class WorkerClient {
  public:
@@ -42,6 +49,9 @@ class WorkerClient {
   // a failed attempt), for a worker that must exit now: render_band() cannot
   // be interrupted, so the caller exits the process right after.
   void hand_back();
+
+  // The worker's Prometheus series (worker/worker_metrics.h).
+  WorkerMetrics& metrics();
 
  private:
   class Impl;

@@ -8,11 +8,16 @@ PACKAGES=(
   protobuf-compiler libprotobuf-dev protobuf-compiler-grpc libgrpc++-dev
   libglm-dev libopenimageio-dev openimageio-tools libspdlog-dev libgtest-dev libcli11-dev
   libtinyobjloader-dev libsqlite3-dev libssl-dev
+  # Metrics (prometheus-cpp: core and the pull endpoint).
+  prometheus-cpp-dev
   sqlite3 iproute2
-  python3 python3-numpy python3-pil python3-matplotlib python3-openimageio
+  python3 python3-numpy python3-pil python3-matplotlib python3-openimageio python3-yaml
   # TLS test certificates (tests/tls/make_certs.sh); libFuzzer targets:
   # clang, and libFuzzer itself (libclang_rt.fuzzer) from libclang-rt-14-dev.
   openssl clang libclang-rt-14-dev
+  # Containers (tests/container/run.sh, deploy/): the engine, compose, and
+  # debootstrap for the base image (deploy/docker/make-base.sh).
+  docker.io docker-compose debootstrap
 )
 
 missing=()

@@ -1,0 +1,178 @@
+#include "server/metrics.h"
+
+#include <prometheus/collectable.h>
+#include <prometheus/exposer.h>
+#include <prometheus/text_serializer.h>
+
+#include <exception>
+#include <type_traits>
+#include <variant>
+
+namespace locus::farm {
+
+const prometheus::Histogram::BucketBoundaries& band_seconds_buckets() {
+  static const prometheus::Histogram::BucketBoundaries buckets = {
+      0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60, 120, 300};
+  return buckets;
+}
+
+prometheus::Family<prometheus::Counter>& counters(prometheus::Registry& registry,
+                                                  const std::string& name,
+                                                  const std::string& help) {
+  return prometheus::BuildCounter().Name(name).Help(help).Register(registry);
+}
+
+prometheus::Family<prometheus::Gauge>& gauges(prometheus::Registry& registry,
+                                              const std::string& name, const std::string& help) {
+  return prometheus::BuildGauge().Name(name).Help(help).Register(registry);
+}
+
+prometheus::Counter& counter(prometheus::Registry& registry, const std::string& name,
+                             const std::string& help) {
+  return counters(registry, name, help).Add({});
+}
+
+prometheus::Gauge& gauge(prometheus::Registry& registry, const std::string& name,
+                         const std::string& help) {
+  return gauges(registry, name, help).Add({});
+}
+
+prometheus::Histogram& band_seconds(prometheus::Registry& registry, const std::string& name,
+                                    const std::string& help) {
+  return prometheus::BuildHistogram().Name(name).Help(help).Register(registry).Add(
+      {}, band_seconds_buckets());
+}
+
+std::string metrics_text(const prometheus::Registry& registry) {
+  return prometheus::TextSerializer().Serialize(registry.Collect());
+}
+
+// What the exposer collects: the registry, once `before_scrape` has
+// brought its gauges up to date.
+class MetricsEndpoint::Source final : public prometheus::Collectable {
+ public:
+  Source(std::shared_ptr<prometheus::Registry> registry, std::function<void()> before_scrape)
+      : registry_(std::move(registry)), before_scrape_(std::move(before_scrape)) {}
+  std::vector<prometheus::MetricFamily> Collect() const override {
+    if (before_scrape_) before_scrape_();
+    return registry_->Collect();
+  }
+
+ private:
+  std::shared_ptr<prometheus::Registry> registry_;
+  std::function<void()> before_scrape_;
+};
+
+Result<std::unique_ptr<MetricsEndpoint>> MetricsEndpoint::start(
+    const std::string& address, std::shared_ptr<prometheus::Registry> registry,
+    std::function<void()> before_scrape) {
+  std::unique_ptr<MetricsEndpoint> e(new MetricsEndpoint);
+  e->source_ = std::make_shared<Source>(std::move(registry), std::move(before_scrape));
+  try {
+    // One thread: Prometheus scrapes every few seconds at most.
+    e->exposer_ = std::make_unique<prometheus::Exposer>(address, 1);
+  } catch (const std::exception& ex) {
+    return Status(Code::kUnavailable, "--metrics " + address + ": cannot listen (" + ex.what() +
+                                          "); give HOST:PORT with a free port, e.g. 0.0.0.0:7002");
+  }
+  e->exposer_->RegisterCollectable(e->source_);
+  const std::vector<int> ports = e->exposer_->GetListeningPorts();
+  e->port_ = ports.empty() ? 0 : ports.front();
+  return e;
+}
+
+MetricsEndpoint::~MetricsEndpoint() = default;
+
+namespace {
+
+// The outcomes charged to a band: its failures.
+constexpr std::array<LeaseOutcome, 4> kFailures = {LeaseOutcome::kFailed, LeaseOutcome::kMalformed,
+                                                   LeaseOutcome::kLapsed, LeaseOutcome::kSilent};
+constexpr std::array<JobState, 5> kJobStates = {JobState::kQueued, JobState::kRunning,
+                                                JobState::kSucceeded, JobState::kFailed,
+                                                JobState::kCancelled};
+
+}  // namespace
+
+CoordinatorMetrics::CoordinatorMetrics()
+    : registry_(std::make_shared<prometheus::Registry>()),
+      bands_(gauges(*registry_, "locus_bands",
+                    "Bands of the jobs the coordinator holds, by state: queued (waiting for a "
+                    "worker), running (leased), done")),
+      bands_queued_(bands_.Add({{"state", "queued"}})),
+      bands_running_(bands_.Add({{"state", "running"}})),
+      bands_done_(bands_.Add({{"state", "done"}})),
+      jobs_(gauges(*registry_, "locus_jobs", "Jobs the coordinator holds, by state")),
+      workers_(gauge(*registry_, "locus_workers_connected",
+                     "Workers registered and not dropped for silence")),
+      jobs_submitted_(counter(*registry_, "locus_jobs_submitted_total",
+                              "Jobs accepted since the coordinator started")),
+      jobs_finished_(counters(*registry_, "locus_jobs_finished_total",
+                              "Jobs that ended since the coordinator started, by final state")),
+      bands_completed_(counter(*registry_, "locus_bands_completed_total",
+                               "Band results accepted since the coordinator started")),
+      band_seconds_(band_seconds(*registry_, "locus_band_render_seconds",
+                                 "Seconds from a band's lease to its accepted result (rendering, "
+                                 "scene fetch and transfer)")),
+      failures_(counters(*registry_, "locus_band_failures_total",
+                         "Failed band attempts charged to the band, by reason: failed (the "
+                         "worker's error), malformed (pixels), lapsed (lease not renewed), "
+                         "silent (worker dropped)")),
+      retries_(counter(*registry_, "locus_band_retries_total",
+                       "Bands put back in the queue to be leased again (after a failure, a "
+                       "lapse, a silent worker or a hand-back)")),
+      speculative_(counter(*registry_, "locus_speculative_leases_total",
+                           "Second leases of bands running far longer than their peers")),
+      received_(counters(*registry_, "locus_rpc_received_bytes_total",
+                         "Bytes of request messages received, by call")),
+      sent_(counters(*registry_, "locus_rpc_sent_bytes_total",
+                     "Bytes of response messages sent, by call")) {
+  // Every series exists from the start, at zero.
+  for (JobState s : kJobStates) {
+    jobs_by_state_[static_cast<size_t>(s)] = &jobs_.Add({{"state", job_state_name(s)}});
+    if (is_terminal(s)) jobs_finished_.Add({{"state", job_state_name(s)}});
+  }
+  for (LeaseOutcome o : kFailures) failures_.Add({{"reason", lease_outcome_name(o)}});
+}
+
+void CoordinatorMetrics::observe(const std::vector<Event>& events) {
+  for (const Event& e : events) {
+    std::visit(
+        [&](const auto& ev) {
+          using T = std::decay_t<decltype(ev)>;
+          if constexpr (std::is_same_v<T, event::JobAdded>) {
+            jobs_submitted_.Increment();
+          } else if constexpr (std::is_same_v<T, event::JobStateChanged>) {
+            if (is_terminal(ev.state))
+              jobs_finished_.Add({{"state", job_state_name(ev.state)}}).Increment();
+          } else if constexpr (std::is_same_v<T, event::LeaseGranted>) {
+            if (ev.speculative) speculative_.Increment();
+          } else if constexpr (std::is_same_v<T, event::LeaseEnded>) {
+            if (is_charged(ev.outcome))
+              failures_.Add({{"reason", lease_outcome_name(ev.outcome)}}).Increment();
+            if (ev.requeued) retries_.Increment();
+          } else if constexpr (std::is_same_v<T, event::BandDone>) {
+            bands_completed_.Increment();
+            band_seconds_.Observe(ev.seconds);
+          }
+        },
+        e);
+  }
+}
+
+void CoordinatorMetrics::set_counts(const FarmCounts& c) {
+  bands_queued_.Set(static_cast<double>(c.bands_queued));
+  bands_running_.Set(static_cast<double>(c.bands_running));
+  bands_done_.Set(static_cast<double>(c.bands_done));
+  for (size_t i = 0; i < jobs_by_state_.size(); ++i)
+    jobs_by_state_[i]->Set(static_cast<double>(c.jobs[i]));
+  workers_.Set(static_cast<double>(c.workers));
+}
+
+void CoordinatorMetrics::add_bytes(std::string_view call, uint64_t received, uint64_t sent) {
+  const prometheus::Labels labels{{"call", std::string(call)}};
+  received_.Add(labels).Increment(static_cast<double>(received));
+  sent_.Add(labels).Increment(static_cast<double>(sent));
+}
+
+}  // namespace locus::farm

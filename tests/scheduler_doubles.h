@@ -1,0 +1,31 @@
+// Test doubles for the Scheduler and the Coordinator without a network,
+// shared by scheduler_test, store_test and metrics_test: a clock the test
+// moves, and a worker's pixels for a leased band.
+#pragma once
+
+#include <string>
+
+#include "server/farm_types.h"
+
+namespace locus::farm::test_doubles {
+
+struct FakeClock {
+  TimePoint t{};
+  NowFn fn() {
+    return [this] { return t; };
+  }
+  void advance(int ms) { t += Millis(ms); }
+};
+
+// The band's pixels, all 0.5: the right size for its lease.
+inline BandOutput pixels(const std::string& worker, const BandTask& t) {
+  BandOutput o;
+  o.worker_id = worker;
+  o.lease_id = t.lease_id;
+  o.rgb.assign(static_cast<size_t>(t.width) * (t.y1 - t.y0) * 3, 0.5f);
+  o.stats.pixels_total = static_cast<uint64_t>(t.width) * (t.y1 - t.y0);
+  o.stats.geometry_triangles = 100;  // each band's frame: summed as a maximum
+  return o;
+}
+
+}  // namespace locus::farm::test_doubles
