@@ -196,9 +196,18 @@ def hwy_shim(tmp):
     return lib
 
 
+# Where render_band's instructions go: inclusive costs of a few functions
+# (overlapping: shading includes the secondary rays' searches and shadows).
+PROFILE = [("span_shadows", "locus::SpanShadows::compute_light(int)"),
+           ("shading", "locus::Tracer::shade("),
+           ("ray_search", "locus::Tracer::nearest("),
+           ("visibility", "visible_segments(")]
+
+
 def callgrind(locus, scene, size, args, tmp, shim):
     """Instructions executed inside render_band (scene loading, prepare and
-    image writing excluded), and the render's --stats."""
+    image writing excluded), the inclusive share of the PROFILE functions,
+    and the render's --stats."""
     out = os.path.join(tmp, "cg.out")
     stats = os.path.join(tmp, "cg-stats.json")
     cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
@@ -215,8 +224,20 @@ def callgrind(locus, scene, size, args, tmp, shim):
         for line in f:
             if line.startswith("summary:") or line.startswith("totals:"):
                 ir = int(line.split()[1])
+    shares = {}
+    a = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", out],
+                       capture_output=True, text=True)
+    for line in a.stdout.splitlines():
+        m = re.match(r"\s*([0-9,]+) \(\s*[0-9.]+%\)\s+\S*?:(.*) \[", line)
+        if not m:
+            continue
+        cost, fn = int(m.group(1).replace(",", "")), m.group(2)
+        for key, prefix in PROFILE:
+            # the outermost call only: not a lambda inside it, not a recursion ('2)
+            if key not in shares and prefix in fn and "lambda" not in fn and "'" not in fn:
+                shares[key] = cost / ir if ir else float("nan")
     with open(stats) as f:
-        return ir, json.load(f)
+        return ir, shares, json.load(f)
 
 
 # ------------------------------------------------------------------ fit

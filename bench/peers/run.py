@@ -56,7 +56,9 @@ LOCUS_ACCEPT = [("conf1", "Locus I: raytrace --boxes none --spp 2",
                  ["--method", "local", "--boxes", "none", "--aa", "4"])]
 POV = [("pov_r2", "POV-Ray +A0.0 +AM1 +R2", ["+A0.0", "+AM1", "+R2"]),
        ("pov_noaa", "POV-Ray -A", ["-A"])]
-CALLGRIND_SCENES = ["d_spheres_2lights", "a_glass", "b_desk", "tetra"]
+# scene, --aa values (gears: the largest share of span shadows; 10 min a run)
+CALLGRIND = [("d_spheres_2lights", ("4", "0")), ("a_glass", ("4", "0")), ("b_desk", ("4", "0")),
+             ("tetra", ("4", "0")), ("gears", ("4",))]
 
 FULL = {"size": 512, "ref_spp": 16, "pov_ref": 8, "cg_size": 128}
 QUICK = {"size": 128, "ref_spp": 4, "pov_ref": 3, "cg_size": 48}
@@ -84,9 +86,26 @@ def main():
                     "peers-raw.json in the cache directory)")
     ap.add_argument("--report-only", metavar="RAW",
                     help="no measuring: write peers.{md,csv,png} again from a saved RAW file")
+    ap.add_argument("--redo-callgrind", metavar="RAW",
+                    help="measure only the instruction counts again, into a saved RAW file "
+                    "(with its locus binary: give --locus the same one), and report")
     args = ap.parse_args()
     if args.report_only:
         raw = H.load_raw(args.report_only)
+        report(args.out or os.path.join(H.ROOT, "bench", "results"), **raw)
+        return
+    if args.redo_callgrind:
+        raw = H.load_raw(args.redo_callgrind)
+        tmp = tempfile.mkdtemp(prefix="locus-peers-")
+        try:
+            locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
+            if locus.sha[:12] != raw["info"].get("locus"):
+                raise SystemExit(f"{args.locus} is {locus.sha[:12]}, the run was made with "
+                                 f"{raw['info'].get('locus')}")
+            raw["cg_rows"] = instructions(CALLGRIND, FULL["cg_size"], locus, tmp)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        H.save_raw(args.redo_callgrind, raw)
         report(args.out or os.path.join(H.ROOT, "bench", "results"), **raw)
         return
 
@@ -131,9 +150,8 @@ def main():
 
         if not args.no_callgrind:
             if H.which("valgrind"):
-                cg = [s for s in SCENES if s[0] in
-                      ([ACCEPT_SCENE] if args.quick else CALLGRIND_SCENES)]
-                cg_rows = instructions(cg, plan["cg_size"], locus, tmp)
+                cg_rows = instructions(CALLGRIND[:1] if args.quick else CALLGRIND,
+                                       plan["cg_size"], locus, tmp)
             else:
                 H.log("valgrind not found: no instruction counts")
         info["locus_changed"] = (os.path.exists(args.locus) and
@@ -292,19 +310,23 @@ def run_scene(name, path, checked_in, size, plan, repeat, locus, pov, cache, tmp
 
 # ------------------------------------------------------------------ callgrind
 
-def instructions(scenes, size, locus, tmp):
-    """Instructions in render_band per pixel: full and floor, --aa 4 and
-    --aa 0 (callgrind; independent of load)."""
+def instructions(plan, size, locus, tmp):
+    """Instructions in render_band per pixel: full and floor, at the given
+    --aa values (callgrind; independent of load)."""
     shim = H.hwy_shim(tmp)
     out = []
-    for name, path, _ in scenes:
+    paths = {s[0]: s[1] for s in SCENES}
+    for name, aas in plan:
+        path = paths[name]
         floor_path = H.diffuse_copy(path, tmp)
-        for aa in ("4", "0"):
+        for aa in aas:
             rec = {"scene": name, "size": size, "aa": int(aa)}
             try:
                 for which, scene in (("full", path), ("floor", floor_path)):
-                    ir, st = H.callgrind(locus, scene, size, IV + ["--aa", aa], tmp, shim)
+                    ir, shares, st = H.callgrind(locus, scene, size, IV + ["--aa", aa], tmp,
+                                                 shim)
                     rec[which + "_ir"] = ir
+                    rec[which + "_shares"] = shares
                     rec[which + "_traced"] = st["pixels"]["ray_traced"]
                     rays = st["rays"]
                     rec[which + "_secondary"] = rays["reflected"] + rays["refracted"]
@@ -520,7 +542,9 @@ def write_md(path, rows, cg_rows, excluded, checks, info):
               "traced pixel*: (full − floor) / traced pixels of the full render, what "
               "reflection and refraction add to a traced pixel; *per secondary ray*: "
               "(full − floor) / (reflected + refracted rays). A scene without curved "
-              "bodies, mirrors or glass (tetra) shows the diffuse-span path alone.", "",
+              "bodies, mirrors or glass (tetra) shows the diffuse-span path alone. Negative: "
+              "the floor costs more than the full render (gears: its glass faces, traced in "
+              "the full render, become diffuse faces whose spans need shadow volumes).", "",
               "| scene | --aa | instr./pixel, full | instr./pixel, floor | traced pixels, full "
               "| traced pixels, floor | instr. per traced pixel (full) | mirrors and glass, "
               "per traced pixel | per secondary ray |", "|---|---|---|---|---|---|---|---|---|"]
@@ -530,13 +554,37 @@ def write_md(path, rows, cg_rows, excluded, checks, info):
                 continue
             px = c["pixels"]
             d_ir = c["full_ir"] - c["floor_ir"]
-            extra = f"{d_ir / c['full_traced']:,.0f}" if c["full_traced"] else "—"
-            per_ray = (f"{d_ir / c['full_secondary']:,.0f}" if c.get("full_secondary") else "—")
-            per_traced = (f"{c['full_ir'] / c['full_traced']:,.0f}" if c["full_traced"] else
-                          "—")
+            # Without reflected or refracted rays (tetra: its few traced pixels are
+            # faces cut by hither) the per-traced-pixel figures mean nothing.
+            sec = c.get("full_secondary")
+            extra = f"{d_ir / c['full_traced']:,.0f}" if sec and c["full_traced"] else "—"
+            per_ray = f"{d_ir / sec:,.0f}" if sec else "—"
+            per_traced = (f"{c['full_ir'] / c['full_traced']:,.0f}" if sec and
+                          c["full_traced"] else "—")
             L.append(f"| {c['scene']} | {c['aa']} | {c['full_ir'] / px:,.0f} | "
                      f"{c['floor_ir'] / px:,.0f} | {100 * c['full_traced'] / px:.1f}% | "
                      f"{100 * c['floor_traced'] / px:.1f}% | {per_traced} | {extra} | {per_ray} |")
+        L += ["", "Where they go: the share of render_band's instructions spent inside "
+              "(inclusive, so the columns overlap: shading includes the secondary rays' "
+              "searches and shadows, and at --aa 0 the span shadows too, which point sampling "
+              "computes from inside shading) the span shadows of the scanline pass "
+              "(`SpanShadows::compute_light`, shadow volumes against the spans of a "
+              "sub-scanline), shading "
+              "(`Tracer::shade`), ray searches (`Tracer::nearest`) and the scanline visibility "
+              "(`visible_segments`).", "",
+              "| scene | --aa | render | total instructions | span shadows | shading | "
+              "ray search | visibility |", "|---|---|---|---|---|---|---|---|"]
+        for c in cg_rows:
+            for which in ("full", "floor"):
+                sh = c.get(which + "_shares")
+                if sh is None:
+                    continue
+
+                def pc(k):
+                    return f"{100 * sh[k]:.0f}%" if k in sh else "—"
+                L.append(f"| {c['scene']} | {c['aa']} | {which} | {c[which + '_ir']:,} | "
+                         f"{pc('span_shadows')} | {pc('shading')} | {pc('ray_search')} | "
+                         f"{pc('visibility')} |")
         L.append("")
     L += ["Chart: `peers.png`; every figure and every run's time: `peers.csv`.", ""]
     with open(path, "w") as f:
@@ -579,10 +627,11 @@ def chart(path, rows, info):
         ax.set_ylabel(ylabel, fontsize=8)
         ax.grid(True, axis="y", which="both", alpha=0.25)
         ax.tick_params(labelsize=8)
-    axes[0].legend(fontsize=7, ncol=3)
+    h, lab = axes[0].get_legend_handles_labels()
+    fig.legend(h, lab, loc="lower center", ncol=6, fontsize=7, frameon=False)
     axes[0].set_title(f"Locus vs POV-Ray 3.7, {info['size']}x{info['size']}, one thread "
                       f"(best of {info['repeat']}; lower is better)", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
