@@ -361,8 +361,12 @@ def acceptance(rows):
                             (rt, "raytrace --boxes eye+shadow --spp 2")):
             if other:
                 x = other["cpu"] / iv["cpu"]
-                out.append(f"{'PASS' if x > 1 else 'FAIL'} {tag}: IV --aa 4 {iv['cpu']:.3f} s "
-                           f"vs {what} {other['cpu']:.3f} s CPU: {x:.2f}x faster "
+                # The issue asks at least 15x against configuration I; the
+                # others are context (faster at all).
+                need = 15.0 if other is c1 else 1.0
+                out.append(f"{'PASS' if x >= need and x > 1 else 'FAIL'} {tag}: IV --aa 4 {iv['cpu']:.3f} s "
+                           f"vs {what} {other['cpu']:.3f} s CPU: {x:.2f}x faster"
+                           f"{' (needs >= 15)' if other is c1 else ''} "
                            f"(wall {other['wall'] / iv['wall']:.2f}x); RMSE "
                            f"{iv.get('rmse', float('nan')):.5f} vs "
                            f"{other.get('rmse', float('nan')):.5f}")
@@ -391,9 +395,11 @@ def acceptance(rows):
     if total:
         walls = sum(1 for s in SPD_NAMES if get(rows, s, "aa4") and get(rows, s, "pov_r2")
                     and get(rows, s, "aa4")["wall"] < get(rows, s, "pov_r2")["wall"])
-        out.append(f"INFO SPD: Locus IV --aa 4 faster than POV-Ray +A0.0 +AM1 +R2 on {faster} "
-                   f"of {total} scenes by CPU time ({', '.join(names) or 'none'}); {walls} of "
-                   f"{total} by wall time")
+        # The issue: faster on at least 5 of the 7 SPD scenes.
+        need = 5 if total == 7 else (5 * total + 6) // 7
+        out.append(f"{'PASS' if faster >= need else 'FAIL'} SPD: Locus IV --aa 4 faster than "
+                   f"POV-Ray +A0.0 +AM1 +R2 on {faster} of {total} scenes by CPU time (needs "
+                   f">= {need}; {', '.join(names) or 'none'}); {walls} of {total} by wall time")
     return out
 
 
