@@ -143,9 +143,7 @@ Result<std::vector<float>> read_band_file(const std::string& path, const BandPix
 Result<Image> stitch_frame(const std::string& job_dir, const FrameReady& f) {
   Image image(f.width, f.height);
   for (int b = 0; b < f.bands; ++b) {
-    const Band rows = static_cast<int>(f.band_edges.size()) == f.bands + 1
-                          ? Band{f.band_edges[b], f.band_edges[b + 1]}
-                          : band_rows(f.height, f.bands, b);
+    const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
     auto px = read_band_file(band_file_path(job_dir, f.frame, b), {f.width, rows.y0, rows.y1});
     if (!px.ok()) return px.status();
     std::copy(px->begin(), px->end(),

@@ -1,6 +1,5 @@
 #include "server/coordinator.h"
 
-#include "common/animation.h"
 #include "common/band_split.h"
 
 #include <fcntl.h>
@@ -455,10 +454,8 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
     // Bands of equal predicted cost (issue #9 item 4, docs/farm.md): from
     // a point-sampled preview of the middle frame, used for every frame.
     const int middle = spec.frame_first + (spec.frame_last - spec.frame_first) / 2;
-    Scene posed = *scene;
-    posed.camera.width = spec.width;
-    posed.camera.height = spec.height;
-    posed = scene_at_frame(posed, middle, Orbit{spec.orbit_degrees, spec.frame_first, spec.frame_last});
+    const Scene posed = frame_scene(*scene, spec.width, spec.height, middle, spec.frame_first,
+                                    spec.frame_last, spec.orbit_degrees);
     Result<std::vector<double>> costs = predict_row_costs(posed, *params);
     if (costs.ok()) {
       spec.band_edges = split_rows_by_cost(*costs, spec.bands);

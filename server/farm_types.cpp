@@ -1,5 +1,7 @@
 #include "server/farm_types.h"
 
+#include "common/animation.h"
+
 #include <openssl/evp.h>
 
 #include <algorithm>
@@ -87,12 +89,23 @@ Band band_rows(int height, int bands, int index) {
   return Band{at(index), at(index + 1)};
 }
 
-Band band_rows(const JobSpec& spec, int index) {
-  if (static_cast<int>(spec.band_edges.size()) == spec.bands + 1) {
-    return Band{spec.band_edges[index], spec.band_edges[index + 1]};
-  }
-  return band_rows(spec.height, spec.bands, index);
+Band band_rows(int height, int bands, const std::vector<int>& edges, int index) {
+  if (static_cast<int>(edges.size()) == bands + 1) return Band{edges[index], edges[index + 1]};
+  return band_rows(height, bands, index);
 }
+
+Band band_rows(const JobSpec& spec, int index) {
+  return band_rows(spec.height, spec.bands, spec.band_edges, index);
+}
+
+Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
+                  int frame_last, double orbit_degrees) {
+  Scene s = base;
+  s.camera.width = width;
+  s.camera.height = height;
+  return scene_at_frame(s, frame, Orbit{orbit_degrees, frame_first, frame_last});
+}
+
 
 std::string band_edges_text(const std::vector<int>& edges) {
   std::string out;

@@ -95,6 +95,9 @@ struct JobSpec {
 Band band_rows(int height, int bands, int index);
 // Rows of band `index` of a job: its band_edges if it has them.
 Band band_rows(const JobSpec& spec, int index);
+// Rows of band `index` cut at `edges` (bands + 1 of them), or of equal
+// heights if `edges` is empty.
+Band band_rows(int height, int bands, const std::vector<int>& edges, int index);
 // band_edges as text ("0 12 30 ... 512") and back; from_text checks that
 // there are bands + 1 strictly increasing edges from 0 to height, and
 // returns an empty vector (equal split) for empty text.
@@ -190,5 +193,12 @@ struct FarmCounts {
 
 // Hex SHA-256: scenes are addressed by the hash of their serialized form.
 std::string content_hash(std::string_view bytes);
+
+// The frame's still scene exactly as every renderer of the farm builds it:
+// the resolution set, then scene_at_frame() with the job's orbit. The
+// in-process `locus render --workers 0` calls it too.
+Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
+                  int frame_last, double orbit_degrees);
+
 
 }  // namespace locus::farm

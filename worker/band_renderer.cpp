@@ -10,14 +10,6 @@
 
 namespace locus::farm {
 
-Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
-                  int frame_last, double orbit_degrees) {
-  Scene s = base;
-  s.camera.width = width;
-  s.camera.height = height;
-  return scene_at_frame(s, frame, Orbit{orbit_degrees, frame_first, frame_last});
-}
-
 BandRenderer::BandRenderer(int threads, std::string mesh_root, size_t max_scenes,
                            size_t max_prepared)
     : threads_(threads),

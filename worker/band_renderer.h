@@ -53,11 +53,5 @@ class BandRenderer {
   int prepares_ = 0;
 };
 
-// The frame's still scene exactly as every renderer of the farm builds it:
-// the resolution set, then scene_at_frame() with the job's orbit. The
-// in-process `locus render --workers 0` calls it too.
-Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
-                  int frame_last, double orbit_degrees);
-
 }  // namespace farm
 }  // namespace locus
