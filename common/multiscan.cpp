@@ -18,6 +18,10 @@ namespace {
 // radiance); otherwise it is sampled itself (SubLineBuilder::traced_colour).
 constexpr double kContrast = 0.05;
 
+// The sub-scanlines of this many pixel rows share their spans' candidate
+// occluders (SpanShadows::set_group_rows; docs/multiscan.md).
+constexpr double kShadowGroupRows = 8.0;
+
 // A visible figure's piece of one sub-scanline, inside one pixel.
 struct Piece {
   enum Kind : uint8_t { kBackground, kTraced, kFigure };
@@ -209,6 +213,8 @@ class SubLineBuilder {
     if (ps_.volumes) {
       if (!shadows) {
         shadows.emplace(ps_, y, stats_);
+        shadows->set_group_rows(kShadowGroupRows);
+        shadows->set_line(y);
       } else {
         shadows->set_line(y);
       }

@@ -583,6 +583,22 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
   if (!world.empty())
     scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
 
+  // The boxes of the shadow search: the hierarchy's, widened to the hulls
+  // (children follow their parent in ps.bvh.nodes).
+  std::vector<Aabb> node_boxes(ps.bvh.nodes.size());
+  for (int ni = static_cast<int>(ps.bvh.nodes.size()) - 1; ni >= 0; --ni) {
+    const BvhNode& node = ps.bvh.nodes[ni];
+    Aabb b = node.box;
+    if (node.count > 0) {
+      for (int k = node.first; k < node.first + node.count; ++k) {
+        for (const Vec3& x : hulls[ps.bvh.order[k]]) b.extend(x);
+      }
+    } else {
+      b.extend(node_boxes[ni + 1]);
+      b.extend(node_boxes[node.first]);
+    }
+    node_boxes[ni] = b;
+  }
   for (const Light& light : ps.scene.lights) {
     LightVolumes lv;
     lv.position = light.position;
@@ -596,16 +612,19 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
       continue;
     }
     // The hierarchy's boxes (paper §4.1): a point outside a box's volume is
-    // shadowed by nothing in the box.
-    for (const BvhNode& node : ps.bvh.nodes) {
-      const Polyhedron box = make_box(node.box.lo, node.box.hi);
+    // shadowed by nothing in the box. Each box is widened to hold its
+    // occluders' own volumes' outlines (a curved body's bounding polyhedron
+    // reaches beyond the body's box), so a box's volume holds every volume
+    // below it and pruning by boxes never drops an interval.
+    for (const Aabb& vb : node_boxes) {
+      const Polyhedron box = make_box(vb.lo, vb.hi);
       Outlines o;
       for (const auto& face : box.faces) {
         std::vector<Vec3> pts;
         for (int v : face) pts.push_back(box.vertices[v]);
         o.faces.push_back(std::move(pts));
       }
-      const Vec3 lo = node.box.lo, hi = node.box.hi;
+      const Vec3 lo = vb.lo, hi = vb.hi;
       o.planes = {{Vec3(-1, 0, 0), -lo.x}, {Vec3(1, 0, 0), hi.x},   {Vec3(0, -1, 0), -lo.y},
                   {Vec3(0, 1, 0), hi.y},   {Vec3(0, 0, -1), -lo.z}, {Vec3(0, 0, 1), hi.z}};
       lv.node_volume.push_back(
@@ -693,11 +712,17 @@ bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<C
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
                            Stats& stats, int* last_occluder) {
   const LightVolumes& lv = ps.volumes->lights[light];
-  // Candidates that need the exact test, run only once no opaque volume
-  // holds the point.
-  thread_local std::vector<int> exact;
-  exact.clear();
-  // Containment in one candidate's volumes; true if it decides t_pj = 0.
+  const Ray seg{origin, lv.position - origin};
+  // The crossings of transparent occluders met so far (eqs. (2), (3)).
+  thread_local std::vector<Crossing> crossings;
+  crossings.clear();
+  bool ray = false;
+  bool shadowed = false;
+  // Containment in one candidate's volumes; true if it gives t_pj = 0:
+  // an opaque volume holds the point (no ray needed), or the exact test of
+  // a curved body, CSG or transparent occluder met an opaque surface. The
+  // exact test runs at once, so an opaque curved body ends the search as
+  // early as a shadow ray's first hit would.
   auto occluder = [&](int a) {
     const LightVolumes::Occluder& oc = lv.occluders[a];
     if (oc.bound >= 0) {
@@ -710,17 +735,22 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
       inside = lv.set.contains(v, origin, oc.decides ? 0.0 : lv.slack);
     }
     if (!inside) return false;
-    if (oc.decides) {  // opaque: no ray needed
-      if (last_occluder) *last_occluder = a;
-      return true;
+    if (!oc.decides) {
+      if (!ray) ++stats.rays_shadow;
+      ray = true;
+      if (!exact_test(ps, a, seg, crossings, stats)) return false;
     }
-    exact.push_back(a);
-    return false;
+    if (last_occluder) *last_occluder = a;
+    shadowed = true;
+    return true;
   };
   // The occluder that shadowed the previous point is likely to shadow this
-  // one too (neighbouring points); any opaque one gives t_pj = 0.
-  if (last_occluder && *last_occluder >= 0 && lv.occluders[*last_occluder].decides) {
-    if (occluder(*last_occluder)) return Color(0.0);
+  // one too (neighbouring points); any opaque one gives t_pj = 0. It is not
+  // tested twice (its crossings would count twice).
+  int first = -1;
+  if (last_occluder && *last_occluder >= 0) {
+    first = *last_occluder;
+    if (occluder(first)) return Color(0.0);
   }
   const int* cb = nullptr;
   const int* ce = nullptr;
@@ -730,37 +760,20 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   }
   if (cb && ce - cb <= kWalkAbove) {
     for (const int* c = cb; c != ce; ++c) {
-      if (occluder(*c)) return Color(0.0);
+      if (*c != first && occluder(*c)) return Color(0.0);
     }
   } else if (!ps.bvh.nodes.empty()) {
-    // Top down through the hierarchy: outside a box's volume, nothing in
-    // the box shadows the point (paper §4.1).
-    int stack[128];
-    int sp = 0;
-    stack[sp++] = 0;
-    while (sp) {
-      const int ni = stack[--sp];
+    // Top down through the hierarchy: outside a box's shadow volume,
+    // nothing in the box shadows the point (paper §4.1). The box's volume
+    // (the points whose segment to the light meets the box) holds the point
+    // exactly when the segment meets the box, which three slab tests decide
+    // for less than the volume's 7 to 9 planes; the near child first.
+    traverse_bvh(ps.bvh, seg, 0.0, 1.0, [&](int a) {
       ++stats.tests_shadow_volume;
-      if (!lv.set.contains(lv.node_volume[ni], origin, lv.slack)) continue;
-      const BvhNode& node = ps.bvh.nodes[ni];
-      if (node.count == 0) {
-        stack[sp++] = node.first;
-        stack[sp++] = ni + 1;
-        continue;
-      }
-      for (int k = node.first; k < node.first + node.count; ++k) {
-        const int a = ps.bvh.order[k];
-        if (cb && !std::binary_search(cb, ce, a)) continue;
-        if (occluder(a)) return Color(0.0);
-      }
-    }
-  }
-  const Ray seg{origin, lv.position - origin};
-  thread_local std::vector<Crossing> crossings;
-  crossings.clear();
-  if (!exact.empty()) ++stats.rays_shadow;
-  for (int a : exact) {
-    if (exact_test(ps, a, seg, crossings, stats)) return Color(0.0);
+      if (a == first || (cb && !std::binary_search(cb, ce, a))) return 1.0;
+      return occluder(a) ? -1.0 : 1.0;
+    });
+    if (shadowed) return Color(0.0);
   }
   return segment_transmittance(ps.scene, seg, crossings);
 }

@@ -3,6 +3,7 @@
 #include "common/span_shadows.h"
 
 #include <algorithm>
+#include <cmath>
 #include <optional>
 
 #include "common/prepared.h"
@@ -15,10 +16,18 @@ namespace {
 // the hierarchy.
 constexpr int kWalkAbove = 8;
 
+// A box's volume is tested with twice the slack of the volumes below it:
+// it holds them with a margin (shadow_volume.cpp widens the boxes to the
+// occluders' outlines), so whether a line or a group of lines reaches an
+// occluder never hangs on rounding at a shared boundary, and the intervals
+// do not depend on how the candidates were found.
+constexpr double kNodeSlack = 2.0;
+
 }  // namespace
 
 SpanShadows::SpanShadows(const PreparedScene& ps, double y, Stats& stats)
-    : ps_(ps), stats_(stats), lights_(static_cast<int>(ps.scene.lights.size())) {
+    : ps_(ps), stats_(stats), lights_(static_cast<int>(ps.scene.lights.size())),
+      slot_of_face_(ps.scan->faces.size(), -1), group_slot_of_face_(ps.scan->faces.size(), -1) {
   const CameraFrame& cam = ps.camera;
   a_line_lo_ = image_a(0.0);
   a_line_hi_ = image_a(cam.width);
@@ -29,8 +38,22 @@ void SpanShadows::set_line(double y) {
   const CameraFrame& cam = ps_.camera;
   b_ = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
   face_ = -1;
+  for (int k = 0; k < used_; ++k) slot_of_face_[slots_[k].face] = -1;
   used_ = 0;
   s_ = nullptr;
+  // Groups lie at fixed rows (y in [k rows, (k + 1) rows), whatever band
+  // the lines belong to), so a line's candidates, and with them its
+  // intervals, are the same in every banding of the frame.
+  if (group_rows_ > 0) {
+    const double k = std::floor(y / group_rows_);
+    if (k != group_k_) {
+      for (int i = 0; i < group_used_; ++i) group_slot_of_face_[group_slots_[i].face] = -1;
+      group_used_ = 0;
+      group_k_ = k;
+      group_b_hi_ = (1.0 - 2.0 * (k * group_rows_) / cam.height) * cam.tan_half;
+      group_b_lo_ = (1.0 - 2.0 * ((k + 1) * group_rows_) / cam.height) * cam.tan_half;
+    }
+  }
 }
 
 double SpanShadows::image_a(double x) const {
@@ -50,13 +73,12 @@ void SpanShadows::begin_span(int face, double x_first, double x_last) {
   a_last_ = image_a(x_last);
   // A face visible in several spans of the line (a floor between objects)
   // has its intervals found once per line, over the whole line.
-  for (int k = 0; k < used_; ++k) {
-    if (slots_[k].face == face) {
-      s_ = &slots_[k];
-      return;
-    }
+  if (const int k = slot_of_face_[face]; k >= 0) {
+    s_ = &slots_[k];
+    return;
   }
   if (used_ == static_cast<int>(slots_.size())) slots_.emplace_back();
+  slot_of_face_[face] = used_;
   s_ = &slots_[used_++];
   s_->face = face;
   s_->done.assign(lights_, 0);
@@ -197,7 +219,150 @@ bool meets_span(const VolumeSet& set, int v, const SpanLine& l, double slack) {
   return !(lo > hi || lo > l.a_last || hi < l.a_first);
 }
 
+// A group of lines (multi-scanning): the face's points seen through the
+// image rectangle [a0, a1] x [b0, b1], with shadow-ray origins
+// O(a, b) = E + delta + s D(a, b), D = w + a u + b v, s = num / (n . D).
+struct GroupRect {
+  Vec3 delta;
+  double num, sigma, nu, nv, nw;
+  double a0, a1, b0, b1;
+};
+
+// Whether volume v may hold some O(a, b) of the rectangle. A plane
+// m . x <= h + slack at O, multiplied by n . D (of sign sigma wherever the
+// face is in front of the eye), reads K0 + Ka a + Kb b <= 0: a half-plane
+// of the image. The rectangle is clipped by each (Sutherland-Hodgman); the
+// volume misses it when nothing is left. Conservative: a vertex beyond a
+// plane by no more than rounding is kept, so no line of the group loses an
+// interval its own walk would find.
+bool meets_rect(const VolumeSet& set, int v, const GroupRect& r, double slack) {
+  const ShadowVolume& vol = set.volumes[v];
+  if (vol.kind != VolumeKind::kConvex) return true;
+  constexpr int kMax = 40;
+  double pa[2][kMax], pb[2][kMax];
+  int n = 4;
+  pa[0][0] = r.a0, pb[0][0] = r.b0;
+  pa[0][1] = r.a1, pb[0][1] = r.b0;
+  pa[0][2] = r.a1, pb[0][2] = r.b1;
+  pa[0][3] = r.a0, pb[0][3] = r.b1;
+  const double amax = std::max(std::abs(r.a0), std::abs(r.a1));
+  const double bmax = std::max(std::abs(r.b0), std::abs(r.b1));
+  int cur = 0;
+  for (int i = vol.first; i < vol.first + vol.count; ++i) {
+    if (n + 1 > kMax) return true;
+    const VolumeSet::CameraDots& k = set.cam[i];
+    const double c0 = k.me + glm::dot(set.planes[i].m, r.delta) - slack;
+    const double k0 = r.sigma * (c0 * r.nw + r.num * k.mw);
+    const double ka = r.sigma * (c0 * r.nu + r.num * k.mu);
+    const double kb = r.sigma * (c0 * r.nv + r.num * k.mv);
+    const double tol = 1e-9 * (std::abs(k0) + std::abs(ka) * amax + std::abs(kb) * bmax);
+    const double* xa = pa[cur];
+    const double* xb = pb[cur];
+    double* ya = pa[1 - cur];
+    double* yb = pb[1 - cur];
+    int m = 0;
+    double vp = k0 + ka * xa[n - 1] + kb * xb[n - 1] - tol;
+    for (int q = 0, p = n - 1; q < n; p = q++) {
+      const double vq = k0 + ka * xa[q] + kb * xb[q] - tol;
+      if ((vp <= 0) != (vq <= 0)) {
+        const double t = vp / (vp - vq);
+        ya[m] = xa[p] + t * (xa[q] - xa[p]);
+        yb[m] = xb[p] + t * (xb[q] - xb[p]);
+        ++m;
+      }
+      if (vq <= 0) {
+        ya[m] = xa[q];
+        yb[m] = xb[q];
+        ++m;
+      }
+      vp = vq;
+    }
+    if (m == 0) return false;
+    n = m;
+    cur = 1 - cur;
+  }
+  return true;
+}
+
 }  // namespace
+
+const std::vector<int>& SpanShadows::group_candidates(int j) {
+  int gi = group_slot_of_face_[face_];
+  if (gi < 0) {
+    if (group_used_ == static_cast<int>(group_slots_.size())) group_slots_.emplace_back();
+    gi = group_used_++;
+    group_slot_of_face_[face_] = gi;
+    GroupSlot& g = group_slots_[gi];
+    g.face = face_;
+    g.done.assign(lights_, 0);
+    g.candidates.resize(lights_);
+  }
+  GroupSlot& g = group_slots_[gi];
+  std::vector<int>& out = g.candidates[j];
+  if (g.done[j]) return out;
+  g.done[j] = 1;
+  out.clear();
+  const ScanFace& f = ps_.scan->faces[face_];
+  const CameraFrame& cam = ps_.camera;
+  const LightVolumes& lv = ps_.volumes->lights[j];
+  const Vec3& n = f.normal;
+  const bool side = glm::dot(n, lv.position) - f.offset >= 0;  // as compute_light
+  GroupRect r;
+  r.delta = (side ? ps_.eps : -ps_.eps) * n;
+  r.num = f.offset - glm::dot(n, cam.from);
+  r.sigma = r.num > 0 ? 1.0 : -1.0;
+  r.nu = glm::dot(n, cam.u);
+  r.nv = glm::dot(n, cam.v);
+  r.nw = glm::dot(n, cam.w);
+  r.a0 = a_line_lo_;
+  r.a1 = a_line_hi_;
+  r.b0 = group_b_lo_;
+  r.b1 = group_b_hi_;
+  // An occluder stays a candidate if its bound and one of its volumes may
+  // meet the rectangle (the tests compute_light's lines make, with slack
+  // at least theirs).
+  auto occluder = [&](int c) {
+    const LightVolumes::Occluder& oc = lv.occluders[c];
+    ++stats_.tests_shadow_volume;
+    if (oc.bound >= 0 && !meets_rect(lv.set, oc.bound, r, lv.slack)) return;
+    for (int v = oc.first; v < oc.first + oc.count; ++v) {
+      if (meets_rect(lv.set, v, r, lv.slack)) {
+        out.push_back(c);
+        return;
+      }
+    }
+  };
+  if (!ps_.volumes->search) {
+    for (int c = 0; c < static_cast<int>(lv.occluders.size()); ++c) occluder(c);
+    return out;
+  }
+  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
+  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
+  if (ce - cb <= kWalkAbove) {
+    for (const int* c = cb; c != ce; ++c) occluder(*c);
+    return out;
+  }
+  // The walk of compute_light, with the rectangle: its order is kept.
+  int stack[128];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp) {
+    const int ni = stack[--sp];
+    ++stats_.tests_shadow_volume;
+    if (!meets_rect(lv.set, lv.node_volume[ni], r, kNodeSlack * lv.slack)) continue;
+    const BvhNode& node = ps_.bvh.nodes[ni];
+    if (node.count == 0) {
+      stack[sp++] = node.first;
+      stack[sp++] = ni + 1;
+      continue;
+    }
+    for (int k = node.first; k < node.first + node.count; ++k) {
+      const int a = ps_.bvh.order[k];
+      if (std::binary_search(cb, ce, a)) occluder(a);
+    }
+  }
+  return out;
+}
 
 void SpanShadows::compute_light(int j) {
   s_->done[j] = 1;
@@ -254,6 +419,11 @@ void SpanShadows::compute_light(int j) {
   auto opaque_first = [&] {
     std::stable_partition(out.begin(), out.end(), [](const Interval& i) { return i.decides; });
   };
+  if (group_rows_ > 0) {
+    for (const int c : group_candidates(j)) occluder(c);
+    opaque_first();
+    return;
+  }
   if (!ps_.volumes->search) {
     // Configurations II and III: no boxes and no front/back relations, so
     // the span meets every occluder's volume.
@@ -276,7 +446,7 @@ void SpanShadows::compute_light(int j) {
   while (sp) {
     const int ni = stack[--sp];
     ++stats_.tests_shadow_volume;
-    if (!meets_span(lv.set, lv.node_volume[ni], l, lv.slack)) continue;
+    if (!meets_span(lv.set, lv.node_volume[ni], l, kNodeSlack * lv.slack)) continue;
     const BvhNode& node = ps_.bvh.nodes[ni];
     if (node.count == 0) {
       stack[sp++] = node.first;

@@ -35,6 +35,13 @@ class SpanShadows : public KnownShadows {
   SpanShadows(const PreparedScene& ps, double y, Stats& stats);
   // Moves to another sample line, keeping the allocations.
   void set_line(double y);
+  // Multi-scanning: the lines come in increasing y, several per pixel row.
+  // Each span's candidate occluders are then found once per group of lines
+  // (rows [k rows, (k + 1) rows], the hierarchy walked with the group's
+  // image rectangle), and each line only computes its intervals from them.
+  // 0 (the default): every line walks the hierarchy itself. Call before
+  // set_line.
+  void set_group_rows(double rows) { group_rows_ = rows; }
 
   // The next samples to shade lie on scanline face `face` (ScanScene::faces)
   // at image x in [x_first, x_last]; intervals are clipped to that range.
@@ -67,6 +74,9 @@ class SpanShadows : public KnownShadows {
     bool outside;
   };
   void compute_light(int light);
+  // The candidate occluders of face_ and light j on the current group of
+  // lines, in the order of the per-line walk.
+  const std::vector<int>& group_candidates(int light);
   double image_a(double x) const;
   double image_x(double a) const;
 
@@ -89,6 +99,21 @@ class SpanShadows : public KnownShadows {
   std::vector<Slot> slots_;
   int used_ = 0;
   Slot* s_ = nullptr;
+  std::vector<int> slot_of_face_;  // index into slots_, or -1
+
+  // Groups of lines: y in [k rows, (k + 1) rows] (k = group_k_); per face
+  // met, per light, whether its candidates are found, and the candidates.
+  double group_rows_ = 0;
+  double group_k_ = -1;
+  double group_b_lo_ = 0, group_b_hi_ = 0;  // image-plane b of the group
+  struct GroupSlot {
+    int face = -1;
+    std::vector<char> done;
+    std::vector<std::vector<int>> candidates;
+  };
+  std::vector<GroupSlot> group_slots_;
+  int group_used_ = 0;
+  std::vector<int> group_slot_of_face_;
 };
 
 }  // namespace locus
