@@ -135,7 +135,7 @@ std::vector<Interval> leaf_intervals(const PrimitiveSet& set, const CsgNode& nod
     }
     case PrimKind::kCone: {
       const ConePrim& s = set.cones[node.index];
-      n = finish_quadric(s.frame, intersect_cone(s.c, to_object(s.frame, ray), -kInf, kInf, c), c);
+      n = finish_quadric(s.frame, intersect_cone(s.c, s.axis, to_object(s.frame, ray), -kInf, kInf, c), c);
       break;
     }
     case PrimKind::kConvex:
@@ -319,7 +319,7 @@ class Builder {
         node.index = static_cast<int>(set_.spheres.size()) - 1;
         *box = sphere_box(set_.spheres.back(), xf);
       } else if (const auto* cn = std::get_if<Cone>(&o.shape)) {
-        set_.cones.push_back(ConePrim{*cn, frame_of(xf)});
+        set_.cones.push_back(ConePrim{*cn, frame_of(xf), cone_axis(*cn)});
         node.kind = PrimKind::kCone;
         node.index = static_cast<int>(set_.cones.size()) - 1;
         *box = cone_box(set_.cones.back(), xf);
@@ -378,7 +378,7 @@ class Builder {
             push(PrimKind::kSphere, static_cast<int>(set_.spheres.size()) - 1, obj,
                  sphere_box(set_.spheres.back(), xf));
           } else if constexpr (std::is_same_v<T, Cone>) {
-            set_.cones.push_back(ConePrim{shape, frame_of(xf)});
+            set_.cones.push_back(ConePrim{shape, frame_of(xf), cone_axis(shape)});
             push(PrimKind::kCone, static_cast<int>(set_.cones.size()) - 1, obj,
                  cone_box(set_.cones.back(), xf));
           } else if constexpr (std::is_same_v<T, Polyhedron>) {
@@ -445,11 +445,24 @@ int intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax, 
 
 // Cylinder/cone/frustum side: |q|^2 = (r0 + k s)^2 with s the axial
 // coordinate and q the radial vector; caps are disks.
-int intersect_cone(const Cone& c, const Ray& ray, double tmin, double tmax, Crossing* out) {
+ConeAxis cone_axis(const Cone& c) {
   const Vec3 axis_full = c.apex - c.base;
-  const double h = glm::length(axis_full);
-  const Vec3 a = axis_full / h;
-  const double k = (c.apex_radius - c.base_radius) / h;
+  ConeAxis ax;
+  ax.h = glm::length(axis_full);
+  ax.a = axis_full / ax.h;
+  ax.k = (c.apex_radius - c.base_radius) / ax.h;
+  return ax;
+}
+
+int intersect_cone(const Cone& c, const Ray& ray, double tmin, double tmax, Crossing* out) {
+  return intersect_cone(c, cone_axis(c), ray, tmin, tmax, out);
+}
+
+int intersect_cone(const Cone& c, const ConeAxis& ax, const Ray& ray, double tmin, double tmax,
+                   Crossing* out) {
+  const double h = ax.h;
+  const Vec3& a = ax.a;
+  const double k = ax.k;
   const Vec3 co = ray.origin - c.base;
   const double da = glm::dot(ray.dir, a), ca = glm::dot(co, a);
   const Vec3 dp = ray.dir - da * a, cp = co - ca * a;
@@ -550,7 +563,7 @@ int intersect_all(const PrimitiveSet& set, int prim, const Ray& ray, double tmin
     }
     case PrimKind::kCone: {
       const ConePrim& s = set.cones[ref.index];
-      n = finish_quadric(s.frame, intersect_cone(s.c, to_object(s.frame, ray), tmin, tmax, c), c);
+      n = finish_quadric(s.frame, intersect_cone(s.c, s.axis, to_object(s.frame, ray), tmin, tmax, c), c);
       break;
     }
     case PrimKind::kConvex:
@@ -592,6 +605,20 @@ std::optional<Crossing> intersect_nearest(const PrimitiveSet& set, int prim, con
     case PrimKind::kTriangle:
       n = intersect_flat(set, ref, ray, tmin, tmax, c);
       break;
+    // Quadrics list their crossings in increasing t: only the first one's
+    // normal is carried to world space.
+    case PrimKind::kSphere: {
+      const SpherePrim& s = set.spheres[ref.index];
+      n = intersect_sphere(s.s, to_object(s.frame, ray), tmin, tmax, c);
+      if (n) finish_quadric(s.frame, 1, c);
+      break;
+    }
+    case PrimKind::kCone: {
+      const ConePrim& s = set.cones[ref.index];
+      n = intersect_cone(s.c, s.axis, to_object(s.frame, ray), tmin, tmax, c);
+      if (n) finish_quadric(s.frame, 1, c);
+      break;
+    }
     default: {
       thread_local std::vector<Crossing> buf;
       buf.clear();

@@ -65,9 +65,17 @@ struct SpherePrim {
   QuadricFrame frame;
 };
 
+// A cone's axis, prepared once: unit direction, length, radius slope.
+struct ConeAxis {
+  Vec3 a{0, 0, 1};
+  double h = 1, k = 0;
+};
+ConeAxis cone_axis(const Cone& c);
+
 struct ConePrim {
   Cone c;
   QuadricFrame frame;
+  ConeAxis axis;
 };
 
 // Convex polyhedron as half-spaces n . x <= d (n outward, unit).
@@ -164,5 +172,7 @@ Vec3 shading_normal(const PrimitiveSet& set, const PrimRef& ref, const Crossing&
 // Object-space primitive tests, exposed for the property tests.
 int intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax, Crossing* out);
 int intersect_cone(const Cone& c, const Ray& ray, double tmin, double tmax, Crossing* out);
+int intersect_cone(const Cone& c, const ConeAxis& axis, const Ray& ray, double tmin, double tmax,
+                   Crossing* out);
 
 }  // namespace locus

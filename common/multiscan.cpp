@@ -12,11 +12,15 @@
 namespace locus {
 namespace {
 
-// Adaptive refinement inside ray-traced spans (issue #6 item 3): a traced
-// piece is interpolated from its pixel's corner samples where they see one
-// material and differ by at most kContrast (largest channel, linear
-// radiance); otherwise it is sampled itself (SubLineBuilder::traced_colour).
+// Adaptive refinement inside ray-traced spans (issue #6 item 3;
+// SubLineBuilder::traced_colour): a traced piece is interpolated from its
+// pixel's corner samples where they see one material and differ by at most
+// kContrast (largest channel, linear radiance). Otherwise the pixel's
+// interior samples join in (a grid of max(1, N / 4) squared), and where the
+// samples that see the piece's material still differ by more than
+// kFinerContrast, the piece's own N / 2 samples across its width.
 constexpr double kContrast = 0.05;
+constexpr double kFinerContrast = 0.15;
 
 // The sub-scanlines of this many pixel rows share their spans' candidate
 // occluders (SpanShadows::set_group_rows; docs/multiscan.md).
@@ -194,7 +198,9 @@ class SubLineBuilder {
   SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa, int j0, int j1)
       : ps_(ps), scan_(*ps.scan), cam_(ps.camera), tracer_(tracer), stats_(stats),
         refine_x_(std::max(1, aa / 2)), j0_(j0),
-        lattice_(static_cast<size_t>(j1 - j0 + 1) * (ps.camera.width + 1)) {}
+        lattice_(static_cast<size_t>(j1 - j0 + 1) * (ps.camera.width + 1)),
+        grid_(std::max(1, aa / 4)),
+        j1_(j1) {}
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
   void build(double y, int row, SubLine& line) {
@@ -288,6 +294,24 @@ class SubLineBuilder {
     if (!hit) return {-1, ps_.scene.background};
     return {hit->prim, tracer_.shade(ray, *hit, 1, 1.0, nullptr)};
   }
+  // Which of primitives a and b (-1: neither) the eye ray at x meets first:
+  // the boundary between two samples that saw a and b is searched with
+  // these two alone (docs/multiscan.md).
+  int nearer_of(double x, int a, int b) {
+    const Ray ray = eye_ray(x);
+    int best = -1;
+    double tb = kInf;
+    for (const int p : {a, b}) {
+      if (p < 0) continue;
+      ++stats_.tests_ray_object;
+      const auto c = intersect_nearest(ps_.prims, p, ray, cam_.hither, kInf);
+      if (c && (c->t < tb || (c->t == tb && p < best))) {
+        tb = c->t;
+        best = p;
+      }
+    }
+    return best;
+  }
   int first_hit(double x) {
     ++stats_.rays_eye;
     const auto hit = tracer_.nearest(eye_ray(x), cam_.hither, kInf);
@@ -317,8 +341,9 @@ class SubLineBuilder {
   // the other side is split off and given the other key (`fill(part,
   // key)`). This is the paper's convergence search (§3.3); a feature that
   // begins and ends between two samples is not seen (docs/multiscan.md).
-  template <class Key, class KeyAt, class Fill>
-  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill) {
+  template <class Key, class KeyAt, class Fill, class Between>
+  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill,
+              Between&& between) {
     const size_t n = keys.size();
     if (n == 0) return;
     std::vector<Piece>& run = run_;
@@ -340,7 +365,7 @@ class SubLineBuilder {
       if (k == 0 && m - cur.x0 > 2 * kEnd) {
         const Key kl = key_at(cur.x0 + kEnd);
         if (!(kl == keys[0])) {
-          const double x = bisect(cur.x0 + kEnd, m, [&](double xm) { return key_at(xm) == kl; });
+          const double x = bisect(cur.x0 + kEnd, m, [&](double xm) { return between(xm, kl, keys[0]); });
           if (x > cur.x0 && x < cur.x1) {
             part(cur.x0, x, cur, kl);
             cur.x0 = x;
@@ -351,7 +376,7 @@ class SubLineBuilder {
         const Key& left = keys[k - 1];
         const double c = run[k].x0;
         const double x =
-            bisect(mid(run[k - 1]), m, [&](double xm) { return key_at(xm) == left; });
+            bisect(mid(run[k - 1]), m, [&](double xm) { return between(xm, left, keys[k]); });
         if (x < c && x > res.back().x0) {
           const Piece like = res.back();
           res.back().x1 = x;
@@ -368,7 +393,7 @@ class SubLineBuilder {
         kr = key_at(cur.x1 - kEnd);
         if (!(kr == keys[k])) {
           const Key& own = keys[k];
-          const double x = bisect(m, cur.x1 - kEnd, [&](double xm) { return key_at(xm) == own; });
+          const double x = bisect(m, cur.x1 - kEnd, [&](double xm) { return between(xm, own, kr); });
           if (x > cur.x0 && x < cur.x1) {
             tail = cur;
             tail.x0 = x;
@@ -400,7 +425,9 @@ class SubLineBuilder {
       out_->push_back(p);
       ids.push_back(p.hit);
     });
-    refine(begin, ids, [&](double x) { return first_hit(x); }, [](Piece& q, int id) { q.hit = id; });
+    refine(
+        begin, ids, [&](double x) { return first_hit(x); }, [](Piece& q, int id) { q.hit = id; },
+        [&](double x, int left, int right) { return nearer_of(x, left, right) == left; });
     auto direct = [&](double x) { return sample(x).second; };
     for (size_t k = begin; k < out_->size(); ++k) {
       Piece& p = (*out_)[k];
@@ -408,16 +435,26 @@ class SubLineBuilder {
     }
   }
 
+  // A pixel corner's sample: the first surface along the eye ray through
+  // image point (i, j), and its radiance.
+  struct Corner {
+    bool done = false;
+    int prim = -1;
+    Color colour{0.0};
+  };
   // The radiance of a traced piece (p.hit >= 0). The paper samples every
   // piece: one ray per pixel per sub-scanline (§3.3). Where the surface is
   // smooth, that sample is, within kContrast, the bilinear interpolation of
   // the samples at the pixel's corners, which all sub-scanlines of the
   // pixel and of its neighbours share. So if the corners that have a weight
   // here (each traced once, lazily) all see the piece's material and differ
-  // by at most kContrast, the piece is interpolated; otherwise, where the
-  // reflected or refracted image has an edge or the corners see something
-  // else, it is sampled itself (`direct(x)`: issue #6 item 3's adaptive
-  // refinement, docs/multiscan.md).
+  // by at most kContrast, the piece is interpolated. Otherwise (an edge in
+  // the reflected or refracted image, or a silhouette in the pixel) the
+  // pixel's own samples are taken: its corners and a grid inside it, traced
+  // once for all its sub-scanlines, finer where they still differ (issue #6
+  // item 3's adaptive refinement). Those that see the piece's material give
+  // its radiance, weighted by a tent around its midpoint; only a piece that
+  // none of them sees is sampled itself (`direct(x)`; docs/multiscan.md).
   template <class Direct>
   Color traced_colour(const Piece& p, Direct&& direct) {
     const int material = material_of(p.hit);
@@ -426,8 +463,11 @@ class SubLineBuilder {
     const int j = std::min(static_cast<int>(y_), cam_.height - 1);
     const double fx = xm - i, fy = y_ - j;
     const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+    const bool in_lattice =
+        j >= j0_ && static_cast<size_t>(j + 2 - j0_) * (cam_.width + 1) <= lattice_.size();
+    if (!in_lattice) return direct(xm);
     Color lo(kInf), hi(-kInf), acc(0.0);
-    bool smooth = j >= j0_ && static_cast<size_t>(j + 2 - j0_) * (cam_.width + 1) <= lattice_.size();
+    bool smooth = true;
     for (int c = 0; c < 4 && smooth; ++c) {
       if (!(w[c] > 0)) continue;
       const Corner& k = corner(i + (c & 1), j + (c >> 1));
@@ -439,27 +479,81 @@ class SubLineBuilder {
       hi = glm::max(hi, k.colour);
       acc += w[c] * k.colour;
     }
-    if (smooth && max_component(hi - lo) <= kContrast) return acc;
-    // An edge inside the reflected or refracted image: N / 2 samples across
-    // the piece (so that, like the sub-scanlines, they grow with N).
-    if (!smooth || refine_x_ <= 1) return direct(xm);
+    // The interpolation's weight falls from 1 to 0 as the corners' spread
+    // goes from kContrast to twice that (no jump where it crosses).
+    const double keep = smooth ? std::clamp(2.0 - max_component(hi - lo) / kContrast, 0.0, 1.0) : 0.0;
+    if (keep >= 1.0) return acc;
+    // Not smooth: the pixel's own samples (its corners and an m x m grid
+    // inside, each traced once for all the pixel's sub-scanlines) that see
+    // the piece's material, weighted by a tent around the piece's midpoint.
     Color sum(0.0);
-    const double step = (p.x1 - p.x0) / refine_x_;
-    for (int q = 0; q < refine_x_; ++q) sum += direct(p.x0 + (q + 0.5) * step);
-    return sum / static_cast<double>(refine_x_);
+    double wsum = 0;
+    Color lo2(kInf), hi2(-kInf);
+    auto add = [&](const Color& c, double sx, double sy, double f = 1.0) {
+      const double wt =
+          f * (std::max(0.0, 1.0 - std::abs(sx - xm)) * std::max(0.0, 1.0 - std::abs(sy - y_)) + 1e-3);
+      sum += wt * c;
+      wsum += wt;
+      lo2 = glm::min(lo2, c);
+      hi2 = glm::max(hi2, c);
+    };
+    for (int c = 0; c < 4; ++c) {
+      const Corner& k = corner(i + (c & 1), j + (c >> 1));
+      if (k.prim >= 0 && material_of(k.prim) == material) add(k.colour, i + (c & 1), j + (c >> 1));
+    }
+    {
+      const Corner* in = interior(i, j);
+      for (int q = 0; q < grid_ * grid_; ++q) {
+        if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
+          add(in[q].colour, i + (q % grid_ + 0.5) / grid_, j + (q / grid_ + 0.5) / grid_);
+        }
+      }
+    }
+    // No sample of the pixel sees the material (a sliver thinner than
+    // their spacing): the piece is sampled itself.
+    Color refined = wsum > 0 ? sum / wsum : direct(xm);
+    // Where the samples that see the material still differ by more than
+    // kFinerContrast, the piece is sampled itself across its width too,
+    // weighted in as the spread grows to twice that (no jump).
+    const double f =
+        wsum > 0
+            ? std::clamp((max_component(hi2 - lo2) - kFinerContrast) / kFinerContrast, 0.0, 1.0)
+            : 0.0;
+    if (f > 0) {
+      Color own(0.0);
+      const double step = (p.x1 - p.x0) / refine_x_;
+      for (int q = 0; q < refine_x_; ++q) own += direct(p.x0 + (q + 0.5) * step);
+      refined = (1.0 - f) * refined + f * (own / static_cast<double>(refine_x_));
+    }
+    return keep > 0 ? keep * acc + (1.0 - keep) * refined : refined;
+  }
+
+  // Pixel (i, j)'s interior samples, a grid_ x grid_ grid, traced on first
+  // use.
+  const Corner* interior(int i, int j) {
+    const int g = grid_;
+    const size_t n = static_cast<size_t>(g) * g;
+    std::vector<Corner>& store = interior_;
+    const size_t at = (static_cast<size_t>(j - j0_) * cam_.width + i) * n;
+    if (store.size() < at + n) store.resize(static_cast<size_t>(j1_ - j0_ + 1) * cam_.width * n);
+    Corner* in = &store[at];
+    if (!in[0].done) {
+      for (int q = 0; q < static_cast<int>(n); ++q) {
+        in[q].done = true;
+        ++stats_.rays_eye;
+        const Ray ray{cam_.from, cam_.direction(i + (q % g + 0.5) / g, j + (q / g + 0.5) / g)};
+        const auto hit = tracer_.nearest(ray, cam_.hither, kInf);
+        in[q].prim = hit ? hit->prim : -1;
+        in[q].colour = hit ? tracer_.shade(ray, *hit, 1, 1.0, nullptr) : ps_.scene.background;
+      }
+    }
+    return in;
   }
 
   int material_of(int prim) const {
     return ps_.scene.objects[ps_.prims.prims[prim].object].material;
   }
 
-  // A pixel corner's sample: the first surface along the eye ray through
-  // image point (i, j), and its radiance.
-  struct Corner {
-    bool done = false;
-    int prim = -1;
-    Color colour{0.0};
-  };
   const Corner& corner(int i, int j) {
     Corner& k = lattice_[static_cast<size_t>(j - j0_) * (cam_.width + 1) + i];
     if (!k.done) {
@@ -515,7 +609,10 @@ class SubLineBuilder {
     size_t run_begin = out_->size();
     auto end_run = [&] {
       refine(run_begin, keys, [&](double x) { return shadows.states(x); },
-             [](Piece& q, const LightStates& st) { q.lights = st; });
+             [](Piece& q, const LightStates& st) { q.lights = st; },
+             [&](double x, const LightStates& left, const LightStates&) {
+               return shadows.states(x) == left;
+             });
       keys.clear();
       run_begin = out_->size();
     };
@@ -555,9 +652,12 @@ class SubLineBuilder {
   std::vector<int> ids_;
   std::vector<LightStates> keys_;
   std::vector<Piece> run_, res_;  // refine()'s buffers
-  int refine_x_;
+  int refine_x_;  // a piece's own samples across its width, where refined
   int j0_;
   std::vector<Corner> lattice_;
+  int grid_;
+  int j1_;
+  std::vector<Corner> interior_;
 };
 
 // One figure's share of a pixel, summed over the sub-scanlines.

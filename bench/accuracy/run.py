@@ -104,10 +104,18 @@ def read_image(path):
     """Linear RGB float32: EXR unclamped (Locus), 16-bit PNG as 0..1 (POV-Ray)."""
     try:
         import OpenImageIO as oiio
-        buf = oiio.ImageBuf(path)
-        px = buf.get_pixels(oiio.FLOAT)
-        if px is None or buf.has_error:
-            raise RuntimeError(f"{path}: {buf.geterror()}")
+        # ImageInput, not ImageBuf: ImageBuf reads through OpenImageIO's
+        # image cache, which may hand back an earlier file of the same name
+        # (every method's render is written to the same path).
+        inp = oiio.ImageInput.open(path)
+        if inp is None:
+            raise RuntimeError(f"{path}: {oiio.geterror()}")
+        try:
+            px = inp.read_image(oiio.FLOAT)
+        finally:
+            inp.close()
+        if px is None:
+            raise RuntimeError(f"{path}: cannot read pixels")
         return np.asarray(px, dtype=np.float32)[..., :3]
     except ImportError:
         # Without python3-openimageio: oiiotool's text dump (slower, same values).
