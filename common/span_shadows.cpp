@@ -314,10 +314,26 @@ const std::vector<int>& SpanShadows::group_candidates(int j) {
   r.nu = glm::dot(n, cam.u);
   r.nv = glm::dot(n, cam.v);
   r.nw = glm::dot(n, cam.w);
-  r.a0 = a_line_lo_;
-  r.a1 = a_line_hi_;
-  r.b0 = group_b_lo_;
-  r.b1 = group_b_hi_;
+  // The rectangle: the group's rows and the face's own extent in the image
+  // (its spans lie inside it), so a small face seen on one or two lines
+  // does not collect the occluders of a whole strip of the image.
+  double x0 = kInf, x1 = -kInf;
+  for (const Vec2& q : f.outline) {
+    x0 = std::min(x0, q.x);
+    x1 = std::max(x1, q.x);
+  }
+  constexpr double kMargin = 1e-3;  // pixels, far beyond rounding
+  x0 = std::max(x0 - kMargin, 0.0);
+  x1 = std::min(x1 + kMargin, static_cast<double>(cam.width));
+  double y0 = std::max(f.ymin - kMargin, group_k_ * group_rows_);
+  double y1 = std::min(f.ymax + kMargin, (group_k_ + 1) * group_rows_);
+  // Not expected (the face meets a line of the group): the whole strip.
+  if (!(x0 <= x1)) x0 = 0, x1 = cam.width;
+  if (!(y0 <= y1)) y0 = group_k_ * group_rows_, y1 = (group_k_ + 1) * group_rows_;
+  r.a0 = image_a(x0);
+  r.a1 = image_a(x1);
+  r.b0 = (1.0 - 2.0 * y1 / cam.height) * cam.tan_half;
+  r.b1 = (1.0 - 2.0 * y0 / cam.height) * cam.tan_half;
   // An occluder stays a candidate if its bound and one of its volumes may
   // meet the rectangle (the tests compute_light's lines make, with slack
   // at least theirs).
