@@ -84,6 +84,8 @@ void SpanShadows::begin_span(int face, double x_first, double x_last) {
   s_->done.assign(lights_, 0);
   s_->side.assign(lights_, 0);
   s_->iv.resize(lights_);
+  s_->opaque.resize(lights_);
+  s_->rest.resize(lights_);
 }
 
 void SpanShadows::breakpoints(std::vector<double>& xs) {
@@ -101,7 +103,7 @@ bool SpanShadows::uncertain(double x0, double x1) {
   const double a0 = image_a(x0), a1 = image_a(x1);
   for (int j = 0; j < lights_; ++j) {
     if (!s_->done[j]) compute_light(j);
-    for (const Interval& iv : s_->iv[j]) {
+    for (const Interval& iv : s_->rest[j]) {
       if (iv.decides) continue;
       // Where a non-deciding volume holds the points, an exact test does.
       if (iv.outside ? (a0 < iv.lo || a1 > iv.hi) : (iv.lo < a1 && a0 < iv.hi)) return true;
@@ -125,7 +127,14 @@ LightStates SpanShadows::states(double x) {
     int tested = -1;
     bool opaque = false;
     Ray seg;
-    for (const Interval& iv : s_->iv[j]) {  // opaque intervals first
+    const std::vector<std::pair<double, double>>& un = s_->opaque[j];
+    auto it = std::upper_bound(un.begin(), un.end(), a,
+                               [](double x, const std::pair<double, double>& r) { return x < r.first; });
+    if (it != un.begin() && a <= std::prev(it)->second) {
+      st.opaque |= uint64_t{1} << j;
+      continue;
+    }
+    for (const Interval& iv : s_->rest[j]) {  // opaque intervals first
       if (((iv.lo <= a && a <= iv.hi) == iv.outside)) continue;
       if (iv.decides) {
         opaque = true;
@@ -247,6 +256,18 @@ bool meets_rect(const VolumeSet& set, int v, const GroupRect& r, double slack) {
   pa[0][3] = r.a0, pb[0][3] = r.b1;
   const double amax = std::max(std::abs(r.a0), std::abs(r.a1));
   const double bmax = std::max(std::abs(r.b0), std::abs(r.b1));
+  // Most volumes that miss lie wholly beyond one of their planes: the four
+  // corners tell, with no clipping.
+  for (int i = vol.first; i < vol.first + vol.count; ++i) {
+    const VolumeSet::CameraDots& k = set.cam[i];
+    const double c0 = k.me + glm::dot(set.planes[i].m, r.delta) - slack;
+    const double k0 = r.sigma * (c0 * r.nw + r.num * k.mw);
+    const double ka = r.sigma * (c0 * r.nu + r.num * k.mu);
+    const double kb = r.sigma * (c0 * r.nv + r.num * k.mv);
+    const double tol = 1e-9 * (std::abs(k0) + std::abs(ka) * amax + std::abs(kb) * bmax);
+    const double e = k0 + std::min(ka * r.a0, ka * r.a1) + std::min(kb * r.b0, kb * r.b1) - tol;
+    if (e > 0) return false;
+  }
   int cur = 0;
   for (int i = vol.first; i < vol.first + vol.count; ++i) {
     if (n + 1 > kMax) return true;
@@ -286,7 +307,7 @@ bool meets_rect(const VolumeSet& set, int v, const GroupRect& r, double slack) {
 
 }  // namespace
 
-const std::vector<int>& SpanShadows::group_candidates(int j) {
+const SpanShadows::GroupSlot& SpanShadows::group_candidates(int j) {
   int gi = group_slot_of_face_[face_];
   if (gi < 0) {
     if (group_used_ == static_cast<int>(group_slots_.size())) group_slots_.emplace_back();
@@ -296,12 +317,18 @@ const std::vector<int>& SpanShadows::group_candidates(int j) {
     g.face = face_;
     g.done.assign(lights_, 0);
     g.candidates.resize(lights_);
+    g.vol_first.resize(lights_);
+    g.volumes.resize(lights_);
   }
   GroupSlot& g = group_slots_[gi];
   std::vector<int>& out = g.candidates[j];
-  if (g.done[j]) return out;
+  if (g.done[j]) return g;
   g.done[j] = 1;
   out.clear();
+  std::vector<int>& vol_first = g.vol_first[j];
+  std::vector<int>& vols = g.volumes[j];
+  vol_first.assign(1, 0);
+  vols.clear();
   const ScanFace& f = ps_.scan->faces[face_];
   const CameraFrame& cam = ps_.camera;
   const LightVolumes& lv = ps_.volumes->lights[j];
@@ -336,27 +363,30 @@ const std::vector<int>& SpanShadows::group_candidates(int j) {
   r.b1 = (1.0 - 2.0 * y0 / cam.height) * cam.tan_half;
   // An occluder stays a candidate if its bound and one of its volumes may
   // meet the rectangle (the tests compute_light's lines make, with slack
-  // at least theirs).
+  // at least theirs). Its volumes that miss the rectangle give no interval
+  // on any line of the group inside the face, so the lines skip them (a
+  // concave polygon cut into many convex pieces: SPD gears).
   auto occluder = [&](int c) {
     const LightVolumes::Occluder& oc = lv.occluders[c];
     ++stats_.tests_shadow_volume;
     if (oc.bound >= 0 && !meets_rect(lv.set, oc.bound, r, lv.slack)) return;
+    const size_t before = vols.size();
     for (int v = oc.first; v < oc.first + oc.count; ++v) {
-      if (meets_rect(lv.set, v, r, lv.slack)) {
-        out.push_back(c);
-        return;
-      }
+      if (meets_rect(lv.set, v, r, lv.slack)) vols.push_back(v);
     }
+    if (vols.size() == before) return;
+    out.push_back(c);
+    vol_first.push_back(static_cast<int>(vols.size()));
   };
   if (!ps_.volumes->search) {
     for (int c = 0; c < static_cast<int>(lv.occluders.size()); ++c) occluder(c);
-    return out;
+    return g;
   }
   const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
   const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
   if (ce - cb <= kWalkAbove) {
     for (const int* c = cb; c != ce; ++c) occluder(*c);
-    return out;
+    return g;
   }
   // The walk of compute_light, with the rectangle: its order is kept.
   int stack[128];
@@ -377,7 +407,7 @@ const std::vector<int>& SpanShadows::group_candidates(int j) {
       if (std::binary_search(cb, ce, a)) occluder(a);
     }
   }
-  return out;
+  return g;
 }
 
 void SpanShadows::compute_light(int j) {
@@ -405,14 +435,15 @@ void SpanShadows::compute_light(int j) {
   l.a_first = a_line_lo_;
   l.a_last = a_line_hi_;
   // One candidate occluder: the interval of each of its volumes.
-  auto occluder = [&](int c) {
+  auto occluder_volumes = [&](int c, const int* vb, const int* ve) {
     const LightVolumes::Occluder& oc = lv.occluders[c];
     if (oc.bound >= 0) {
       ++stats_.tests_shadow_volume;
       if (!meets_span(lv.set, oc.bound, l, lv.slack)) return;
     }
     const double slack = oc.decides ? 0.0 : lv.slack;
-    for (int v = oc.first; v < oc.first + oc.count; ++v) {
+    for (const int* vp = vb; vp != ve; ++vp) {
+      const int v = *vp;
       ++stats_.tests_shadow_volume;
       const ShadowVolume& vol = lv.set.volumes[v];
       if (vol.kind == VolumeKind::kEverywhere) {
@@ -431,12 +462,47 @@ void SpanShadows::compute_light(int j) {
       }
     }
   };
+  std::vector<int>& all = all_volumes_;
+  auto occluder = [&](int c) {
+    const LightVolumes::Occluder& oc = lv.occluders[c];
+    all.resize(std::max<size_t>(all.size(), oc.count));
+    for (int k = 0; k < oc.count; ++k) all[k] = oc.first + k;
+    occluder_volumes(c, all.data(), all.data() + oc.count);
+  };
   // Opaque intervals first: a pixel in one needs no exact test.
   auto opaque_first = [&] {
     std::stable_partition(out.begin(), out.end(), [](const Interval& i) { return i.decides; });
+    // The opaque union and the rest (states(), uncertain()): on a floor
+    // under many polygons a point is looked up among hundreds of
+    // intervals; in the union that takes a binary search.
+    std::vector<std::pair<double, double>>& un = s_->opaque[j];
+    std::vector<Interval>& rest = s_->rest[j];
+    un.clear();
+    rest.clear();
+    for (const Interval& iv : out) {
+      if (iv.decides && !iv.outside) {
+        un.emplace_back(iv.lo, iv.hi);
+      } else {
+        rest.push_back(iv);
+      }
+    }
+    std::sort(un.begin(), un.end());
+    size_t m = 0;
+    for (size_t k = 0; k < un.size(); ++k) {
+      if (m > 0 && un[k].first <= un[m - 1].second) {
+        un[m - 1].second = std::max(un[m - 1].second, un[k].second);
+      } else {
+        un[m++] = un[k];
+      }
+    }
+    un.resize(m);
   };
   if (group_rows_ > 0) {
-    for (const int c : group_candidates(j)) occluder(c);
+    const GroupSlot& g = group_candidates(j);
+    const std::vector<int>& cands = g.candidates[j];
+    const std::vector<int>& vf = g.vol_first[j];
+    const int* vols = g.volumes[j].data();
+    for (size_t k = 0; k < cands.size(); ++k) occluder_volumes(cands[k], vols + vf[k], vols + vf[k + 1]);
     opaque_first();
     return;
   }

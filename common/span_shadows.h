@@ -74,9 +74,6 @@ class SpanShadows : public KnownShadows {
     bool outside;
   };
   void compute_light(int light);
-  // The candidate occluders of face_ and light j on the current group of
-  // lines, in the order of the per-line walk.
-  const std::vector<int>& group_candidates(int light);
   double image_a(double x) const;
   double image_x(double a) const;
 
@@ -95,6 +92,11 @@ class SpanShadows : public KnownShadows {
     std::vector<char> done;
     std::vector<char> side;
     std::vector<std::vector<Interval>> iv;
+    // Per light, derived from iv for states() and uncertain(): the union of
+    // the opaque convex intervals as disjoint closed ranges in increasing
+    // order, and the other intervals (exact tests, kOutside).
+    std::vector<std::vector<std::pair<double, double>>> opaque;
+    std::vector<std::vector<Interval>> rest;
   };
   std::vector<Slot> slots_;
   int used_ = 0;
@@ -110,10 +112,18 @@ class SpanShadows : public KnownShadows {
     int face = -1;
     std::vector<char> done;
     std::vector<std::vector<int>> candidates;
+    // Per light: the volumes of candidate k that may meet the group's
+    // rectangle are volumes[vol_first[k], vol_first[k + 1]).
+    std::vector<std::vector<int>> vol_first, volumes;
   };
   std::vector<GroupSlot> group_slots_;
+  // The candidate occluders of face_ and light j on the current group of
+  // lines, in the order of the per-line walk, with the volumes of each that
+  // may meet the group (GroupSlot).
+  const GroupSlot& group_candidates(int light);
   int group_used_ = 0;
   std::vector<int> group_slot_of_face_;
+  std::vector<int> all_volumes_;  // compute_light's scratch
 };
 
 }  // namespace locus
