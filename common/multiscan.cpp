@@ -18,9 +18,13 @@ namespace {
 // kContrast (largest channel, linear radiance). Otherwise the pixel's
 // interior samples join in (a grid of max(1, N / 4) squared), and where the
 // samples that see the piece's material still differ by more than
-// kFinerContrast, the piece's own N / 2 samples across its width.
+// kFineContrast, a grid twice as fine inside the pixel; where they differ
+// by more than kFinerContrast, the piece's own N / 2 samples across its
+// width. Each step is blended in as the spread grows to twice its
+// threshold (no jump).
 constexpr double kContrast = 0.05;
-constexpr double kFinerContrast = 0.15;
+constexpr double kFineContrast = 0.15;
+constexpr double kFinerContrast = 0.3;
 
 // The sub-scanlines of this many pixel rows share their spans' candidate
 // occluders (SpanShadows::set_group_rows; docs/multiscan.md).
@@ -512,6 +516,43 @@ class SubLineBuilder {
     // No sample of the pixel sees the material (a sliver thinner than
     // their spacing): the piece is sampled itself.
     Color refined = wsum > 0 ? sum / wsum : direct(xm);
+    // Where the samples that see the material differ by more than
+    // kFineContrast, a grid twice as fine inside the pixel (traced once for
+    // all its sub-scanlines) joins them, under a tent half as wide.
+    const double f1 =
+        wsum > 0 ? std::clamp((max_component(hi2 - lo2) - kFineContrast) / kFineContrast, 0.0, 1.0)
+                 : 0.0;
+    if (f1 > 0) {
+      Color s1(0.0);
+      double w1 = 0;
+      auto add1 = [&](const Color& c, double sx, double sy) {
+        const double wt = std::max(0.0, 1.0 - 2.0 * std::abs(sx - xm)) *
+                              std::max(0.0, 1.0 - 2.0 * std::abs(sy - y_)) +
+                          1e-3;
+        s1 += wt * c;
+        w1 += wt;
+        lo2 = glm::min(lo2, c);
+        hi2 = glm::max(hi2, c);
+      };
+      for (int c = 0; c < 4; ++c) {
+        const Corner& k = corner(i + (c & 1), j + (c >> 1));
+        if (k.prim >= 0 && material_of(k.prim) == material) add1(k.colour, i + (c & 1), j + (c >> 1));
+      }
+      const Corner* in = interior(i, j);
+      for (int q = 0; q < grid_ * grid_; ++q) {
+        if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
+          add1(in[q].colour, i + (q % grid_ + 0.5) / grid_, j + (q / grid_ + 0.5) / grid_);
+        }
+      }
+      const int g2 = 2 * grid_;
+      const Corner* fn = fine(i, j);
+      for (int q = 0; q < g2 * g2; ++q) {
+        if (fn[q].prim >= 0 && material_of(fn[q].prim) == material) {
+          add1(fn[q].colour, i + (q % g2 + 0.5) / g2, j + (q / g2 + 0.5) / g2);
+        }
+      }
+      refined = (1.0 - f1) * refined + f1 * (s1 / w1);
+    }
     // Where the samples that see the material still differ by more than
     // kFinerContrast, the piece is sampled itself across its width too,
     // weighted in as the spread grows to twice that (no jump).
@@ -528,12 +569,12 @@ class SubLineBuilder {
     return keep > 0 ? keep * acc + (1.0 - keep) * refined : refined;
   }
 
-  // Pixel (i, j)'s interior samples, a grid_ x grid_ grid, traced on first
-  // use.
-  const Corner* interior(int i, int j) {
-    const int g = grid_;
+  // Pixel (i, j)'s interior samples, a grid_ x grid_ grid, and the grid
+  // twice as fine, each traced on first use.
+  const Corner* interior(int i, int j) { return grid_samples(i, j, grid_, interior_); }
+  const Corner* fine(int i, int j) { return grid_samples(i, j, 2 * grid_, fine_); }
+  const Corner* grid_samples(int i, int j, int g, std::vector<Corner>& store) {
     const size_t n = static_cast<size_t>(g) * g;
-    std::vector<Corner>& store = interior_;
     const size_t at = (static_cast<size_t>(j - j0_) * cam_.width + i) * n;
     if (store.size() < at + n) store.resize(static_cast<size_t>(j1_ - j0_ + 1) * cam_.width * n);
     Corner* in = &store[at];
@@ -657,7 +698,7 @@ class SubLineBuilder {
   std::vector<Corner> lattice_;
   int grid_;
   int j1_;
-  std::vector<Corner> interior_;
+  std::vector<Corner> interior_, fine_;
 };
 
 // One figure's share of a pixel, summed over the sub-scanlines.
