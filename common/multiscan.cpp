@@ -493,26 +493,33 @@ class SubLineBuilder {
     Color sum(0.0);
     double wsum = 0;
     Color lo2(kInf), hi2(-kInf);
-    auto add = [&](const Color& c, double sx, double sy, double f = 1.0) {
-      const double wt =
-          f * (std::max(0.0, 1.0 - std::abs(sx - xm)) * std::max(0.0, 1.0 - std::abs(sy - y_)) + 1e-3);
-      sum += wt * c;
-      wsum += wt;
-      lo2 = glm::min(lo2, c);
-      hi2 = glm::max(hi2, c);
-    };
-    for (int c = 0; c < 4; ++c) {
-      const Corner& k = corner(i + (c & 1), j + (c >> 1));
-      if (k.prim >= 0 && material_of(k.prim) == material) add(k.colour, i + (c & 1), j + (c >> 1));
-    }
-    {
-      const Corner* in = interior(i, j);
-      for (int q = 0; q < grid_ * grid_; ++q) {
-        if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
-          add(in[q].colour, i + (q % grid_ + 0.5) / grid_, j + (q / grid_ + 0.5) / grid_);
+    // The samples that see the material, into sum and wsum under a tent of
+    // half-width r around the piece's midpoint; their spread in lo2, hi2.
+    auto gather = [&](double r, bool fine_too, Color& sum, double& wsum) {
+      auto add = [&](const Color& c, double sx, double sy) {
+        const double wt = std::max(0.0, 1.0 - std::abs(sx - xm) / r) *
+                              std::max(0.0, 1.0 - std::abs(sy - y_) / r) +
+                          1e-3;
+        sum += wt * c;
+        wsum += wt;
+        lo2 = glm::min(lo2, c);
+        hi2 = glm::max(hi2, c);
+      };
+      for (int c = 0; c < 4; ++c) {
+        const Corner& k = corner(i + (c & 1), j + (c >> 1));
+        if (k.prim >= 0 && material_of(k.prim) == material) add(k.colour, i + (c & 1), j + (c >> 1));
+      }
+      for (const int g : {grid_, fine_too ? 2 * grid_ : 0}) {
+        if (g == 0) continue;
+        const Corner* in = g == grid_ ? interior(i, j) : fine(i, j);
+        for (int q = 0; q < g * g; ++q) {
+          if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
+            add(in[q].colour, i + (q % g + 0.5) / g, j + (q / g + 0.5) / g);
+          }
         }
       }
-    }
+    };
+    gather(1.0, false, sum, wsum);
     // No sample of the pixel sees the material (a sliver thinner than
     // their spacing): the piece is sampled itself.
     Color refined = wsum > 0 ? sum / wsum : direct(xm);
@@ -525,32 +532,7 @@ class SubLineBuilder {
     if (f1 > 0) {
       Color s1(0.0);
       double w1 = 0;
-      auto add1 = [&](const Color& c, double sx, double sy) {
-        const double wt = std::max(0.0, 1.0 - 2.0 * std::abs(sx - xm)) *
-                              std::max(0.0, 1.0 - 2.0 * std::abs(sy - y_)) +
-                          1e-3;
-        s1 += wt * c;
-        w1 += wt;
-        lo2 = glm::min(lo2, c);
-        hi2 = glm::max(hi2, c);
-      };
-      for (int c = 0; c < 4; ++c) {
-        const Corner& k = corner(i + (c & 1), j + (c >> 1));
-        if (k.prim >= 0 && material_of(k.prim) == material) add1(k.colour, i + (c & 1), j + (c >> 1));
-      }
-      const Corner* in = interior(i, j);
-      for (int q = 0; q < grid_ * grid_; ++q) {
-        if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
-          add1(in[q].colour, i + (q % grid_ + 0.5) / grid_, j + (q / grid_ + 0.5) / grid_);
-        }
-      }
-      const int g2 = 2 * grid_;
-      const Corner* fn = fine(i, j);
-      for (int q = 0; q < g2 * g2; ++q) {
-        if (fn[q].prim >= 0 && material_of(fn[q].prim) == material) {
-          add1(fn[q].colour, i + (q % g2 + 0.5) / g2, j + (q / g2 + 0.5) / g2);
-        }
-      }
+      gather(0.5, true, s1, w1);
       refined = (1.0 - f1) * refined + f1 * (s1 / w1);
     }
     // Where the samples that see the material still differ by more than

@@ -256,27 +256,34 @@ bool meets_rect(const VolumeSet& set, int v, const GroupRect& r, double slack) {
   pa[0][3] = r.a0, pb[0][3] = r.b1;
   const double amax = std::max(std::abs(r.a0), std::abs(r.a1));
   const double bmax = std::max(std::abs(r.b0), std::abs(r.b1));
-  // Most volumes that miss lie wholly beyond one of their planes: the four
-  // corners tell, with no clipping.
-  for (int i = vol.first; i < vol.first + vol.count; ++i) {
+  // Plane i as K0 + Ka a + Kb b <= tol over the rectangle.
+  struct Line {
+    double k0, ka, kb, tol;
+  };
+  auto line_of = [&](int i) {
     const VolumeSet::CameraDots& k = set.cam[i];
     const double c0 = k.me + glm::dot(set.planes[i].m, r.delta) - slack;
-    const double k0 = r.sigma * (c0 * r.nw + r.num * k.mw);
-    const double ka = r.sigma * (c0 * r.nu + r.num * k.mu);
-    const double kb = r.sigma * (c0 * r.nv + r.num * k.mv);
-    const double tol = 1e-9 * (std::abs(k0) + std::abs(ka) * amax + std::abs(kb) * bmax);
-    const double e = k0 + std::min(ka * r.a0, ka * r.a1) + std::min(kb * r.b0, kb * r.b1) - tol;
-    if (e > 0) return false;
+    Line q;
+    q.k0 = r.sigma * (c0 * r.nw + r.num * k.mw);
+    q.ka = r.sigma * (c0 * r.nu + r.num * k.mu);
+    q.kb = r.sigma * (c0 * r.nv + r.num * k.mv);
+    q.tol = 1e-9 * (std::abs(q.k0) + std::abs(q.ka) * amax + std::abs(q.kb) * bmax);
+    return q;
+  };
+  // Most volumes that miss lie wholly beyond one of their planes: the four
+  // corners tell, with no clipping (a linear function's least value on a
+  // rectangle is at a corner).
+  for (int i = vol.first; i < vol.first + vol.count; ++i) {
+    const Line q = line_of(i);
+    if (q.k0 + std::min(q.ka * r.a0, q.ka * r.a1) + std::min(q.kb * r.b0, q.kb * r.b1) - q.tol > 0) {
+      return false;
+    }
   }
   int cur = 0;
   for (int i = vol.first; i < vol.first + vol.count; ++i) {
     if (n + 1 > kMax) return true;
-    const VolumeSet::CameraDots& k = set.cam[i];
-    const double c0 = k.me + glm::dot(set.planes[i].m, r.delta) - slack;
-    const double k0 = r.sigma * (c0 * r.nw + r.num * k.mw);
-    const double ka = r.sigma * (c0 * r.nu + r.num * k.mu);
-    const double kb = r.sigma * (c0 * r.nv + r.num * k.mv);
-    const double tol = 1e-9 * (std::abs(k0) + std::abs(ka) * amax + std::abs(kb) * bmax);
+    const Line q = line_of(i);
+    const double k0 = q.k0, ka = q.ka, kb = q.kb, tol = q.tol;
     const double* xa = pa[cur];
     const double* xb = pb[cur];
     double* ya = pa[1 - cur];
