@@ -441,40 +441,39 @@ void SpanShadows::compute_light(int j) {
   l.nu = glm::dot(n, cam.u);
   l.a_first = a_line_lo_;
   l.a_last = a_line_hi_;
-  // One candidate occluder: the interval of each of its volumes.
-  auto occluder_volumes = [&](int c, const int* vb, const int* ve) {
+  // One candidate occluder c: the interval of each of its volumes that
+  // `each_volume(fn)` hands to fn (all of them, or a group's list).
+  auto occluder_volumes = [&](int c, auto&& each_volume) {
     const LightVolumes::Occluder& oc = lv.occluders[c];
     if (oc.bound >= 0) {
       ++stats_.tests_shadow_volume;
       if (!meets_span(lv.set, oc.bound, l, lv.slack)) return;
     }
     const double slack = oc.decides ? 0.0 : lv.slack;
-    for (const int* vp = vb; vp != ve; ++vp) {
-      const int v = *vp;
+    each_volume([&](int v) {
       ++stats_.tests_shadow_volume;
       const ShadowVolume& vol = lv.set.volumes[v];
       if (vol.kind == VolumeKind::kEverywhere) {
         out.push_back(Interval{c, oc.decides, l.a_first, l.a_last, false});
-        continue;
+        return;
       }
       double lo, hi;
       inside_range(lv.set, vol, l, slack, vol.kind == VolumeKind::kConvex, &lo, &hi);
       if (vol.kind == VolumeKind::kConvex) {
-        if (lo > hi || lo > l.a_last || hi < l.a_first) continue;
+        if (lo > hi || lo > l.a_last || hi < l.a_first) return;
         out.push_back(Interval{c, oc.decides, lo, hi, false});
       } else {
         // kOutside: shadow outside [lo, hi].
-        if (lo <= l.a_first && hi >= l.a_last) continue;
+        if (lo <= l.a_first && hi >= l.a_last) return;
         out.push_back(Interval{c, oc.decides, lo, hi, true});
       }
-    }
+    });
   };
-  std::vector<int>& all = all_volumes_;
   auto occluder = [&](int c) {
     const LightVolumes::Occluder& oc = lv.occluders[c];
-    all.resize(std::max<size_t>(all.size(), oc.count));
-    for (int k = 0; k < oc.count; ++k) all[k] = oc.first + k;
-    occluder_volumes(c, all.data(), all.data() + oc.count);
+    occluder_volumes(c, [&](auto&& fn) {
+      for (int v = oc.first; v < oc.first + oc.count; ++v) fn(v);
+    });
   };
   // Opaque intervals first: a pixel in one needs no exact test.
   auto opaque_first = [&] {
@@ -509,7 +508,11 @@ void SpanShadows::compute_light(int j) {
     const std::vector<int>& cands = g.candidates[j];
     const std::vector<int>& vf = g.vol_first[j];
     const int* vols = g.volumes[j].data();
-    for (size_t k = 0; k < cands.size(); ++k) occluder_volumes(cands[k], vols + vf[k], vols + vf[k + 1]);
+    for (size_t k = 0; k < cands.size(); ++k) {
+      occluder_volumes(cands[k], [&](auto&& fn) {
+        for (int q = vf[k]; q < vf[k + 1]; ++q) fn(vols[q]);
+      });
+    }
     opaque_first();
     return;
   }

@@ -123,7 +123,6 @@ class SpanShadows : public KnownShadows {
   const GroupSlot& group_candidates(int light);
   int group_used_ = 0;
   std::vector<int> group_slot_of_face_;
-  std::vector<int> all_volumes_;  // compute_light's scratch
 };
 
 }  // namespace locus
