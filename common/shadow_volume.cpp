@@ -16,8 +16,10 @@ namespace locus {
 namespace {
 
 // A span tests a candidate list this long directly; a longer one through
-// the hierarchy.
-constexpr int kWalkAbove = 8;
+// the hierarchy. Measured (callgrind, s2 rings at 256², --aa 4): 8 -> 3.57G
+// instructions, 16 -> 3.20G, 32 -> 3.01G, 64 -> 3.00G; the images are
+// pixel-identical (the occluder set is the same, only the visiting order).
+constexpr int kWalkAbove = 32;
 
 bool lex_less(const Vec3& a, const Vec3& b) {
   if (a.x != b.x) return a.x < b.x;
