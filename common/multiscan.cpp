@@ -30,6 +30,10 @@ constexpr double kFinerContrast = 0.3;
 // occluders (SpanShadows::set_group_rows; docs/multiscan.md).
 constexpr double kShadowGroupRows = 8.0;
 
+// first_hit() takes a face's interval as holding x this far beyond its
+// computed ends (pixels), against rounding in the outline crossings.
+constexpr double kNearMargin = 1e-6;
+
 // A visible figure's piece of one sub-scanline, inside one pixel.
 struct Piece {
   enum Kind : uint8_t { kBackground, kTraced, kFigure };
@@ -204,7 +208,13 @@ class SubLineBuilder {
         refine_x_(std::max(1, aa / 2)), j0_(j0),
         lattice_(static_cast<size_t>(j1 - j0 + 1) * (ps.camera.width + 1)),
         grid_(std::max(1, aa / 4)),
-        j1_(j1) {}
+        j1_(j1),
+        // A face cut by hither's sphere, or a bounding polyhedron around the
+        // eye, leaves points of the screen where the outlines do not tell
+        // which primitives a ray can meet (first_hit).
+        localized_hits_(!scan_.trace_everything &&
+                        std::none_of(scan_.faces.begin(), scan_.faces.end(),
+                                     [](const ScanFace& f) { return f.near_hither; })) {}
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
   void build(double y, int row, SubLine& line) {
@@ -219,6 +229,7 @@ class SubLineBuilder {
     } else {
       visible_segments(scan_, cam_, y, scan_.cover[row], vis_, segs);
     }
+    near_built_ = false;
     std::optional<SpanShadows>& shadows = shadows_;
     if (ps_.volumes) {
       if (!shadows) {
@@ -318,8 +329,50 @@ class SubLineBuilder {
   }
   int first_hit(double x) {
     ++stats_.rays_eye;
-    const auto hit = tracer_.nearest(eye_ray(x), cam_.hither, kInf);
+    if (!localized_hits_) {
+      const auto hit = tracer_.nearest(eye_ray(x), cam_.hither, kInf);
+      return hit ? hit->prim : -1;
+    }
+    // A ray that meets a primitive passes inside the outline of one of the
+    // primitive's faces (of its bounding polyhedron, for a curved body), so
+    // the scanline pass has already localized the search (paper §3.2): the
+    // primitives of the faces whose intervals on this sub-scanline hold x
+    // are the only ones it can meet. The same tie rule as the whole search.
+    if (!near_built_) bucket_intervals();
+    std::vector<int>& prims = near_prims_;
+    prims.clear();
+    const int i = std::clamp(static_cast<int>(std::floor(x)), 0, cam_.width - 1);
+    for (int k = near_first_[i]; k < near_first_[i + 1]; ++k) {
+      const DepthInterval& iv = vis_.ivs[near_[k]];
+      if (!(iv.xl - kNearMargin <= x && x <= iv.xr + kNearMargin)) continue;
+      const int p = scan_.faces[iv.face].prim;
+      if (std::find(prims.begin(), prims.end(), p) == prims.end()) prims.push_back(p);
+    }
+    const auto hit = tracer_.nearest_among(eye_ray(x), cam_.hither, kInf, prims);
     return hit ? hit->prim : -1;
+  }
+  // For first_hit: the intervals of this sub-scanline that meet each pixel,
+  // pixel i's in near_[near_first_[i] .. near_first_[i + 1]).
+  void bucket_intervals() {
+    near_built_ = true;
+    const std::vector<DepthInterval>& ivs = vis_.ivs;
+    const int w = cam_.width;
+    auto pixels = [&](const DepthInterval& iv) {
+      return std::pair{std::max(0, static_cast<int>(std::floor(iv.xl - kNearMargin))),
+                       std::min(w - 1, static_cast<int>(std::floor(iv.xr + kNearMargin)))};
+    };
+    near_first_.assign(w + 1, 0);
+    for (const DepthInterval& iv : ivs) {
+      const auto [a, b] = pixels(iv);
+      for (int i = a; i <= b; ++i) ++near_first_[i + 1];
+    }
+    for (int i = 0; i < w; ++i) near_first_[i + 1] += near_first_[i];
+    near_.resize(near_first_[w]);
+    near_fill_.assign(near_first_.begin(), near_first_.end() - 1);
+    for (int k = 0; k < static_cast<int>(ivs.size()); ++k) {
+      const auto [a, b] = pixels(ivs[k]);
+      for (int i = a; i <= b; ++i) near_[near_fill_[i]++] = k;
+    }
   }
 
   // Where two samples at xl < xr see different things, bisection finds the
@@ -681,6 +734,10 @@ class SubLineBuilder {
   int grid_;
   int j1_;
   std::vector<Corner> interior_, fine_;
+  bool localized_hits_;
+  bool near_built_ = false;  // bucket_intervals() has run on this sub-scanline
+  std::vector<int> near_, near_first_, near_fill_;
+  std::vector<int> near_prims_;  // first_hit()'s candidates
 };
 
 // One figure's share of a pixel, summed over the sub-scanlines.

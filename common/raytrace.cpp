@@ -20,7 +20,9 @@ Color beer(const Color& q, double d) {
 
 }  // namespace
 
-std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tmax) {
+template <class Visit>
+std::optional<SurfaceHit> Tracer::nearest_by(const Ray& ray, double tmin, double tmax,
+                                             Visit&& visit) {
   // Crossings within kTieRel of the nearest distance are coincident surfaces
   // (doubled faces, an edge shared by two triangles). Among them the
   // primitive defined first in the scene wins. Candidates in the band of the
@@ -39,11 +41,7 @@ std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tm
     }
     return std::min(tmax, std::nextafter(nearest_t * (1.0 + kTieRel), kInf));
   };
-  if (ps_.bvh_for_rays) {
-    traverse_bvh(ps_.bvh, ray, tmin, tmax, test);
-  } else {
-    for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()); ++i) test(i);
-  }
+  visit(test);
   const SurfaceHit* best = nullptr;
   const double limit = nearest_t * (1.0 + kTieRel);
   for (const SurfaceHit& h : band) {
@@ -51,6 +49,23 @@ std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tm
   }
   if (!best) return std::nullopt;
   return *best;
+}
+
+std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tmax) {
+  return nearest_by(ray, tmin, tmax, [&](auto& test) {
+    if (ps_.bvh_for_rays) {
+      traverse_bvh(ps_.bvh, ray, tmin, tmax, test);
+    } else {
+      for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()); ++i) test(i);
+    }
+  });
+}
+
+std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, double tmax,
+                                                const std::vector<int>& prims) {
+  return nearest_by(ray, tmin, tmax, [&](auto& test) {
+    for (const int p : prims) test(p);
+  });
 }
 
 Color segment_transmittance(const Scene& scene, const Ray& seg, std::vector<Crossing>& crossings) {

@@ -44,6 +44,10 @@ class Tracer {
   // Nearest surface along the ray in (tmin, tmax). Ties go to the lower
   // primitive index, so every traversal order gives the same answer.
   std::optional<SurfaceHit> nearest(const Ray& ray, double tmin, double tmax);
+  // The same, among the primitives `prims` only (the caller knows that no
+  // other one can be met), with the same tie rule.
+  std::optional<SurfaceHit> nearest_among(const Ray& ray, double tmin, double tmax,
+                                          const std::vector<int>& prims);
 
   // Fraction of light `light` reaching p (paper eqs. (2), (3)), per channel.
   // `ng` is the outward geometric normal at p, used to offset the origin.
@@ -66,6 +70,10 @@ class Tracer {
   Vec3 offset(const Vec3& p, const Vec3& ng, const Vec3& dir) const {
     return p + (glm::dot(dir, ng) >= 0 ? ps_.eps : -ps_.eps) * ng;
   }
+
+  // nearest() over the primitives that visit(test) passes to test.
+  template <class Visit>
+  std::optional<SurfaceHit> nearest_by(const Ray& ray, double tmin, double tmax, Visit&& visit);
 
   const PreparedScene& ps_;
   Stats& stats_;
