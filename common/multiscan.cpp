@@ -598,7 +598,15 @@ class SubLineBuilder {
     if (f > 0) {
       Color own(0.0);
       const double step = (p.x1 - p.x0) / refine_x_;
-      for (int q = 0; q < refine_x_; ++q) own += direct(p.x0 + (q + 0.5) * step);
+      for (int q = 0; q < refine_x_; ++q) {
+        const double x = p.x0 + (q + 0.5) * step;
+        // On the sub-scanlines through the finer grid's rows, a whole
+        // pixel's own samples fall on the grid's points (N = 4: x and y at
+        // quarters), which are already traced: the same ray, not traced
+        // again.
+        const Corner* at = fine_point(i, j, x);
+        own += at ? at->colour : direct(x);
+      }
       refined = (1.0 - f) * refined + f * (own / static_cast<double>(refine_x_));
     }
     return keep > 0 ? keep * acc + (1.0 - keep) * refined : refined;
@@ -624,6 +632,18 @@ class SubLineBuilder {
       }
     }
     return in;
+  }
+
+  // The finer grid's sample of pixel (i, j) at image point (x, y_), if
+  // there is one exactly there and it has been traced.
+  const Corner* fine_point(int i, int j, double x) {
+    const int g = 2 * grid_;
+    const double gx = (x - i) * g - 0.5, gy = (y_ - j) * g - 0.5;
+    const int qx = static_cast<int>(gx), qy = static_cast<int>(gy);
+    if (gx < 0 || gy < 0 || qx >= g || qy >= g || qx != gx || qy != gy) return nullptr;
+    if (i + (qx + 0.5) / g != x || j + (qy + 0.5) / g != y_) return nullptr;
+    const Corner& c = fine(i, j)[qy * g + qx];
+    return c.done ? &c : nullptr;
   }
 
   int material_of(int prim) const {
