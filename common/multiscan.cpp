@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <tuple>
 #include <vector>
 
 #include "common/raytrace.h"
@@ -214,7 +215,8 @@ class SubLineBuilder {
         // which primitives a ray can meet (first_hit).
         localized_hits_(!scan_.trace_everything &&
                         std::none_of(scan_.faces.begin(), scan_.faces.end(),
-                                     [](const ScanFace& f) { return f.near_hither; })) {}
+                                     [](const ScanFace& f) { return f.near_hither; })),
+        squares_(std::max(0, j1 - j0)) {}
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
   void build(double y, int row, SubLine& line) {
@@ -305,7 +307,7 @@ class SubLineBuilder {
   std::pair<int, Color> sample(double x) {
     ++stats_.rays_eye;
     const Ray ray = eye_ray(x);
-    const auto hit = tracer_.nearest(ray, cam_.hither, kInf);
+    const auto hit = eye_nearest(ray, x, y_);
     if (!hit) return {-1, ps_.scene.background};
     return {hit->prim, tracer_.shade(ray, *hit, 1, 1.0, nullptr)};
   }
@@ -372,6 +374,75 @@ class SubLineBuilder {
     for (int k = 0; k < static_cast<int>(ivs.size()); ++k) {
       const auto [a, b] = pixels(ivs[k]);
       for (int i = a; i <= b; ++i) near_[near_fill_[i]++] = k;
+    }
+  }
+
+  // The nearest surface along the eye ray through image point (x, y) of
+  // this builder's rows. As in first_hit, only primitives whose faces'
+  // outlines hold the point can be met; here the faces meeting the pixel
+  // square that holds it (closed, so a corner of the lattice is in it).
+  std::optional<SurfaceHit> eye_nearest(const Ray& ray, double x, double y) {
+    if (!localized_hits_) return tracer_.nearest(ray, cam_.hither, kInf);
+    const int j = std::clamp(static_cast<int>(std::floor(y)), j0_,
+                             std::min(j1_ - 1, cam_.height - 1));
+    const int i = std::clamp(static_cast<int>(std::floor(x)), 0, cam_.width - 1);
+    SquareFaces& row = squares_[j - j0_];
+    if (row.first.empty()) bucket_squares(j, row);
+    std::vector<int>& prims = near_prims_;
+    prims.clear();
+    for (int k = row.first[i]; k < row.first[i + 1]; ++k) {
+      const int p = scan_.faces[row.faces[k]].prim;
+      if (std::find(prims.begin(), prims.end(), p) == prims.end()) prims.push_back(p);
+    }
+    return tracer_.nearest_among(ray, cam_.hither, kInf, prims);
+  }
+  // The faces of row j whose outlines meet each pixel square [i, i + 1] x
+  // [j, j + 1] (with kNearMargin): the outline's x extent inside the row.
+  struct SquareFaces {
+    std::vector<int> first, faces;
+  };
+  void bucket_squares(int j, SquareFaces& row) {
+    const int w = cam_.width;
+    const double y0 = j - kNearMargin, y1 = j + 1 + kNearMargin;
+    std::vector<std::tuple<int, int, int>>& cols = square_cols_;
+    cols.clear();
+    for (const int fi : scan_.cover[j]) {
+      const std::vector<Vec2>& o = scan_.faces[fi].outline;
+      double lo = kInf, hi = -kInf;
+      for (size_t k = 0; k < o.size(); ++k) {
+        const Vec2 a = o[k], b = o[(k + 1) % o.size()];
+        // The part of edge ab inside the row's band of y.
+        double t0 = 0, t1 = 1;
+        const double dy = b.y - a.y;
+        if (dy == 0) {
+          if (a.y < y0 || a.y > y1) continue;
+        } else {
+          const double ta = (y0 - a.y) / dy, tb = (y1 - a.y) / dy;
+          t0 = std::max(t0, std::min(ta, tb));
+          t1 = std::min(t1, std::max(ta, tb));
+          if (t0 > t1) continue;
+        }
+        for (const double t : {t0, t1}) {
+          const double x = a.x + t * (b.x - a.x);
+          lo = std::min(lo, x);
+          hi = std::max(hi, x);
+        }
+      }
+      if (!(lo <= hi) || hi < -kNearMargin || lo > w + kNearMargin) continue;
+      const int a = std::max(0, static_cast<int>(std::floor(lo - kNearMargin)));
+      const int b = std::min(w - 1, static_cast<int>(std::floor(hi + kNearMargin)));
+      cols.emplace_back(fi, a, b);
+    }
+    row.first.assign(w + 1, 0);
+    for (const auto& [fi, a, b] : cols) {
+      for (int i = a; i <= b; ++i) ++row.first[i + 1];
+    }
+    for (int i = 0; i < w; ++i) row.first[i + 1] += row.first[i];
+    row.faces.resize(row.first[w]);
+    std::vector<int>& fill = near_fill_;
+    fill.assign(row.first.begin(), row.first.end() - 1);
+    for (const auto& [fi, a, b] : cols) {
+      for (int i = a; i <= b; ++i) row.faces[fill[i]++] = fi;
     }
   }
 
@@ -625,8 +696,9 @@ class SubLineBuilder {
       for (int q = 0; q < static_cast<int>(n); ++q) {
         in[q].done = true;
         ++stats_.rays_eye;
-        const Ray ray{cam_.from, cam_.direction(i + (q % g + 0.5) / g, j + (q / g + 0.5) / g)};
-        const auto hit = tracer_.nearest(ray, cam_.hither, kInf);
+        const double x = i + (q % g + 0.5) / g, y = j + (q / g + 0.5) / g;
+        const Ray ray{cam_.from, cam_.direction(x, y)};
+        const auto hit = eye_nearest(ray, x, y);
         in[q].prim = hit ? hit->prim : -1;
         in[q].colour = hit ? tracer_.shade(ray, *hit, 1, 1.0, nullptr) : ps_.scene.background;
       }
@@ -656,7 +728,7 @@ class SubLineBuilder {
       k.done = true;
       ++stats_.rays_eye;
       const Ray ray{cam_.from, cam_.direction(i, j)};
-      const auto hit = tracer_.nearest(ray, cam_.hither, kInf);
+      const auto hit = eye_nearest(ray, i, j);
       if (hit) {
         k.prim = hit->prim;
         k.colour = tracer_.shade(ray, *hit, 1, 1.0, nullptr);
@@ -757,7 +829,9 @@ class SubLineBuilder {
   bool localized_hits_;
   bool near_built_ = false;  // bucket_intervals() has run on this sub-scanline
   std::vector<int> near_, near_first_, near_fill_;
-  std::vector<int> near_prims_;  // first_hit()'s candidates
+  std::vector<int> near_prims_;  // first_hit()'s and eye_nearest()'s candidates
+  std::vector<SquareFaces> squares_;  // eye_nearest(), per row from j0_
+  std::vector<std::tuple<int, int, int>> square_cols_;  // bucket_squares()
 };
 
 // One figure's share of a pixel, summed over the sub-scanlines.
