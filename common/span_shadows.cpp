@@ -86,6 +86,8 @@ void SpanShadows::begin_span(int face, double x_first, double x_last) {
   s_->iv.resize(lights_);
   s_->opaque.resize(lights_);
   s_->rest.resize(lights_);
+  s_->rest_first.resize(lights_);
+  s_->rest_at.resize(lights_);
 }
 
 void SpanShadows::breakpoints(std::vector<double>& xs) {
@@ -99,14 +101,73 @@ void SpanShadows::breakpoints(std::vector<double>& xs) {
   }
 }
 
+template <class Fn>
+bool SpanShadows::visit_rest(int light, int i, Fn&& fn) const {
+  const std::vector<Interval>& rest = s_->rest[light];
+  const std::vector<int>& first = s_->rest_first[light];
+  if (first.empty() || i < 0) {
+    for (const Interval& iv : rest) {
+      if (fn(iv)) return true;
+    }
+    return false;
+  }
+  const std::vector<int>& at = s_->rest_at[light];
+  for (int k = first[i]; k < first[i + 1]; ++k) {
+    if (fn(rest[at[k]])) return true;
+  }
+  return false;
+}
+
+void SpanShadows::bucket_rest(int light) {
+  // A floor under many curved occluders has dozens of them per light, and
+  // each point would be checked against all: bucketed per pixel of the
+  // line once, a point sees only those over its pixel.
+  constexpr size_t kBucketAbove = 8;
+  constexpr double kMargin = 1e-6;  // pixels, against rounding of x <-> a
+  const std::vector<Interval>& rest = s_->rest[light];
+  std::vector<int>& first = s_->rest_first[light];
+  std::vector<int>& at = s_->rest_at[light];
+  first.clear();
+  at.clear();
+  if (rest.size() <= kBucketAbove) return;
+  const int w = ps_.camera.width;
+  auto pixels = [&](const Interval& iv, auto&& fn) {
+    const double xl = image_x(iv.lo) - kMargin, xh = image_x(iv.hi) + kMargin;
+    if (!iv.outside) {
+      const int p0 = std::max(0, static_cast<int>(std::floor(xl)));
+      const int p1 = std::min(w - 1, static_cast<int>(std::floor(xh)));
+      for (int i = p0; i <= p1; ++i) fn(i);
+      return;
+    }
+    // Holds the points outside [lo, hi]: every pixel not wholly inside.
+    const double il = xl + 2 * kMargin, ih = xh - 2 * kMargin;
+    for (int i = 0; i < w; ++i) {
+      if (!(il < i && i + 1 < ih)) fn(i);
+    }
+  };
+  first.assign(w + 1, 0);
+  for (const Interval& iv : rest) pixels(iv, [&](int i) { ++first[i + 1]; });
+  for (int i = 0; i < w; ++i) first[i + 1] += first[i];
+  at.resize(first[w]);
+  std::vector<int> fill(first.begin(), first.end() - 1);
+  for (int k = 0; k < static_cast<int>(rest.size()); ++k) {
+    pixels(rest[k], [&](int i) { at[fill[i]++] = k; });
+  }
+}
+
 bool SpanShadows::uncertain(double x0, double x1) {
   const double a0 = image_a(x0), a1 = image_a(x1);
+  // A piece lies inside one pixel (figures() cuts at pixel edges).
+  const int i = static_cast<int>(std::floor(x0));
+  const int pixel = x1 <= i + 1 ? std::min(i, ps_.camera.width - 1) : -1;
   for (int j = 0; j < lights_; ++j) {
     if (!s_->done[j]) compute_light(j);
-    for (const Interval& iv : s_->rest[j]) {
-      if (iv.decides) continue;
-      // Where a non-deciding volume holds the points, an exact test does.
-      if (iv.outside ? (a0 < iv.lo || a1 > iv.hi) : (iv.lo < a1 && a0 < iv.hi)) return true;
+    if (visit_rest(j, pixel, [&](const Interval& iv) {
+          if (iv.decides) return false;
+          // Where a non-deciding volume holds the points, an exact test does.
+          return iv.outside ? (a0 < iv.lo || a1 > iv.hi) : (iv.lo < a1 && a0 < iv.hi);
+        })) {
+      return true;
     }
   }
   return false;
@@ -115,6 +176,7 @@ bool SpanShadows::uncertain(double x0, double x1) {
 LightStates SpanShadows::states(double x) {
   LightStates st;
   const double a = image_a(x);
+  const int pixel = std::clamp(static_cast<int>(std::floor(x)), 0, ps_.camera.width - 1);
   const ScanFace& f = ps_.scan->faces[face_];
   const CameraFrame& cam = ps_.camera;
   thread_local std::vector<Crossing> crossings;
@@ -134,13 +196,13 @@ LightStates SpanShadows::states(double x) {
       st.opaque |= uint64_t{1} << j;
       continue;
     }
-    for (const Interval& iv : s_->rest[j]) {  // opaque intervals first
-      if (((iv.lo <= a && a <= iv.hi) == iv.outside)) continue;
+    visit_rest(j, pixel, [&](const Interval& iv) {  // opaque intervals first
+      if (((iv.lo <= a && a <= iv.hi) == iv.outside)) return false;
       if (iv.decides) {
         opaque = true;
-        break;
+        return true;
       }
-      if (iv.prim == tested) continue;
+      if (iv.prim == tested) return false;
       tested = iv.prim;
       if (!p) {
         const Vec3 d = cam.w + b_ * cam.v + a * cam.u;
@@ -150,9 +212,10 @@ LightStates SpanShadows::states(double x) {
       seg = Ray{origin, ps_.volumes->lights[j].position - origin};
       if (exact_test(ps_, iv.prim, seg, crossings, stats_)) {
         opaque = true;
-        break;
+        return true;
       }
-    }
+      return false;
+    });
     // Through glass beyond the critical angle nothing arrives (the dark
     // core of paper Fig. 8a): as dark as an opaque shadow, and its edge is
     // a change of state that bisection finds.
@@ -502,6 +565,7 @@ void SpanShadows::compute_light(int j) {
       }
     }
     un.resize(m);
+    bucket_rest(j);
   };
   if (group_rows_ > 0) {
     const GroupSlot& g = group_candidates(j);

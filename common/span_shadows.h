@@ -97,7 +97,16 @@ class SpanShadows : public KnownShadows {
     // order, and the other intervals (exact tests, kOutside).
     std::vector<std::vector<std::pair<double, double>>> opaque;
     std::vector<std::vector<Interval>> rest;
+    // Per light with a long `rest`: the indices of its intervals that may
+    // hold a point of pixel i, in rest's order, at
+    // [rest_first[i], rest_first[i + 1]) of rest_at (empty: scan it all).
+    std::vector<std::vector<int>> rest_first, rest_at;
   };
+  // The intervals of rest[light] that may hold points of pixel i (all of
+  // them when it is short), in rest's order, to fn until it returns true.
+  template <class Fn>
+  bool visit_rest(int light, int i, Fn&& fn) const;
+  void bucket_rest(int light);
   std::vector<Slot> slots_;
   int used_ = 0;
   Slot* s_ = nullptr;
