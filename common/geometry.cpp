@@ -478,6 +478,10 @@ int intersect_cone(const Cone& c, const ConeAxis& ax, const Ray& ray, double tmi
       const Vec3 q = cp + t * dp;
       const double r = c.base_radius + k * s;
       const Vec3 g = q - r * k * a;
+      if (!out) {  // counting only (intersect_any)
+        if (glm::dot(g, g) > 0) ++n;
+        continue;
+      }
       const double len = glm::length(g);
       if (!(len > 0)) continue;  // the apex point itself
       out[n++] = Crossing{t, g / len};
@@ -493,10 +497,13 @@ int intersect_cone(const Cone& c, const ConeAxis& ax, const Ray& ray, double tmi
       const double t = (cap.s - ca) / da;
       if (!(t > tmin && t < tmax)) continue;
       const Vec3 q = cp + t * dp;
-      if (glm::dot(q, q) <= cap.r * cap.r) out[n++] = Crossing{t, cap.normal};
+      if (glm::dot(q, q) <= cap.r * cap.r) {
+        if (out) out[n] = Crossing{t, cap.normal};
+        ++n;
+      }
     }
   }
-  std::sort(out, out + n, [](const Crossing& x, const Crossing& y) { return x.t < y.t; });
+  if (out) std::sort(out, out + n, [](const Crossing& x, const Crossing& y) { return x.t < y.t; });
   return n;
 }
 
@@ -548,6 +555,32 @@ int intersect_flat(const PrimitiveSet& set, const PrimRef& ref, const Ray& ray, 
 }
 
 }  // namespace
+
+bool intersect_any(const PrimitiveSet& set, int prim, const Ray& ray, double tmin, double tmax) {
+  const PrimRef& ref = set.prims[prim];
+  switch (ref.kind) {
+    case PrimKind::kSphere: {
+      const SpherePrim& s = set.spheres[ref.index];
+      const Ray r = to_object(s.frame, ray);
+      const Vec3 oc = r.origin - s.s.center;
+      double t0, t1;
+      if (!solve_quadratic(glm::dot(r.dir, r.dir), 2.0 * glm::dot(oc, r.dir),
+                           glm::dot(oc, oc) - s.s.radius * s.s.radius, &t0, &t1)) {
+        return false;
+      }
+      return (t0 > tmin && t0 < tmax) || (t1 > tmin && t1 < tmax);
+    }
+    case PrimKind::kCone: {
+      const ConePrim& s = set.cones[ref.index];
+      return intersect_cone(s.c, s.axis, to_object(s.frame, ray), tmin, tmax, nullptr) > 0;
+    }
+    default: {
+      thread_local std::vector<Crossing> scratch;
+      scratch.clear();
+      return intersect_all(set, prim, ray, tmin, tmax, scratch) > 0;
+    }
+  }
+}
 
 int intersect_all(const PrimitiveSet& set, int prim, const Ray& ray, double tmin, double tmax,
                   std::vector<Crossing>& out) {

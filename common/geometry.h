@@ -161,6 +161,11 @@ PrimitiveSet build_primitives(const Scene& scene);
 int intersect_all(const PrimitiveSet& set, int prim, const Ray& ray, double tmin, double tmax,
                   std::vector<Crossing>& out);
 
+// Whether prims[i] crosses the ray for some t in (tmin, tmax): the same
+// crossings as intersect_all, without their normals (an opaque occluder's
+// exact shadow test needs no more).
+bool intersect_any(const PrimitiveSet& set, int prim, const Ray& ray, double tmin, double tmax);
+
 // The nearest crossing of prims[i] in (tmin, tmax).
 std::optional<Crossing> intersect_nearest(const PrimitiveSet& set, int prim, const Ray& ray,
                                           double tmin, double tmax);

@@ -1,5 +1,7 @@
 #include "common/raytrace.h"
 
+#include <bit>
+#include <cstdint>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -16,6 +18,17 @@ constexpr double kMinWeight = 1.0 / 512.0;
 
 Color beer(const Color& q, double d) {
   return Color(std::exp(-q.x * d), std::exp(-q.y * d), std::exp(-q.z * d));
+}
+
+}  // namespace
+
+namespace {
+
+// std::nextafter(x, +inf), inline for the positive finite values a ray's
+// search bound takes (a library call per primitive test otherwise).
+double next_up(double x) {
+  if (x > 0 && x < kInf) return std::bit_cast<double>(std::bit_cast<uint64_t>(x) + 1);
+  return std::nextafter(x, kInf);
 }
 
 }  // namespace
@@ -39,7 +52,7 @@ std::optional<SurfaceHit> Tracer::nearest_by(const Ray& ray, double tmin, double
       band.push_back(SurfaceHit{c->t, prim, *c});
       if (c->t < nearest_t) nearest_t = c->t;
     }
-    return std::min(tmax, std::nextafter(nearest_t * (1.0 + kTieRel), kInf));
+    return std::min(tmax, next_up(nearest_t * (1.0 + kTieRel)));
   };
   visit(test);
   const SurfaceHit* best = nullptr;

@@ -702,6 +702,13 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
 bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<Crossing>& crossings,
                 Stats& stats) {
   ++stats.tests_ray_object;
+  // An opaque sphere or cone: any crossing is the answer, and its normal
+  // is never used.
+  const PrimRef& ref = ps.prims.prims[prim];
+  if ((ref.kind == PrimKind::kSphere || ref.kind == PrimKind::kCone) &&
+      ps.scene.materials[ps.scene.objects[ref.object].material].t <= 0.0) {
+    return intersect_any(ps.prims, prim, seg, 0.0, 1.0);
+  }
   const size_t before = crossings.size();
   intersect_all(ps.prims, prim, seg, 0.0, 1.0, crossings);
   for (size_t i = before; i < crossings.size(); ++i) {

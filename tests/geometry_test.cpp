@@ -75,6 +75,15 @@ void check_shape(const Scene& scene, uint64_t seed, Surface on_surface, int min_
       intersect_all(set, p, ray, 0.0, 1e9, one);
       const auto n = intersect_nearest(set, p, ray, 0.0, 1e9);
       ASSERT_EQ(n.has_value(), !one.empty()) << "seed " << seed << " ray " << i;
+      // intersect_any (opaque shadow tests) agrees with intersect_all on
+      // segments that end anywhere: before, inside or beyond the body.
+      ASSERT_EQ(intersect_any(set, p, ray, 0.0, 1e9), !one.empty()) << "seed " << seed << " ray " << i;
+      for (const double tcut : {2.5, 3.5, 4.0, 4.5, 6.0}) {
+        std::vector<Crossing> cut;
+        intersect_all(set, p, ray, 0.0, tcut, cut);
+        ASSERT_EQ(intersect_any(set, p, ray, 0.0, tcut), !cut.empty())
+            << "seed " << seed << " ray " << i << " tmax " << tcut;
+      }
       if (n) {
         ASSERT_EQ(n->t, one.front().t);
         // Starting just before the hit finds the same point again.
