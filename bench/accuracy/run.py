@@ -52,6 +52,7 @@ FULL = {"aa": [1, 2, 4, 8, 16], "spp": [1, 2, 3, 4, 6, 8], "am1": [1, 2, 3, 4], 
 QUICK = {"aa": [1, 4], "spp": [1, 2, 4], "am1": [1, 3], "am2": [], "sizes": [256]}
 REF_SPP = 16
 CHECK_SPP = 32
+PAIR_ROUNDS = 5  # interleaved rounds of the acceptance pair (3 for renders over 1 s)
 POV_REF = ("1", 8)          # +AM1 +R8 +A0.0: 8 x 8 jittered samples per pixel
 EDGE_THRESHOLD = 0.05       # Sobel magnitude of the reference's luminance (README)
 CONVERGED_FACTOR = 5.0      # "far less": reference noise at least 5x below every error
@@ -440,6 +441,28 @@ def main():
                         log(f"{tag} {label}: FAILED: {e}")
                     rows.append(row)
 
+                # ---- The acceptance pair, interleaved: on a shared machine the
+                # speed drifts over minutes, and best-of-N runs taken one method
+                # after the other can catch the two in different states. So
+                # --aa 4 and --spp 2 are timed again in alternation, and their
+                # ratio comes from these rounds (`pair_seconds`).
+                pair = [(r, m) for r in (find(rows, name, size, "--aa 4"),
+                                         find(rows, name, size, "raytrace --spp 2"))
+                        if r and "seconds" in r
+                        for m in methods if m[1] == r["method"]]
+                if len(pair) == 2:
+                    rounds = PAIR_ROUNDS if max(r["seconds"] for r, _ in pair) < 1.0 else 3
+                    got = {id(r): [] for r, _ in pair}
+                    out = os.path.join(tmp, "m.exr")
+                    for _ in range(rounds):
+                        for r, m in pair:
+                            got[id(r)].append(locus.render(path, size, m[4], out)[0])
+                    for r, _ in pair:
+                        r["pair_seconds"] = min(got[id(r)])
+                        r["pair_all_seconds"] = ";".join(f"{t:.4f}" for t in got[id(r)])
+                    log(f"{tag} interleaved x{rounds}: --aa 4 {pair[0][0]['pair_seconds']:.3f} s, "
+                        f"--spp 2 {pair[1][0]['pair_seconds']:.3f} s")
+
                 # ---- POV-Ray: measured against its own reference
                 if not pov or size not in pov_sizes:
                     continue
@@ -539,12 +562,15 @@ def acceptance(rows, conv, plan):
         aa4 = find(rows, scene, size, "--aa 4")
         sp2 = find(rows, scene, size, "raytrace --spp 2")
         if aa4 and sp2:
-            ok = aa4["rmse"] < sp2["rmse"] and aa4["seconds"] < sp2["seconds"]
+            # Times from the interleaved rounds where they were taken.
+            key = "pair_seconds" if "pair_seconds" in aa4 and "pair_seconds" in sp2 else "seconds"
+            ta, ts = aa4[key], sp2[key]
+            ok = aa4["rmse"] < sp2["rmse"] and ta < ts
             out.append((ok, f"{'PASS' if ok else 'FAIL'} {tag}: --aa 4 RMSE {aa4['rmse']:.5f} "
                             f"{'<' if aa4['rmse'] < sp2['rmse'] else '>='} raytrace --spp 2 "
-                            f"{sp2['rmse']:.5f}; time {aa4['seconds']:.3f} s "
-                            f"{'<' if aa4['seconds'] < sp2['seconds'] else '>='} "
-                            f"{sp2['seconds']:.3f} s"))
+                            f"{sp2['rmse']:.5f}; time {ta:.3f} s {'<' if ta < ts else '>='} "
+                            f"{ts:.3f} s"
+                            f"{' (interleaved)' if key == 'pair_seconds' else ''}"))
         else:
             out.append((False, f"FAIL {tag}: --aa 4 or raytrace --spp 2 missing"))
         lp = [(r["seconds"], r["rmse"]) for r in rows if r["scene"] == scene and
@@ -582,7 +608,8 @@ def acceptance(rows, conv, plan):
 
 FIELDS = ["scene", "size", "renderer", "method", "family", "param", "seconds", "runs",
           "all_seconds", "prepare", "rmse", "psnr", "max_abs", "edge_rmse", "edge_psnr",
-          "edge_max_abs", "edge_fraction", "reference", "binary", "note"]
+          "edge_max_abs", "edge_fraction", "reference", "binary", "pair_seconds",
+          "pair_all_seconds", "note"]
 
 
 def fmt(v):
