@@ -213,9 +213,7 @@ class SubLineBuilder {
         // A face cut by hither's sphere, or a bounding polyhedron around the
         // eye, leaves points of the screen where the outlines do not tell
         // which primitives a ray can meet (first_hit).
-        localized_hits_(!scan_.trace_everything &&
-                        std::none_of(scan_.faces.begin(), scan_.faces.end(),
-                                     [](const ScanFace& f) { return f.near_hither; })),
+        localized_hits_(!scan_.trace_everything && !scan_.any_near_hither),
         squares_(std::max(0, j1 - j0)) {}
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.

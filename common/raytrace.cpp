@@ -1,9 +1,9 @@
 #include "common/raytrace.h"
 
-#include <bit>
-#include <cstdint>
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "common/optics.h"
@@ -19,10 +19,6 @@ constexpr double kMinWeight = 1.0 / 512.0;
 Color beer(const Color& q, double d) {
   return Color(std::exp(-q.x * d), std::exp(-q.y * d), std::exp(-q.z * d));
 }
-
-}  // namespace
-
-namespace {
 
 // std::nextafter(x, +inf), inline for the positive finite values a ray's
 // search bound takes (a library call per primitive test otherwise).

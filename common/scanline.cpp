@@ -138,6 +138,8 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
     }
   }
 
+  scan.any_near_hither = std::any_of(scan.faces.begin(), scan.faces.end(),
+                                     [](const ScanFace& f) { return f.near_hither; });
   // Rows whose sample line y = j + 0.5 lies in [ymin, ymax).
   scan.rows.assign(cam.height, {});
   for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {

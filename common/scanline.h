@@ -43,6 +43,8 @@ struct ScanScene {
   // A curved body's bounding polyhedron contains the eye or is cut by the
   // near plane: its span is the whole screen, every pixel is traced.
   bool trace_everything = false;
+  // Some face reaches into hither's sphere (ScanFace::near_hither).
+  bool any_near_hither = false;
 };
 
 ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan);
