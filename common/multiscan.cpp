@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <tuple>
 #include <vector>
 
+#include "common/eye_candidates.h"
 #include "common/raytrace.h"
 #include "common/scanline.h"
 #include "common/span_shadows.h"
@@ -31,10 +31,6 @@ constexpr double kFinerContrast = 0.3;
 // occluders (SpanShadows::set_group_rows; docs/multiscan.md).
 constexpr double kShadowGroupRows = 8.0;
 
-// first_hit() takes a face's interval as holding x this far beyond its
-// computed ends (pixels), against rounding in the outline crossings.
-constexpr double kNearMargin = 1e-6;
-
 // A visible figure's piece of one sub-scanline, inside one pixel.
 struct Piece {
   enum Kind : uint8_t { kBackground, kTraced, kFigure };
@@ -54,136 +50,6 @@ struct SubLine {
   std::vector<int> first;
   int spans = 0, traced_spans = 0;
 };
-
-// A visible interval of one face on a sub-scanline (face -1: background).
-struct Segment {
-  double x0, x1;
-  int face;
-};
-
-// The visible segments of the sub-scanline at image y, covering [0, width)
-// (paper §3.1: hidden surfaces per scanline). Faces are resolved by depth,
-// and a segment is split where two faces' depth order changes
-// (interpenetration): their inverse depths are linear in x.
-struct DepthInterval {
-  double xl, xr;
-  int face;
-  LineDepth d;
-};
-
-// Buffers of visible_segments(), kept between calls.
-struct VisibleScratch {
-  struct Range {
-    double lo, hi;
-  };
-  std::vector<DepthInterval> ivs;
-  std::vector<double> xs, events;
-  std::vector<const DepthInterval*> active;
-  std::vector<Range> stack;
-};
-
-void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
-                      const std::vector<int>& faces, VisibleScratch& scratch,
-                      std::vector<Segment>& out) {
-  using Interval = DepthInterval;
-  const double b = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
-  const double width = cam.width;
-  std::vector<Interval>& ivs = scratch.ivs;
-  std::vector<double>& xs = scratch.xs;
-  ivs.clear();
-  out.clear();
-  for (int fi : faces) {
-    const ScanFace& f = scan.faces[fi];
-    if (!(f.ymin <= y && y < f.ymax)) continue;
-    outline_crossings(f, y, xs);
-    const LineDepth d = line_depth(f, cam, cam.from, b);
-    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
-      const double xl = std::max(0.0, xs[k]), xr = std::min(width, xs[k + 1]);
-      if (xr > xl) ivs.push_back(Interval{xl, xr, fi, d});
-    }
-  }
-  std::vector<double>& events = scratch.events;
-  events.assign({0.0, width});
-  for (const Interval& iv : ivs) {
-    events.push_back(iv.xl);
-    events.push_back(iv.xr);
-  }
-  std::sort(events.begin(), events.end());
-  events.erase(std::unique(events.begin(), events.end()), events.end());
-  std::sort(ivs.begin(), ivs.end(), [](const Interval& a, const Interval& c) {
-    return a.xl < c.xl || (a.xl == c.xl && a.face < c.face);
-  });
-
-  auto emit = [&](double x0, double x1, int face) {
-    if (!(x1 > x0)) return;
-    if (!out.empty() && out.back().face == face && out.back().x1 == x0) {
-      out.back().x1 = x1;
-    } else {
-      out.push_back(Segment{x0, x1, face});
-    }
-  };
-  // Is a nearer than c at x? Larger 1/s is nearer; within kTieRel the
-  // surfaces coincide and the tie rule decides.
-  auto nearer = [&](const Interval& a, const Interval& c, double x) {
-    const double ga = a.d.at(x), gc = c.d.at(x);
-    if (!(gc > 0)) return ga > 0;
-    if (!(ga > 0)) return false;
-    if (ga > gc * (1.0 + kTieRel)) return true;
-    if (gc > ga * (1.0 + kTieRel)) return false;
-    return wins_tie(scan, a.face, c.face);
-  };
-  std::vector<const Interval*>& active = scratch.active;
-  active.clear();
-  size_t next = 0;
-  using Range = VisibleScratch::Range;
-  std::vector<Range>& stack = scratch.stack;
-  for (size_t e = 0; e + 1 < events.size(); ++e) {
-    const double lo = events[e], hi = events[e + 1];
-    while (next < ivs.size() && ivs[next].xl <= lo) active.push_back(&ivs[next++]);
-    std::erase_if(active, [&](const Interval* iv) { return iv->xr <= lo; });
-    if (active.empty()) {
-      emit(lo, hi, -1);
-      continue;
-    }
-    stack.assign(1, Range{lo, hi});
-    int splits = 0;
-    while (!stack.empty()) {
-      const Range r = stack.back();
-      stack.pop_back();
-      const double mid = 0.5 * (r.lo + r.hi);
-      const Interval* top = nullptr;
-      for (const Interval* iv : active) {
-        if (iv->d.at(mid) > 0 && (!top || nearer(*iv, *top, mid))) top = iv;
-      }
-      if (!top) {
-        emit(r.lo, r.hi, -1);
-        continue;
-      }
-      // A face nearer than the top at either end crosses it inside: split
-      // there (its depth line meets the top's).
-      double split = -1;
-      if (splits < 64) {
-        for (const Interval* iv : active) {
-          if (iv == top || !(nearer(*iv, *top, r.lo) || nearer(*iv, *top, r.hi))) continue;
-          const double den = iv->d.g1 - top->d.g1;
-          if (den == 0) continue;
-          const double x = (top->d.g0 - iv->d.g0) / den;
-          if (x > r.lo && x < r.hi) {
-            split = x;
-            break;
-          }
-        }
-      }
-      if (split < 0) {
-        emit(r.lo, r.hi, top->face);
-        continue;
-      }
-      ++splits;
-      stack.push_back(Range{split, r.hi});  // popped second: x order kept
-      stack.push_back(Range{r.lo, split});
-    }
-  }
-}
 
 // Shadows known per figure: the state of each light on it.
 class FigureShadows : public KnownShadows {
@@ -210,11 +76,7 @@ class SubLineBuilder {
         lattice_(static_cast<size_t>(j1 - j0 + 1) * (ps.camera.width + 1)),
         grid_(std::max(1, aa / 4)),
         j1_(j1),
-        // A face cut by hither's sphere, or a bounding polyhedron around the
-        // eye, leaves points of the screen where the outlines do not tell
-        // which primitives a ray can meet (first_hit).
-        localized_hits_(!scan_.trace_everything && !scan_.any_near_hither),
-        squares_(std::max(0, j1 - j0)) {}
+        eye_(*ps.scan, ps.camera.width, j0, j1) {}
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
   void build(double y, int row, SubLine& line) {
@@ -223,13 +85,13 @@ class SubLineBuilder {
     line.spans = line.traced_spans = 0;
     y_ = y;
     out_ = &line.pieces;
-    std::vector<Segment>& segs = segs_;
+    std::vector<VisibleSegment>& segs = segs_;
     if (scan_.trace_everything) {
-      segs.assign(1, Segment{0.0, static_cast<double>(cam_.width), -2});
+      segs.assign(1, VisibleSegment{0.0, static_cast<double>(cam_.width), -2});
     } else {
       visible_segments(scan_, cam_, y, scan_.cover[row], vis_, segs);
     }
-    near_built_ = false;
+    eye_.set_line(vis_.ivs);
     std::optional<SpanShadows>& shadows = shadows_;
     if (ps_.volumes) {
       if (!shadows) {
@@ -241,7 +103,7 @@ class SubLineBuilder {
       }
     }
     for (size_t si = 0; si < segs.size(); ++si) {
-      const Segment& s = segs[si];
+      const VisibleSegment& s = segs[si];
       ++line.spans;
       if (s.face == -1) {
         for_pixels(s.x0, s.x1, [&](double a, double b) {
@@ -295,7 +157,7 @@ class SubLineBuilder {
   }
 
   // Sampled with bisection: curved bodies' spans, and faces cut by hither.
-  bool is_curved(const Segment& s) const {
+  bool is_curved(const VisibleSegment& s) const {
     return s.face == -2 || (s.face >= 0 && (scan_.faces[s.face].curved || scan_.faces[s.face].near_hither));
   }
 
@@ -329,119 +191,17 @@ class SubLineBuilder {
   }
   int first_hit(double x) {
     ++stats_.rays_eye;
-    if (!localized_hits_) {
-      const auto hit = tracer_.nearest(eye_ray(x), cam_.hither, kInf);
-      return hit ? hit->prim : -1;
-    }
-    // A ray that meets a primitive passes inside the outline of one of the
-    // primitive's faces (of its bounding polyhedron, for a curved body), so
-    // the scanline pass has already localized the search (paper §3.2): the
-    // primitives of the faces whose intervals on this sub-scanline hold x
-    // are the only ones it can meet. The same tie rule as the whole search.
-    if (!near_built_) bucket_intervals();
-    std::vector<int>& prims = near_prims_;
-    prims.clear();
-    const int i = std::clamp(static_cast<int>(std::floor(x)), 0, cam_.width - 1);
-    for (int k = near_first_[i]; k < near_first_[i + 1]; ++k) {
-      const DepthInterval& iv = vis_.ivs[near_[k]];
-      if (!(iv.xl - kNearMargin <= x && x <= iv.xr + kNearMargin)) continue;
-      const int p = scan_.faces[iv.face].prim;
-      if (std::find(prims.begin(), prims.end(), p) == prims.end()) prims.push_back(p);
-    }
-    const auto hit = tracer_.nearest_among(eye_ray(x), cam_.hither, kInf, prims);
+    const auto hit = eye_nearest(eye_ray(x), x, y_, true);
     return hit ? hit->prim : -1;
   }
-  // For first_hit: the intervals of this sub-scanline that meet each pixel,
-  // pixel i's in near_[near_first_[i] .. near_first_[i + 1]).
-  void bucket_intervals() {
-    near_built_ = true;
-    const std::vector<DepthInterval>& ivs = vis_.ivs;
-    const int w = cam_.width;
-    auto pixels = [&](const DepthInterval& iv) {
-      return std::pair{std::max(0, static_cast<int>(std::floor(iv.xl - kNearMargin))),
-                       std::min(w - 1, static_cast<int>(std::floor(iv.xr + kNearMargin)))};
-    };
-    near_first_.assign(w + 1, 0);
-    for (const DepthInterval& iv : ivs) {
-      const auto [a, b] = pixels(iv);
-      for (int i = a; i <= b; ++i) ++near_first_[i + 1];
-    }
-    for (int i = 0; i < w; ++i) near_first_[i + 1] += near_first_[i];
-    near_.resize(near_first_[w]);
-    near_fill_.assign(near_first_.begin(), near_first_.end() - 1);
-    for (int k = 0; k < static_cast<int>(ivs.size()); ++k) {
-      const auto [a, b] = pixels(ivs[k]);
-      for (int i = a; i <= b; ++i) near_[near_fill_[i]++] = k;
-    }
-  }
-
-  // The nearest surface along the eye ray through image point (x, y) of
-  // this builder's rows. As in first_hit, only primitives whose faces'
-  // outlines hold the point can be met; here the faces meeting the pixel
-  // square that holds it (closed, so a corner of the lattice is in it).
-  std::optional<SurfaceHit> eye_nearest(const Ray& ray, double x, double y) {
-    if (!localized_hits_) return tracer_.nearest(ray, cam_.hither, kInf);
-    const int j = std::clamp(static_cast<int>(std::floor(y)), j0_,
-                             std::min(j1_ - 1, cam_.height - 1));
-    const int i = std::clamp(static_cast<int>(std::floor(x)), 0, cam_.width - 1);
-    SquareFaces& row = squares_[j - j0_];
-    if (row.first.empty()) bucket_squares(j, row);
-    std::vector<int>& prims = near_prims_;
-    prims.clear();
-    for (int k = row.first[i]; k < row.first[i + 1]; ++k) {
-      const int p = scan_.faces[row.faces[k]].prim;
-      if (std::find(prims.begin(), prims.end(), p) == prims.end()) prims.push_back(p);
-    }
-    return tracer_.nearest_among(ray, cam_.hither, kInf, prims);
-  }
-  // The faces of row j whose outlines meet each pixel square [i, i + 1] x
-  // [j, j + 1] (with kNearMargin): the outline's x extent inside the row.
-  struct SquareFaces {
-    std::vector<int> first, faces;
-  };
-  void bucket_squares(int j, SquareFaces& row) {
-    const int w = cam_.width;
-    const double y0 = j - kNearMargin, y1 = j + 1 + kNearMargin;
-    std::vector<std::tuple<int, int, int>>& cols = square_cols_;
-    cols.clear();
-    for (const int fi : scan_.cover[j]) {
-      const std::vector<Vec2>& o = scan_.faces[fi].outline;
-      double lo = kInf, hi = -kInf;
-      for (size_t k = 0; k < o.size(); ++k) {
-        const Vec2 a = o[k], b = o[(k + 1) % o.size()];
-        // The part of edge ab inside the row's band of y.
-        double t0 = 0, t1 = 1;
-        const double dy = b.y - a.y;
-        if (dy == 0) {
-          if (a.y < y0 || a.y > y1) continue;
-        } else {
-          const double ta = (y0 - a.y) / dy, tb = (y1 - a.y) / dy;
-          t0 = std::max(t0, std::min(ta, tb));
-          t1 = std::min(t1, std::max(ta, tb));
-          if (t0 > t1) continue;
-        }
-        for (const double t : {t0, t1}) {
-          const double x = a.x + t * (b.x - a.x);
-          lo = std::min(lo, x);
-          hi = std::max(hi, x);
-        }
-      }
-      if (!(lo <= hi) || hi < -kNearMargin || lo > w + kNearMargin) continue;
-      const int a = std::max(0, static_cast<int>(std::floor(lo - kNearMargin)));
-      const int b = std::min(w - 1, static_cast<int>(std::floor(hi + kNearMargin)));
-      cols.emplace_back(fi, a, b);
-    }
-    row.first.assign(w + 1, 0);
-    for (const auto& [fi, a, b] : cols) {
-      for (int i = a; i <= b; ++i) ++row.first[i + 1];
-    }
-    for (int i = 0; i < w; ++i) row.first[i + 1] += row.first[i];
-    row.faces.resize(row.first[w]);
-    std::vector<int>& fill = near_fill_;
-    fill.assign(row.first.begin(), row.first.end() - 1);
-    for (const auto& [fi, a, b] : cols) {
-      for (int i = a; i <= b; ++i) row.faces[fill[i]++] = fi;
-    }
+  // The nearest surface along the eye ray through image point (x, y),
+  // searched among the primitives whose outlines hold the point
+  // (EyeCandidates): those of the current sub-scanline's intervals if
+  // `on_line` (y is this sub-scanline), else those meeting its pixel square.
+  std::optional<SurfaceHit> eye_nearest(const Ray& ray, double x, double y, bool on_line = false) {
+    if (!eye_.active()) return tracer_.nearest(ray, cam_.hither, kInf);
+    return tracer_.nearest_among(ray, cam_.hither, kInf,
+                                 on_line ? eye_.on_line(x) : eye_.in_square(x, y));
   }
 
   // Where two samples at xl < xr see different things, bisection finds the
@@ -739,7 +499,7 @@ class SubLineBuilder {
 
   // A mirror's or glass's flat face: the visible face is known, so each
   // sample is a ray-plane intersection (paper §3.2), then local ray tracing.
-  void mirror(const Segment& s, SpanShadows* shadows) {
+  void mirror(const VisibleSegment& s, SpanShadows* shadows) {
     const ScanFace& f = scan_.faces[s.face];
     auto colour_at = [&](double x) {
       const Ray ray = eye_ray(x);
@@ -764,7 +524,7 @@ class SubLineBuilder {
   // §3.2 step 2) and at pixel edges. Inside the volume of a curved or
   // transparent occluder the state of the lights comes from exact tests at
   // the pieces' midpoints, refined where it changes.
-  void figures(const Segment& s, SpanShadows& shadows) {
+  void figures(const VisibleSegment& s, SpanShadows& shadows) {
     cuts_.assign({s.x0, s.x1});
     for (double x = std::floor(s.x0) + 1.0; x < s.x1; x += 1.0) cuts_.push_back(x);
     shadows.breakpoints(cuts_);
@@ -810,7 +570,7 @@ class SubLineBuilder {
   Stats& stats_;
   double y_ = 0;
   std::vector<Piece>* out_ = nullptr;
-  std::vector<Segment> segs_;
+  std::vector<VisibleSegment> segs_;
   VisibleScratch vis_;
   std::optional<SpanShadows> shadows_;
   std::vector<double> cuts_;
@@ -824,12 +584,7 @@ class SubLineBuilder {
   int grid_;
   int j1_;
   std::vector<Corner> interior_, fine_;
-  bool localized_hits_;
-  bool near_built_ = false;  // bucket_intervals() has run on this sub-scanline
-  std::vector<int> near_, near_first_, near_fill_;
-  std::vector<int> near_prims_;  // first_hit()'s and eye_nearest()'s candidates
-  std::vector<SquareFaces> squares_;  // eye_nearest(), per row from j0_
-  std::vector<std::tuple<int, int, int>> square_cols_;  // bucket_squares()
+  EyeCandidates eye_;
 };
 
 // One figure's share of a pixel, summed over the sub-scanlines.

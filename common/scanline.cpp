@@ -245,4 +245,107 @@ RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const
   return vis;
 }
 
+void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
+                      const std::vector<int>& faces, VisibleScratch& scratch,
+                      std::vector<VisibleSegment>& out) {
+  using Interval = DepthInterval;
+  const double b = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
+  const double width = cam.width;
+  std::vector<Interval>& ivs = scratch.ivs;
+  std::vector<double>& xs = scratch.xs;
+  ivs.clear();
+  out.clear();
+  for (int fi : faces) {
+    const ScanFace& f = scan.faces[fi];
+    if (!(f.ymin <= y && y < f.ymax)) continue;
+    outline_crossings(f, y, xs);
+    const LineDepth d = line_depth(f, cam, cam.from, b);
+    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+      const double xl = std::max(0.0, xs[k]), xr = std::min(width, xs[k + 1]);
+      if (xr > xl) ivs.push_back(Interval{xl, xr, fi, d});
+    }
+  }
+  std::vector<double>& events = scratch.events;
+  events.assign({0.0, width});
+  for (const Interval& iv : ivs) {
+    events.push_back(iv.xl);
+    events.push_back(iv.xr);
+  }
+  std::sort(events.begin(), events.end());
+  events.erase(std::unique(events.begin(), events.end()), events.end());
+  std::sort(ivs.begin(), ivs.end(), [](const Interval& a, const Interval& c) {
+    return a.xl < c.xl || (a.xl == c.xl && a.face < c.face);
+  });
+
+  auto emit = [&](double x0, double x1, int face) {
+    if (!(x1 > x0)) return;
+    if (!out.empty() && out.back().face == face && out.back().x1 == x0) {
+      out.back().x1 = x1;
+    } else {
+      out.push_back(VisibleSegment{x0, x1, face});
+    }
+  };
+  // Is a nearer than c at x? Larger 1/s is nearer; within kTieRel the
+  // surfaces coincide and the tie rule decides.
+  auto nearer = [&](const Interval& a, const Interval& c, double x) {
+    const double ga = a.d.at(x), gc = c.d.at(x);
+    if (!(gc > 0)) return ga > 0;
+    if (!(ga > 0)) return false;
+    if (ga > gc * (1.0 + kTieRel)) return true;
+    if (gc > ga * (1.0 + kTieRel)) return false;
+    return wins_tie(scan, a.face, c.face);
+  };
+  std::vector<const Interval*>& active = scratch.active;
+  active.clear();
+  size_t next = 0;
+  using Range = VisibleScratch::Range;
+  std::vector<Range>& stack = scratch.stack;
+  for (size_t e = 0; e + 1 < events.size(); ++e) {
+    const double lo = events[e], hi = events[e + 1];
+    while (next < ivs.size() && ivs[next].xl <= lo) active.push_back(&ivs[next++]);
+    std::erase_if(active, [&](const Interval* iv) { return iv->xr <= lo; });
+    if (active.empty()) {
+      emit(lo, hi, -1);
+      continue;
+    }
+    stack.assign(1, Range{lo, hi});
+    int splits = 0;
+    while (!stack.empty()) {
+      const Range r = stack.back();
+      stack.pop_back();
+      const double mid = 0.5 * (r.lo + r.hi);
+      const Interval* top = nullptr;
+      for (const Interval* iv : active) {
+        if (iv->d.at(mid) > 0 && (!top || nearer(*iv, *top, mid))) top = iv;
+      }
+      if (!top) {
+        emit(r.lo, r.hi, -1);
+        continue;
+      }
+      // A face nearer than the top at either end crosses it inside: split
+      // there (its depth line meets the top's).
+      double split = -1;
+      if (splits < 64) {
+        for (const Interval* iv : active) {
+          if (iv == top || !(nearer(*iv, *top, r.lo) || nearer(*iv, *top, r.hi))) continue;
+          const double den = iv->d.g1 - top->d.g1;
+          if (den == 0) continue;
+          const double x = (top->d.g0 - iv->d.g0) / den;
+          if (x > r.lo && x < r.hi) {
+            split = x;
+            break;
+          }
+        }
+      }
+      if (split < 0) {
+        emit(r.lo, r.hi, top->face);
+        continue;
+      }
+      ++splits;
+      stack.push_back(Range{split, r.hi});  // popped second: x order kept
+      stack.push_back(Range{r.lo, split});
+    }
+  }
+}
+
 }  // namespace locus

@@ -70,6 +70,40 @@ bool wins_tie(const ScanScene& scan, int fi, int fj);
 // x in both: no cracks, no double coverage.
 void outline_crossings(const ScanFace& f, double y, std::vector<double>& xs);
 
+// A visible interval of one face on a sample line (face -1: background).
+struct VisibleSegment {
+  double x0, x1;
+  int face;
+};
+
+// One face's x-interval on a sample line, with its depth along it.
+struct DepthInterval {
+  double xl, xr;
+  int face;
+  LineDepth d;
+};
+
+// Buffers of visible_segments(), kept between calls. After a call, `ivs`
+// holds the intervals of every face crossing the line, sorted by xl.
+struct VisibleScratch {
+  struct Range {
+    double lo, hi;
+  };
+  std::vector<DepthInterval> ivs;
+  std::vector<double> xs, events;
+  std::vector<const DepthInterval*> active;
+  std::vector<Range> stack;
+};
+
+// The visible segments of the sample line at image y (a sub-scanline of
+// multi-scanning), covering [0, width), among `faces` (paper §3.1: hidden
+// surfaces per scanline). Faces are resolved by depth, and a segment is
+// split where two faces' depth order changes (interpenetration): their
+// inverse depths are linear in x.
+void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
+                      const std::vector<int>& faces, VisibleScratch& scratch,
+                      std::vector<VisibleSegment>& out);
+
 // The visible face's own hit along a sample ray (paper §3.2: a ray-plane
 // intersection, no search), or nullopt when the sample grazes the face's
 // edge or the face lies inside hither's sphere there (see on_face): the

@@ -86,8 +86,7 @@ void SpanShadows::begin_span(int face, double x_first, double x_last) {
   s_->iv.resize(lights_);
   s_->opaque.resize(lights_);
   s_->rest.resize(lights_);
-  s_->rest_first.resize(lights_);
-  s_->rest_at.resize(lights_);
+  s_->rest_buckets.resize(lights_);
 }
 
 void SpanShadows::breakpoints(std::vector<double>& xs) {
@@ -104,18 +103,14 @@ void SpanShadows::breakpoints(std::vector<double>& xs) {
 template <class Fn>
 bool SpanShadows::visit_rest(int light, int i, Fn&& fn) const {
   const std::vector<Interval>& rest = s_->rest[light];
-  const std::vector<int>& first = s_->rest_first[light];
-  if (first.empty() || i < 0) {
+  const PixelBuckets& buckets = s_->rest_buckets[light];
+  if (buckets.empty() || i < 0) {
     for (const Interval& iv : rest) {
       if (fn(iv)) return true;
     }
     return false;
   }
-  const std::vector<int>& at = s_->rest_at[light];
-  for (int k = first[i]; k < first[i + 1]; ++k) {
-    if (fn(rest[at[k]])) return true;
-  }
-  return false;
+  return buckets.visit(i, [&](int k) { return fn(rest[k]); });
 }
 
 void SpanShadows::bucket_rest(int light) {
@@ -125,13 +120,12 @@ void SpanShadows::bucket_rest(int light) {
   constexpr size_t kBucketAbove = 8;
   constexpr double kMargin = 1e-6;  // pixels, against rounding of x <-> a
   const std::vector<Interval>& rest = s_->rest[light];
-  std::vector<int>& first = s_->rest_first[light];
-  std::vector<int>& at = s_->rest_at[light];
-  first.clear();
-  at.clear();
+  PixelBuckets& buckets = s_->rest_buckets[light];
+  buckets.clear();
   if (rest.size() <= kBucketAbove) return;
   const int w = ps_.camera.width;
-  auto pixels = [&](const Interval& iv, auto&& fn) {
+  buckets.build(w, static_cast<int>(rest.size()), [&](int k, auto&& fn) {
+    const Interval& iv = rest[k];
     const double xl = image_x(iv.lo) - kMargin, xh = image_x(iv.hi) + kMargin;
     if (!iv.outside) {
       const int p0 = std::max(0, static_cast<int>(std::floor(xl)));
@@ -144,15 +138,7 @@ void SpanShadows::bucket_rest(int light) {
     for (int i = 0; i < w; ++i) {
       if (!(il < i && i + 1 < ih)) fn(i);
     }
-  };
-  first.assign(w + 1, 0);
-  for (const Interval& iv : rest) pixels(iv, [&](int i) { ++first[i + 1]; });
-  for (int i = 0; i < w; ++i) first[i + 1] += first[i];
-  at.resize(first[w]);
-  std::vector<int> fill(first.begin(), first.end() - 1);
-  for (int k = 0; k < static_cast<int>(rest.size()); ++k) {
-    pixels(rest[k], [&](int i) { at[fill[i]++] = k; });
-  }
+  });
 }
 
 bool SpanShadows::uncertain(double x0, double x1) {

@@ -7,6 +7,7 @@
 #include <optional>
 #include <vector>
 
+#include "common/pixel_buckets.h"
 #include "common/raytrace.h"
 #include "common/shadow_volume.h"
 
@@ -97,10 +98,9 @@ class SpanShadows : public KnownShadows {
     // order, and the other intervals (exact tests, kOutside).
     std::vector<std::vector<std::pair<double, double>>> opaque;
     std::vector<std::vector<Interval>> rest;
-    // Per light with a long `rest`: the indices of its intervals that may
-    // hold a point of pixel i, in rest's order, at
-    // [rest_first[i], rest_first[i + 1]) of rest_at (empty: scan it all).
-    std::vector<std::vector<int>> rest_first, rest_at;
+    // Per light with a long `rest`: its intervals that may hold a point of
+    // each pixel, in rest's order (empty: scan it all).
+    std::vector<PixelBuckets> rest_buckets;
   };
   // The intervals of rest[light] that may hold points of pixel i (all of
   // them when it is short), in rest's order, to fn until it returns true.
