@@ -171,24 +171,6 @@ class SubLineBuilder {
     if (!hit) return {-1, ps_.scene.background};
     return {hit->prim, tracer_.shade(ray, *hit, 1, 1.0, nullptr)};
   }
-  // Which of primitives a and b (-1: neither) the eye ray at x meets first:
-  // the boundary between two samples that saw a and b is searched with
-  // these two alone (docs/multiscan.md).
-  int nearer_of(double x, int a, int b) {
-    const Ray ray = eye_ray(x);
-    int best = -1;
-    double tb = kInf;
-    for (const int p : {a, b}) {
-      if (p < 0) continue;
-      ++stats_.tests_ray_object;
-      const auto c = intersect_nearest(ps_.prims, p, ray, cam_.hither, kInf);
-      if (c && (c->t < tb || (c->t == tb && p < best))) {
-        tb = c->t;
-        best = p;
-      }
-    }
-    return best;
-  }
   int first_hit(double x) {
     ++stats_.rays_eye;
     const auto hit = eye_nearest(eye_ray(x), x, y_, true);
@@ -204,95 +186,85 @@ class SubLineBuilder {
                                  on_line ? eye_.on_line(x) : eye_.in_square(x, y));
   }
 
-  // Where two samples at xl < xr see different things, bisection finds the
-  // boundary between them to kBisectTolerance; `same_as_left(x)` tells
-  // which side x is on.
-  template <class Fn>
-  double bisect(double xl, double xr, Fn&& same_as_left) {
+  // Where two samples at xl < xr found keys kl != kr, bisection finds to
+  // kBisectTolerance where the key changes; `key_between(x, kl, kr)` gives
+  // the key at x. Where it is a third key (a surface or shadow between the
+  // two samples), both halves are searched in turn, so every change found
+  // is recorded. Appends the changes to `out` in x order: (x, key from x).
+  template <class Key, class KeyBetween>
+  void changes(double xl, Key kl, double xr, const Key& kr, KeyBetween& key_between,
+               std::vector<std::pair<double, Key>>& out) {
     while (xr - xl > kBisectTolerance) {
       const double xm = 0.5 * (xl + xr);
-      if (same_as_left(xm)) {
+      Key km = key_between(xm, kl, kr);
+      if (km == kl) {
         xl = xm;
-      } else {
+      } else if (km == kr) {
         xr = xm;
+      } else {
+        changes(xl, kl, xm, km, key_between, out);
+        kl = std::move(km);
+        xl = xm;
       }
     }
-    return 0.5 * (xl + xr);
+    out.emplace_back(0.5 * (xl + xr), kr);
   }
 
   // Refines the pieces [begin, end) of *out_, whose keys (what the sample
   // at each piece's midpoint found) are `keys`: where neighbours differ,
-  // and between each end of the run and the piece next to it, bisection
-  // finds where the key changes (`key_at(x)`), and the part of a piece on
-  // the other side is split off and given the other key (`fill(part,
-  // key)`). This is the paper's convergence search (§3.3); a feature that
-  // begins and ends between two samples is not seen (docs/multiscan.md).
-  template <class Key, class KeyAt, class Fill, class Between>
+  // and between each end of the run and the piece next to it (`key_at(x)`
+  // there), bisection finds where the key changes (`changes`), and each
+  // piece is cut there, its parts given their keys (`fill(part, key)`).
+  // This is the paper's convergence search (§3.3); a feature that begins
+  // and ends between two samples is seen only where the bisection's probes
+  // meet it (docs/multiscan.md).
+  template <class Key, class KeyAt, class Fill, class KeyBetween>
   void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill,
-              Between&& between) {
+              KeyBetween&& key_between, std::vector<std::pair<double, Key>>& found) {
     const size_t n = keys.size();
     if (n == 0) return;
     std::vector<Piece>& run = run_;
     run.assign(out_->begin() + static_cast<long>(begin), out_->end());
-    std::vector<Piece>& res = res_;
-    res.clear();
     auto mid = [](const Piece& p) { return 0.5 * (p.x0 + p.x1); };
-    auto part = [&](double x0, double x1, const Piece& like, const Key& key) {
+    constexpr double kEnd = 1e-6;  // end probes, just inside the run
+    found.clear();
+    Key start = keys[0];
+    if (const Piece& p = run[0]; mid(p) - p.x0 > 2 * kEnd) {
+      Key kl = key_at(p.x0 + kEnd);
+      if (!(kl == keys[0])) {
+        changes(p.x0 + kEnd, kl, mid(p), keys[0], key_between, found);
+        start = std::move(kl);
+      }
+    }
+    for (size_t k = 1; k < n; ++k) {
+      if (!(keys[k - 1] == keys[k])) changes(mid(run[k - 1]), keys[k - 1], mid(run[k]), keys[k], key_between, found);
+    }
+    if (const Piece& p = run[n - 1]; p.x1 - mid(p) > 2 * kEnd) {
+      const Key kr = key_at(p.x1 - kEnd);
+      if (!(kr == keys[n - 1])) changes(mid(p), keys[n - 1], p.x1 - kEnd, kr, key_between, found);
+    }
+    if (found.empty()) return;
+    out_->resize(begin);
+    size_t t = 0;
+    const Key* key = &start;
+    auto part = [&](double x0, double x1, const Piece& like) {
       Piece q = like;
       q.x0 = x0;
       q.x1 = x1;
-      fill(q, key);
-      res.push_back(q);
+      fill(q, *key);
+      out_->push_back(q);
     };
-    constexpr double kEnd = 1e-6;  // end probes, just inside the run
-    for (size_t k = 0; k < n; ++k) {
-      Piece cur = run[k];
-      const double m = mid(run[k]);
-      if (k == 0 && m - cur.x0 > 2 * kEnd) {
-        const Key kl = key_at(cur.x0 + kEnd);
-        if (!(kl == keys[0])) {
-          const double x = bisect(cur.x0 + kEnd, m, [&](double xm) { return between(xm, kl, keys[0]); });
-          if (x > cur.x0 && x < cur.x1) {
-            part(cur.x0, x, cur, kl);
-            cur.x0 = x;
-          }
+    for (const Piece& p : run) {
+      double a = p.x0;
+      for (; t < found.size() && found[t].first < p.x1; ++t) {
+        if (found[t].first > a) {
+          part(a, found[t].first, p);
+          a = found[t].first;
         }
+        key = &found[t].second;
       }
-      if (k > 0 && !(keys[k - 1] == keys[k])) {
-        const Key& left = keys[k - 1];
-        const double c = run[k].x0;
-        const double x =
-            bisect(mid(run[k - 1]), m, [&](double xm) { return between(xm, left, keys[k]); });
-        if (x < c && x > res.back().x0) {
-          const Piece like = res.back();
-          res.back().x1 = x;
-          part(x, c, like, keys[k]);
-        } else if (x > c && x < cur.x1) {
-          part(c, x, cur, left);
-          cur.x0 = x;
-        }
-      }
-      Piece tail;
-      bool split_tail = false;
-      Key kr{};
-      if (k + 1 == n && cur.x1 - m > 2 * kEnd) {
-        kr = key_at(cur.x1 - kEnd);
-        if (!(kr == keys[k])) {
-          const Key& own = keys[k];
-          const double x = bisect(m, cur.x1 - kEnd, [&](double xm) { return between(xm, own, kr); });
-          if (x > cur.x0 && x < cur.x1) {
-            tail = cur;
-            tail.x0 = x;
-            cur.x1 = x;
-            split_tail = true;
-          }
-        }
-      }
-      res.push_back(cur);
-      if (split_tail) part(tail.x0, tail.x1, tail, kr);
+      part(a, p.x1, p);
     }
-    out_->resize(begin);
-    out_->insert(out_->end(), res.begin(), res.end());
   }
 
   // A run of curved bodies' spans: the first surface hit at one point per
@@ -313,7 +285,8 @@ class SubLineBuilder {
     });
     refine(
         begin, ids, [&](double x) { return first_hit(x); }, [](Piece& q, int id) { q.hit = id; },
-        [&](double x, int left, int right) { return nearer_of(x, left, right) == left; });
+        [&](double x, int, int) { return first_hit(x); },
+        found_ids_);
     auto direct = [&](double x) { return sample(x).second; };
     for (size_t k = begin; k < out_->size(); ++k) {
       Piece& p = (*out_)[k];
@@ -536,9 +509,8 @@ class SubLineBuilder {
     auto end_run = [&] {
       refine(run_begin, keys, [&](double x) { return shadows.states(x); },
              [](Piece& q, const LightStates& st) { q.lights = st; },
-             [&](double x, const LightStates& left, const LightStates&) {
-               return shadows.states(x) == left;
-             });
+             [&](double x, const LightStates&, const LightStates&) { return shadows.states(x); },
+             found_states_);
       keys.clear();
       run_begin = out_->size();
     };
@@ -577,7 +549,10 @@ class SubLineBuilder {
   std::vector<char> unsure_;
   std::vector<int> ids_;
   std::vector<LightStates> keys_;
-  std::vector<Piece> run_, res_;  // refine()'s buffers
+  // refine()'s buffers
+  std::vector<Piece> run_;
+  std::vector<std::pair<double, int>> found_ids_;
+  std::vector<std::pair<double, LightStates>> found_states_;
   int refine_x_;  // a piece's own samples across its width, where refined
   int j0_;
   std::vector<Corner> lattice_;
