@@ -15,17 +15,12 @@ namespace {
 
 // Adaptive refinement inside ray-traced spans (issue #6 item 3;
 // SubLineBuilder::traced_colour): a traced piece is interpolated from its
-// pixel's corner samples where they see one material and differ by at most
-// kContrast (largest channel, linear radiance). Otherwise the pixel's
-// interior samples join in (a grid of max(1, N / 4) squared), and where the
-// samples that see the piece's material still differ by more than
-// kFineContrast, a grid twice as fine inside the pixel; where they differ
-// by more than kFinerContrast, the piece's own N / 2 samples across its
-// width. Each step is blended in as the spread grows to twice its
-// threshold (no jump).
+// pixel's corner samples where they (and, for N >= 8, the pixel's interior
+// grid) see one material and differ by at most kContrast (largest channel,
+// linear radiance), blended out as the spread grows to twice that.
+// Otherwise it takes the mean radiance of the samples of a stratified grid
+// inside the pixel (2 max(1, N / 4) squared) that see its material.
 constexpr double kContrast = 0.05;
-constexpr double kFineContrast = 0.15;
-constexpr double kFinerContrast = 0.3;
 
 // The sub-scanlines of this many pixel rows share their spans' candidate
 // occluders (SpanShadows::set_group_rows; docs/multiscan.md).
@@ -38,7 +33,10 @@ struct Piece {
   Kind kind = kBackground;
   int face = -1;       // kFigure: index into ScanScene::faces
   int hit = -1;        // kTraced: the first surface the sample met (-1: none)
-  Color colour{0.0};   // kTraced: the sample's radiance
+  // kTraced: the piece's radiance for the pixel row below the sub-scanline
+  // (or holding it), and on a row boundary also for the row above (each
+  // row's pixels estimate it from their own samples; traced_colour).
+  Color colour{0.0}, colour_up{0.0};
   LightStates lights;  // kFigure: the state of the lights on the piece
 };
 
@@ -72,7 +70,7 @@ class SubLineBuilder {
   // Lattice rows [j0, j1] (pixel corners y = j0..j1) may be used.
   SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa, int j0, int j1)
       : ps_(ps), scan_(*ps.scan), cam_(ps.camera), tracer_(tracer), stats_(stats),
-        refine_x_(std::max(1, aa / 2)), j0_(j0),
+        j0_(j0),
         lattice_(static_cast<size_t>(j1 - j0 + 1) * (ps.camera.width + 1)),
         grid_(std::max(1, aa / 4)),
         j1_(j1),
@@ -84,6 +82,12 @@ class SubLineBuilder {
     line.pieces.clear();
     line.spans = line.traced_spans = 0;
     y_ = y;
+    // The band's pixel rows whose pixels this sub-scanline's traced pieces
+    // are estimated for (-1: none): the row that holds it, and on a row
+    // boundary the row above, which it closes.
+    const int below = static_cast<int>(std::floor(y));
+    row_down_ = below >= j0_ && below < j1_ - 1 && below < cam_.height ? below : -1;
+    row_up_ = y == below && below - 1 >= j0_ && below - 1 < j1_ - 1 ? below - 1 : -1;
     out_ = &line.pieces;
     std::vector<VisibleSegment>& segs = segs_;
     if (scan_.trace_everything) {
@@ -290,7 +294,11 @@ class SubLineBuilder {
     auto direct = [&](double x) { return sample(x).second; };
     for (size_t k = begin; k < out_->size(); ++k) {
       Piece& p = (*out_)[k];
-      p.colour = p.hit < 0 ? ps_.scene.background : traced_colour(p, direct);
+      if (p.hit < 0) {
+        p.colour = p.colour_up = ps_.scene.background;
+      } else {
+        traced_colours(p, direct);
+      }
     }
   }
 
@@ -307,19 +315,28 @@ class SubLineBuilder {
   // the samples at the pixel's corners, which all sub-scanlines of the
   // pixel and of its neighbours share. So if the corners that have a weight
   // here (each traced once, lazily) all see the piece's material and differ
-  // by at most kContrast, the piece is interpolated. Otherwise (an edge in
-  // the reflected or refracted image, or a silhouette in the pixel) the
-  // pixel's own samples are taken: its corners and a grid inside it, traced
-  // once for all its sub-scanlines, finer where they still differ (issue #6
-  // item 3's adaptive refinement). Those that see the piece's material give
-  // its radiance, weighted by a tent around its midpoint; only a piece that
-  // none of them sees is sampled itself (`direct(x)`; docs/multiscan.md).
+  // by at most kContrast, the piece is interpolated; for N >= 8 the pixel's
+  // interior grid must agree too, so that a feature inside the pixel that
+  // no corner sees is found as N grows. Otherwise (an edge in the reflected
+  // or refracted image, or a silhouette in the pixel: issue #6 item 3's
+  // adaptive refinement) the piece's radiance is the mean of the samples
+  // of the pixel's fine grid (stratified, traced once for all its
+  // sub-scanlines) that see its material: with the exact coverage of each
+  // piece, the pixel is then the box filter's integral of each material's
+  // radiance, estimated from the samples inside it. A piece whose material
+  // no fine sample sees (a sliver thinner than their spacing) is sampled
+  // itself (`direct(x)`; docs/multiscan.md).
   template <class Direct>
-  Color traced_colour(const Piece& p, Direct&& direct) {
+  void traced_colours(Piece& p, Direct&& direct) {
+    if (row_down_ >= 0) p.colour = traced_colour(p, row_down_, direct);
+    if (row_up_ >= 0) p.colour_up = traced_colour(p, row_up_, direct);
+  }
+  // The piece's radiance for the pixels of row j (y_ in [j, j + 1]).
+  template <class Direct>
+  Color traced_colour(const Piece& p, int j, Direct&& direct) {
     const int material = material_of(p.hit);
     const double xm = 0.5 * (p.x0 + p.x1);
     const int i = std::min(static_cast<int>(xm), cam_.width - 1);
-    const int j = std::min(static_cast<int>(y_), cam_.height - 1);
     const double fx = xm - i, fy = y_ - j;
     const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
     const bool in_lattice =
@@ -327,91 +344,38 @@ class SubLineBuilder {
     if (!in_lattice) return direct(xm);
     Color lo(kInf), hi(-kInf), acc(0.0);
     bool smooth = true;
+    auto agree = [&](const Corner& k) {
+      if (k.prim < 0 || material_of(k.prim) != material) return false;
+      lo = glm::min(lo, k.colour);
+      hi = glm::max(hi, k.colour);
+      return true;
+    };
     for (int c = 0; c < 4 && smooth; ++c) {
       if (!(w[c] > 0)) continue;
       const Corner& k = corner(i + (c & 1), j + (c >> 1));
-      if (k.prim < 0 || material_of(k.prim) != material) {
-        smooth = false;
-        break;
-      }
-      lo = glm::min(lo, k.colour);
-      hi = glm::max(hi, k.colour);
+      smooth = agree(k);
       acc += w[c] * k.colour;
     }
-    // The interpolation's weight falls from 1 to 0 as the corners' spread
-    // goes from kContrast to twice that (no jump where it crosses).
+    if (smooth && grid_ >= 2) {
+      const Corner* in = interior(i, j);
+      for (int q = 0; q < grid_ * grid_ && smooth; ++q) smooth = agree(in[q]);
+    }
+    // The interpolation's weight falls from 1 to 0 as the spread goes from
+    // kContrast to twice that (no jump where it crosses).
     const double keep = smooth ? std::clamp(2.0 - max_component(hi - lo) / kContrast, 0.0, 1.0) : 0.0;
     if (keep >= 1.0) return acc;
-    // Not smooth: the pixel's own samples (its corners and an m x m grid
-    // inside, each traced once for all the pixel's sub-scanlines) that see
-    // the piece's material, weighted by a tent around the piece's midpoint.
+    const int g = 2 * grid_;
+    const Corner* in = fine(i, j);
     Color sum(0.0);
-    double wsum = 0;
-    Color lo2(kInf), hi2(-kInf);
-    // The samples that see the material, into sum and wsum under a tent of
-    // half-width r around the piece's midpoint; their spread in lo2, hi2.
-    auto gather = [&](double r, bool fine_too, Color& sum, double& wsum) {
-      auto add = [&](const Color& c, double sx, double sy) {
-        const double wt = std::max(0.0, 1.0 - std::abs(sx - xm) / r) *
-                              std::max(0.0, 1.0 - std::abs(sy - y_) / r) +
-                          1e-3;
-        sum += wt * c;
-        wsum += wt;
-        lo2 = glm::min(lo2, c);
-        hi2 = glm::max(hi2, c);
-      };
-      for (int c = 0; c < 4; ++c) {
-        const Corner& k = corner(i + (c & 1), j + (c >> 1));
-        if (k.prim >= 0 && material_of(k.prim) == material) add(k.colour, i + (c & 1), j + (c >> 1));
+    int n = 0;
+    for (int q = 0; q < g * g; ++q) {
+      if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
+        sum += in[q].colour;
+        ++n;
       }
-      for (const int g : {grid_, fine_too ? 2 * grid_ : 0}) {
-        if (g == 0) continue;
-        const Corner* in = g == grid_ ? interior(i, j) : fine(i, j);
-        for (int q = 0; q < g * g; ++q) {
-          if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
-            add(in[q].colour, i + (q % g + 0.5) / g, j + (q / g + 0.5) / g);
-          }
-        }
-      }
-    };
-    gather(1.0, false, sum, wsum);
-    // No sample of the pixel sees the material (a sliver thinner than
-    // their spacing): the piece is sampled itself.
-    Color refined = wsum > 0 ? sum / wsum : direct(xm);
-    // Where the samples that see the material differ by more than
-    // kFineContrast, a grid twice as fine inside the pixel (traced once for
-    // all its sub-scanlines) joins them, under a tent half as wide.
-    const double f1 =
-        wsum > 0 ? std::clamp((max_component(hi2 - lo2) - kFineContrast) / kFineContrast, 0.0, 1.0)
-                 : 0.0;
-    if (f1 > 0) {
-      Color s1(0.0);
-      double w1 = 0;
-      gather(0.5, true, s1, w1);
-      refined = (1.0 - f1) * refined + f1 * (s1 / w1);
     }
-    // Where the samples that see the material still differ by more than
-    // kFinerContrast, the piece is sampled itself across its width too,
-    // weighted in as the spread grows to twice that (no jump).
-    const double f =
-        wsum > 0
-            ? std::clamp((max_component(hi2 - lo2) - kFinerContrast) / kFinerContrast, 0.0, 1.0)
-            : 0.0;
-    if (f > 0) {
-      Color own(0.0);
-      const double step = (p.x1 - p.x0) / refine_x_;
-      for (int q = 0; q < refine_x_; ++q) {
-        const double x = p.x0 + (q + 0.5) * step;
-        // On the sub-scanlines through the finer grid's rows, a whole
-        // pixel's own samples fall on the grid's points (N = 4: x and y at
-        // quarters), which are already traced: the same ray, not traced
-        // again.
-        const Corner* at = fine_point(i, j, x);
-        own += at ? at->colour : direct(x);
-      }
-      refined = (1.0 - f) * refined + f * (own / static_cast<double>(refine_x_));
-    }
-    return keep > 0 ? keep * acc + (1.0 - keep) * refined : refined;
+    const Color mean = n > 0 ? sum / static_cast<double>(n) : direct(xm);
+    return keep > 0 ? keep * acc + (1.0 - keep) * mean : mean;
   }
 
   // Pixel (i, j)'s interior samples, a grid_ x grid_ grid, and the grid
@@ -435,18 +399,6 @@ class SubLineBuilder {
       }
     }
     return in;
-  }
-
-  // The finer grid's sample of pixel (i, j) at image point (x, y_), if
-  // there is one exactly there and it has been traced.
-  const Corner* fine_point(int i, int j, double x) {
-    const int g = 2 * grid_;
-    const double gx = (x - i) * g - 0.5, gy = (y_ - j) * g - 0.5;
-    const int qx = static_cast<int>(gx), qy = static_cast<int>(gy);
-    if (gx < 0 || gy < 0 || qx >= g || qy >= g || qx != gx || qy != gy) return nullptr;
-    if (i + (qx + 0.5) / g != x || j + (qy + 0.5) / g != y_) return nullptr;
-    const Corner& c = fine(i, j)[qy * g + qx];
-    return c.done ? &c : nullptr;
   }
 
   int material_of(int prim) const {
@@ -488,7 +440,7 @@ class SubLineBuilder {
       p.x1 = b;
       p.kind = Piece::kTraced;
       p.hit = f.prim;
-      p.colour = traced_colour(p, colour_at);
+      traced_colours(p, colour_at);
       out_->push_back(p);
     });
   }
@@ -553,8 +505,8 @@ class SubLineBuilder {
   std::vector<Piece> run_;
   std::vector<std::pair<double, int>> found_ids_;
   std::vector<std::pair<double, LightStates>> found_states_;
-  int refine_x_;  // a piece's own samples across its width, where refined
   int j0_;
+  int row_down_ = -1, row_up_ = -1;  // build()'s rows
   std::vector<Corner> lattice_;
   int grid_;
   int j1_;
@@ -612,7 +564,7 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
               acc += w * ps.scene.background;
               break;
             case Piece::kTraced:
-              acc += w * pc.colour;
+              acc += w * (k == n ? pc.colour_up : pc.colour);
               traced = true;
               break;
             case Piece::kFigure: {
