@@ -71,9 +71,11 @@ class SubLineBuilder {
   SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa, int j0, int j1)
       : ps_(ps), scan_(*ps.scan), cam_(ps.camera), tracer_(tracer), stats_(stats),
         j0_(j0),
-        lattice_(static_cast<size_t>(j1 - j0 + 1) * (ps.camera.width + 1)),
+        lattice_(static_cast<size_t>(ps.camera.width) + 1),
         grid_(std::max(1, aa / 4)),
         j1_(j1),
+        interior_(static_cast<size_t>(ps.camera.width) * grid_ * grid_),
+        fine_(static_cast<size_t>(ps.camera.width) * 4 * grid_ * grid_),
         eye_(*ps.scan, ps.camera.width, j0, j1) {}
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
@@ -309,6 +311,31 @@ class SubLineBuilder {
     int prim = -1;
     Color colour{0.0};
   };
+  // The samples of the last few rows, each row `per_row` of them. Rows are
+  // asked for in increasing order (a sub-scanline at y uses lattice rows
+  // floor(y) - 1 .. floor(y) + 1 and pixel rows floor(y) - 1 and floor(y)),
+  // so three slots suffice: a row's slot is cleared when a later row takes
+  // it. Memory is a few rows, not the band's (whose first touch cost more
+  // than the samples at 512²).
+  class RowRing {
+   public:
+    explicit RowRing(size_t per_row) : per_row_(per_row), data_(kSlots * per_row) {}
+    Corner* row(int r) {
+      const int slot = r % kSlots;
+      Corner* d = data_.data() + static_cast<size_t>(slot) * per_row_;
+      if (rows_[slot] != r) {
+        std::fill(d, d + per_row_, Corner{});
+        rows_[slot] = r;
+      }
+      return d;
+    }
+
+   private:
+    static constexpr int kSlots = 3;
+    size_t per_row_;
+    std::vector<Corner> data_;
+    int rows_[kSlots] = {-1, -1, -1};
+  };
   // The radiance of a traced piece (p.hit >= 0). The paper samples every
   // piece: one ray per pixel per sub-scanline (§3.3). Where the surface is
   // smooth, that sample is, within kContrast, the bilinear interpolation of
@@ -340,7 +367,7 @@ class SubLineBuilder {
     const double fx = xm - i, fy = y_ - j;
     const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
     const bool in_lattice =
-        j >= j0_ && static_cast<size_t>(j + 2 - j0_) * (cam_.width + 1) <= lattice_.size();
+        j >= j0_ && j + 1 <= j1_;
     if (!in_lattice) return direct(xm);
     Color lo(kInf), hi(-kInf), acc(0.0);
     bool smooth = true;
@@ -382,11 +409,9 @@ class SubLineBuilder {
   // twice as fine, each traced on first use.
   const Corner* interior(int i, int j) { return grid_samples(i, j, grid_, interior_); }
   const Corner* fine(int i, int j) { return grid_samples(i, j, 2 * grid_, fine_); }
-  const Corner* grid_samples(int i, int j, int g, std::vector<Corner>& store) {
+  const Corner* grid_samples(int i, int j, int g, RowRing& store) {
     const size_t n = static_cast<size_t>(g) * g;
-    const size_t at = (static_cast<size_t>(j - j0_) * cam_.width + i) * n;
-    if (store.size() < at + n) store.resize(static_cast<size_t>(j1_ - j0_ + 1) * cam_.width * n);
-    Corner* in = &store[at];
+    Corner* in = store.row(j) + static_cast<size_t>(i) * n;
     if (!in[0].done) {
       for (int q = 0; q < static_cast<int>(n); ++q) {
         in[q].done = true;
@@ -406,7 +431,7 @@ class SubLineBuilder {
   }
 
   const Corner& corner(int i, int j) {
-    Corner& k = lattice_[static_cast<size_t>(j - j0_) * (cam_.width + 1) + i];
+    Corner& k = lattice_.row(j)[i];
     if (!k.done) {
       k.done = true;
       ++stats_.rays_eye;
@@ -507,10 +532,10 @@ class SubLineBuilder {
   std::vector<std::pair<double, LightStates>> found_states_;
   int j0_;
   int row_down_ = -1, row_up_ = -1;  // build()'s rows
-  std::vector<Corner> lattice_;
+  RowRing lattice_;  // pixel corners, a row of them per lattice row
   int grid_;
   int j1_;
-  std::vector<Corner> interior_, fine_;
+  RowRing interior_, fine_;  // per pixel row
   EyeCandidates eye_;
 };
 
