@@ -9,6 +9,10 @@
 #include <utility>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "common/geometry.h"
 
 namespace locus {
@@ -32,17 +36,42 @@ struct RayInv {
   explicit RayInv(const Ray& r) : origin(r.origin), inv(1.0 / r.dir.x, 1.0 / r.dir.y, 1.0 / r.dir.z) {}
 };
 
+// The slab test: does the ray meet box b for some t in [tmin, tmax]? A NaN
+// slab distance (origin on a slab's plane, direction parallel to it) must
+// not cull, so it never moves tmin or tmax.
 inline bool hit_box(const Aabb& b, const RayInv& r, double tmin, double tmax) {
+#if defined(__SSE2__)
+  // x and y in one register, z in the low lane of another: branchless, and
+  // 12-16% faster than the scalar loop on whole ray-traced renders of SPD
+  // balls and rings (docs/renderer.md, "SIMD"). Each min/max takes its
+  // operands in the order that gives the scalar loop's comparisons exactly
+  // (MINPD/MAXPD return the second operand when either is NaN or they are
+  // equal): near = t1 < t0 ? t1 : t0, far = t0 > t1 ? t0 : t1,
+  // tmin = near > tmin ? near : tmin, tmax = far < tmax ? far : tmax.
+  const __m128d o = _mm_loadu_pd(&r.origin.x), inv = _mm_loadu_pd(&r.inv.x);
+  const __m128d t0 = _mm_mul_pd(_mm_sub_pd(_mm_loadu_pd(&b.lo.x), o), inv);
+  const __m128d t1 = _mm_mul_pd(_mm_sub_pd(_mm_loadu_pd(&b.hi.x), o), inv);
+  const __m128d near = _mm_min_pd(t1, t0), far = _mm_max_pd(t0, t1);
+  const __m128d z0 = _mm_set_sd((b.lo.z - r.origin.z) * r.inv.z);
+  const __m128d z1 = _mm_set_sd((b.hi.z - r.origin.z) * r.inv.z);
+  __m128d lo = _mm_max_sd(near, _mm_set_sd(tmin));
+  __m128d hi = _mm_min_sd(far, _mm_set_sd(tmax));
+  lo = _mm_max_sd(_mm_unpackhi_pd(near, near), lo);
+  hi = _mm_min_sd(_mm_unpackhi_pd(far, far), hi);
+  lo = _mm_max_sd(_mm_min_sd(z1, z0), lo);
+  hi = _mm_min_sd(_mm_max_sd(z0, z1), hi);
+  return !(_mm_cvtsd_f64(lo) > _mm_cvtsd_f64(hi));
+#else
   for (int a = 0; a < 3; ++a) {
     double t0 = (b.lo[a] - r.origin[a]) * r.inv[a];
     double t1 = (b.hi[a] - r.origin[a]) * r.inv[a];
     if (t0 > t1) std::swap(t0, t1);
-    // A NaN (origin on a slab plane, direction parallel) must not cull.
     if (t0 > tmin) tmin = t0;
     if (t1 < tmax) tmax = t1;
     if (tmin > tmax) return false;
   }
   return true;
+#endif
 }
 
 // Visits the primitives whose leaf boxes the ray meets in (tmin, tmax).
