@@ -37,8 +37,21 @@ struct RayInv {
 };
 
 // The slab test: does the ray meet box b for some t in [tmin, tmax]? A NaN
-// slab distance (origin on a slab's plane, direction parallel to it) must
-// not cull, so it never moves tmin or tmax.
+// slab distance (origin on a slab's plane, direction parallel to it) never
+// moves tmin or tmax. hit_box_scalar is the plain loop; hit_box gives the
+// same answers, with SSE2 where the build has it.
+inline bool hit_box_scalar(const Aabb& b, const RayInv& r, double tmin, double tmax) {
+  for (int a = 0; a < 3; ++a) {
+    double t0 = (b.lo[a] - r.origin[a]) * r.inv[a];
+    double t1 = (b.hi[a] - r.origin[a]) * r.inv[a];
+    if (t0 > t1) std::swap(t0, t1);
+    if (t0 > tmin) tmin = t0;
+    if (t1 < tmax) tmax = t1;
+    if (tmin > tmax) return false;
+  }
+  return true;
+}
+
 inline bool hit_box(const Aabb& b, const RayInv& r, double tmin, double tmax) {
 #if defined(__SSE2__)
   // x and y in one register, z in the low lane of another: branchless, and
@@ -62,15 +75,7 @@ inline bool hit_box(const Aabb& b, const RayInv& r, double tmin, double tmax) {
   hi = _mm_min_sd(_mm_max_sd(z0, z1), hi);
   return !(_mm_cvtsd_f64(lo) > _mm_cvtsd_f64(hi));
 #else
-  for (int a = 0; a < 3; ++a) {
-    double t0 = (b.lo[a] - r.origin[a]) * r.inv[a];
-    double t1 = (b.hi[a] - r.origin[a]) * r.inv[a];
-    if (t0 > t1) std::swap(t0, t1);
-    if (t0 > tmin) tmin = t0;
-    if (t1 < tmax) tmax = t1;
-    if (tmin > tmax) return false;
-  }
-  return true;
+  return hit_box_scalar(b, r, tmin, tmax);
 #endif
 }
 

@@ -318,17 +318,6 @@ TEST(Geometry, BentPolygonBoxHoldsItsHits) {
 // (NaN slab distances), on a box's face or edge, and with tmax at the
 // entry distance.
 TEST(Geometry, SlabTestMatchesScalarLoop) {
-  auto scalar = [](const Aabb& b, const RayInv& r, double tmin, double tmax) {
-    for (int a = 0; a < 3; ++a) {
-      double t0 = (b.lo[a] - r.origin[a]) * r.inv[a];
-      double t1 = (b.hi[a] - r.origin[a]) * r.inv[a];
-      if (t0 > t1) std::swap(t0, t1);
-      if (t0 > tmin) tmin = t0;
-      if (t1 < tmax) tmax = t1;
-      if (tmin > tmax) return false;
-    }
-    return true;
-  };
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-2.0, 2.0);
   std::uniform_int_distribution<int> pick(0, 5);
@@ -351,7 +340,7 @@ TEST(Geometry, SlabTestMatchesScalarLoop) {
     const RayInv r(Ray{o, d});
     const double tmin = pick(rng) % 2 ? 0.0 : -1e300;
     const double tmax = pick(rng) % 3 == 0 ? std::abs(u(rng)) : 1e300;
-    const bool want = scalar(b, r, tmin, tmax);
+    const bool want = hit_box_scalar(b, r, tmin, tmax);
     ASSERT_EQ(hit_box(b, r, tmin, tmax), want)
         << "box (" << b.lo.x << ", " << b.lo.y << ", " << b.lo.z << ")-(" << b.hi.x << ", "
         << b.hi.y << ", " << b.hi.z << ") origin (" << o.x << ", " << o.y << ", " << o.z

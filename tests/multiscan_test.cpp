@@ -280,6 +280,27 @@ TEST(Multiscan, SubPixelSpheresAreMeasured) {
   }
 }
 
+// The largest channel difference between `got` and the ray tracer with
+// 32 x 32 eye rays per pixel through the whole search.
+double max_error_against_rays(const Scene& s, const Image& got) {
+  RenderParams ref;
+  ref.method = Method::kRaytrace;
+  ref.spp = 32;
+  auto want = render_image(s, ref);
+  EXPECT_TRUE(want.ok());
+  if (!want.ok()) return 1e9;
+  double worst = 0;
+  for (int j = 0; j < s.camera.height; ++j) {
+    for (int i = 0; i < s.camera.width; ++i) {
+      for (int c = 0; c < 3; ++c) {
+        worst = std::max(worst, std::abs(static_cast<double>(got.pixel(i, j)[c]) -
+                                         want->pixels.pixel(i, j)[c]));
+      }
+    }
+  }
+  return worst;
+}
+
 // Inside a curved body's bounding polyhedron, the first surface at a sample
 // is searched among the primitives whose faces' outlines hold the sample
 // (docs/multiscan.md). Bodies sunk into a polygon (which lies inside their
@@ -310,20 +331,7 @@ TEST(Multiscan, FirstHitAmongOutlinesFindsEverySurface) {
   auto ps = prepare_scene(s, p);
   ASSERT_TRUE(ps.ok());
   const BandResult r = render_band(**ps, Band{0, 40}, p);
-  RenderParams ref;
-  ref.method = Method::kRaytrace;
-  ref.spp = 32;
-  auto want = render_image(s, ref);
-  ASSERT_TRUE(want.ok());
-  double worst = 0;
-  for (int j = 0; j < 40; ++j) {
-    for (int i = 0; i < 40; ++i) {
-      for (int c = 0; c < 3; ++c) {
-        worst = std::max(worst, std::abs(static_cast<double>(r.pixels.pixel(i, j)[c]) -
-                                         want->pixels.pixel(i, j)[c]));
-      }
-    }
-  }
+  const double worst = max_error_against_rays(s, r.pixels);
   std::printf("surfaces in boxes, aa 4 against 32 x 32 rays: max error %.4f\n", worst);
   // The coverage error of 4 sub-scanlines on a curved edge (as in
   // SphereSilhouetteCoverage), not a missed surface (an error near 1).
@@ -379,23 +387,9 @@ TEST(Multiscan, SurfacesBetweenTwoSamplesAreFound) {
         if (k < 6) upright((junction + (0.05 * k - 0.15) * px) * 0.8, 2, 0.2 * px * 0.8, 2);
       }
     }
-    const RenderParams p = local_aa(4);
-    auto got = render_image(s, p);
+    auto got = render_image(s, local_aa(4));
     ASSERT_TRUE(got.ok());
-    RenderParams ref;
-    ref.method = Method::kRaytrace;
-    ref.spp = 32;
-    auto want = render_image(s, ref);
-    ASSERT_TRUE(want.ok());
-    double worst = 0;
-    for (int j = 0; j < kH; ++j) {
-      for (int i = 0; i < kW; ++i) {
-        for (int c = 0; c < 3; ++c) {
-          worst = std::max(worst, std::abs(static_cast<double>(got->pixels.pixel(i, j)[c]) -
-                                           want->pixels.pixel(i, j)[c]));
-        }
-      }
-    }
+    const double worst = max_error_against_rays(s, got->pixels);
     std::printf("%s between samples, aa 4 against 32 x 32 rays: max error %.4f\n",
                 gaps ? "gaps" : "thin cylinders", worst);
     // Two bisected edges (1/64 each) and the reference's 1/32.
