@@ -193,22 +193,22 @@ class SubLineBuilder {
   }
 
   // Where two samples at xl < xr found keys kl != kr, bisection finds to
-  // kBisectTolerance where the key changes; `key_between(x, kl, kr)` gives
-  // the key at x. Where it is a third key (a surface or shadow between the
-  // two samples), both halves are searched in turn, so every change found
-  // is recorded. Appends the changes to `out` in x order: (x, key from x).
-  template <class Key, class KeyBetween>
-  void changes(double xl, Key kl, double xr, const Key& kr, KeyBetween& key_between,
+  // kBisectTolerance where the key changes; `key_at(x)` gives the key at x.
+  // Where it is a third key (a surface or shadow between the two samples),
+  // both halves are searched in turn, so every change found is recorded.
+  // Appends the changes to `out` in x order: (x, key from x).
+  template <class Key, class KeyAt>
+  void changes(double xl, Key kl, double xr, const Key& kr, KeyAt& key_at,
                std::vector<std::pair<double, Key>>& out) {
     while (xr - xl > kBisectTolerance) {
       const double xm = 0.5 * (xl + xr);
-      Key km = key_between(xm, kl, kr);
+      Key km = key_at(xm);
       if (km == kl) {
         xl = xm;
       } else if (km == kr) {
         xr = xm;
       } else {
-        changes(xl, kl, xm, km, key_between, out);
+        changes(xl, kl, xm, km, key_at, out);
         kl = std::move(km);
         xl = xm;
       }
@@ -224,13 +224,13 @@ class SubLineBuilder {
   // This is the paper's convergence search (§3.3); a feature that begins
   // and ends between two samples is seen only where the bisection's probes
   // meet it (docs/multiscan.md).
-  template <class Key, class KeyAt, class Fill, class KeyBetween>
+  template <class Key, class KeyAt, class Fill>
   void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill,
-              KeyBetween&& key_between, std::vector<std::pair<double, Key>>& found) {
+              std::vector<std::pair<double, Key>>& found) {
     const size_t n = keys.size();
     if (n == 0) return;
-    std::vector<Piece>& run = run_;
-    run.assign(out_->begin() + static_cast<long>(begin), out_->end());
+    // The pieces are read in place; copied only if they are to be cut.
+    const Piece* run = out_->data() + begin;
     auto mid = [](const Piece& p) { return 0.5 * (p.x0 + p.x1); };
     constexpr double kEnd = 1e-6;  // end probes, just inside the run
     found.clear();
@@ -238,18 +238,19 @@ class SubLineBuilder {
     if (const Piece& p = run[0]; mid(p) - p.x0 > 2 * kEnd) {
       Key kl = key_at(p.x0 + kEnd);
       if (!(kl == keys[0])) {
-        changes(p.x0 + kEnd, kl, mid(p), keys[0], key_between, found);
+        changes(p.x0 + kEnd, kl, mid(p), keys[0], key_at, found);
         start = std::move(kl);
       }
     }
     for (size_t k = 1; k < n; ++k) {
-      if (!(keys[k - 1] == keys[k])) changes(mid(run[k - 1]), keys[k - 1], mid(run[k]), keys[k], key_between, found);
+      if (!(keys[k - 1] == keys[k])) changes(mid(run[k - 1]), keys[k - 1], mid(run[k]), keys[k], key_at, found);
     }
     if (const Piece& p = run[n - 1]; p.x1 - mid(p) > 2 * kEnd) {
       const Key kr = key_at(p.x1 - kEnd);
-      if (!(kr == keys[n - 1])) changes(mid(p), keys[n - 1], p.x1 - kEnd, kr, key_between, found);
+      if (!(kr == keys[n - 1])) changes(mid(p), keys[n - 1], p.x1 - kEnd, kr, key_at, found);
     }
     if (found.empty()) return;
+    run_.assign(run, run + n);
     out_->resize(begin);
     size_t t = 0;
     const Key* key = &start;
@@ -260,7 +261,7 @@ class SubLineBuilder {
       fill(q, *key);
       out_->push_back(q);
     };
-    for (const Piece& p : run) {
+    for (const Piece& p : run_) {
       double a = p.x0;
       for (; t < found.size() && found[t].first < p.x1; ++t) {
         if (found[t].first > a) {
@@ -291,7 +292,6 @@ class SubLineBuilder {
     });
     refine(
         begin, ids, [&](double x) { return first_hit(x); }, [](Piece& q, int id) { q.hit = id; },
-        [&](double x, int, int) { return first_hit(x); },
         found_ids_);
     auto direct = [&](double x) { return sample(x).second; };
     for (size_t k = begin; k < out_->size(); ++k) {
@@ -355,10 +355,17 @@ class SubLineBuilder {
   // itself (`direct(x)`; docs/multiscan.md).
   template <class Direct>
   void traced_colours(Piece& p, Direct&& direct) {
-    if (row_down_ >= 0) p.colour = traced_colour(p, row_down_, direct);
-    if (row_up_ >= 0) p.colour_up = traced_colour(p, row_up_, direct);
+    // A sliver's own sample is the same ray for both rows: traced once.
+    std::optional<Color> own;
+    auto once = [&](double x) {
+      if (!own) own = direct(x);
+      return *own;
+    };
+    if (row_down_ >= 0) p.colour = traced_colour(p, row_down_, once);
+    if (row_up_ >= 0) p.colour_up = traced_colour(p, row_up_, once);
   }
-  // The piece's radiance for the pixels of row j (y_ in [j, j + 1]).
+  // The piece's radiance for the pixels of row j (y_ in [j, j + 1]; build()
+  // keeps j and j + 1 inside the builder's lattice rows).
   template <class Direct>
   Color traced_colour(const Piece& p, int j, Direct&& direct) {
     const int material = material_of(p.hit);
@@ -366,9 +373,6 @@ class SubLineBuilder {
     const int i = std::min(static_cast<int>(xm), cam_.width - 1);
     const double fx = xm - i, fy = y_ - j;
     const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-    const bool in_lattice =
-        j >= j0_ && j + 1 <= j1_;
-    if (!in_lattice) return direct(xm);
     Color lo(kInf), hi(-kInf), acc(0.0);
     bool smooth = true;
     auto agree = [&](const Corner& k) {
@@ -485,9 +489,7 @@ class SubLineBuilder {
     size_t run_begin = out_->size();
     auto end_run = [&] {
       refine(run_begin, keys, [&](double x) { return shadows.states(x); },
-             [](Piece& q, const LightStates& st) { q.lights = st; },
-             [&](double x, const LightStates&, const LightStates&) { return shadows.states(x); },
-             found_states_);
+             [](Piece& q, const LightStates& st) { q.lights = st; }, found_states_);
       keys.clear();
       run_begin = out_->size();
     };
@@ -523,7 +525,6 @@ class SubLineBuilder {
   VisibleScratch vis_;
   std::optional<SpanShadows> shadows_;
   std::vector<double> cuts_;
-  std::vector<char> unsure_;
   std::vector<int> ids_;
   std::vector<LightStates> keys_;
   // refine()'s buffers
