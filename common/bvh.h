@@ -79,6 +79,20 @@ inline bool hit_box(const Aabb& b, const RayInv& r, double tmin, double tmax) {
 #endif
 }
 
+// Where the ray enters box b: the largest of tmin and the slabs' near
+// distances (a NaN slab distance is skipped). No crossing with anything
+// inside the box lies nearer; the ray may miss the box all the same.
+inline double box_entry(const Aabb& b, const RayInv& r, double tmin) {
+  double t = tmin;
+  for (int a = 0; a < 3; ++a) {
+    const double t0 = (b.lo[a] - r.origin[a]) * r.inv[a];
+    const double t1 = (b.hi[a] - r.origin[a]) * r.inv[a];
+    const double near = t0 < t1 ? t0 : t1;
+    if (near > t) t = near;
+  }
+  return t;
+}
+
 // Visits the primitives whose leaf boxes the ray meets in (tmin, tmax).
 // `visit(prim)` returns the possibly shortened tmax, or a negative value to
 // stop the traversal.

@@ -480,7 +480,6 @@ class SubLineBuilder {
   // the pieces' midpoints, refined where it changes.
   void figures(const VisibleSegment& s, SpanShadows& shadows) {
     cuts_.assign({s.x0, s.x1});
-    for (double x = std::floor(s.x0) + 1.0; x < s.x1; x += 1.0) cuts_.push_back(x);
     shadows.breakpoints(cuts_);
     std::sort(cuts_.begin(), cuts_.end());
     cuts_.erase(std::unique(cuts_.begin(), cuts_.end()), cuts_.end());
@@ -493,23 +492,41 @@ class SubLineBuilder {
       keys.clear();
       run_begin = out_->size();
     };
+    Piece p;
+    p.kind = Piece::kFigure;
+    p.face = s.face;
     for (size_t k = 0; k + 1 < cuts_.size(); ++k) {
       const double a = cuts_[k], b = cuts_[k + 1];
       if (!(b > a) || a < s.x0 || b > s.x1) continue;
-      Piece p;
-      p.x0 = a;
-      p.x1 = b;
-      p.kind = Piece::kFigure;
-      p.face = s.face;
-      p.lights = shadows.states(0.5 * (a + b));
-      const bool unsure = shadows.uncertain(a, b);
-      if (!unsure) end_run();
-      out_->push_back(p);
-      if (unsure) {
-        keys.push_back(p.lights);
-      } else {
+      if (!shadows.uncertain(a, b)) {
+        // Between two interval ends, with only opaque volumes over it: one
+        // state for the whole segment, cut at pixel edges.
+        end_run();
+        p.lights = shadows.states(0.5 * (a + b));
+        for_pixels(a, b, [&](double x0, double x1) {
+          p.x0 = x0;
+          p.x1 = x1;
+          out_->push_back(p);
+        });
         run_begin = out_->size();
+        continue;
       }
+      // Inside a curved or transparent occluder's volume: exact tests at
+      // each pixel's piece, refined where they change (a piece the volume
+      // does not reach ends the run).
+      for_pixels(a, b, [&](double x0, double x1) {
+        p.x0 = x0;
+        p.x1 = x1;
+        p.lights = shadows.states(0.5 * (x0 + x1));
+        const bool unsure = x0 == a && x1 == b ? true : shadows.uncertain(x0, x1);
+        if (!unsure) end_run();
+        out_->push_back(p);
+        if (unsure) {
+          keys.push_back(p.lights);
+        } else {
+          run_begin = out_->size();
+        }
+      });
     }
     end_run();
   }

@@ -72,8 +72,27 @@ std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tm
 
 std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, double tmax,
                                                 const std::vector<int>& prims) {
+  if (prims.size() < 2) {
+    return nearest_by(ray, tmin, tmax, [&](auto& test) {
+      for (const int p : prims) test(p);
+    });
+  }
+  // Nearest box first (the slab test's entry distance), and none whose box
+  // the ray enters beyond the nearest crossing found: a primitive's
+  // crossings lie inside its box. The choice among coincident crossings
+  // does not depend on the order (nearest_by).
+  thread_local std::vector<std::pair<double, int>> order;
+  order.clear();
+  const RayInv ri(ray);
+  for (const int p : prims) order.emplace_back(box_entry(ps_.prims.bounds[p], ri, tmin), p);
+  std::sort(order.begin(), order.end());
   return nearest_by(ray, tmin, tmax, [&](auto& test) {
-    for (const int p : prims) test(p);
+    double bound = tmax;
+    for (const auto& [entry, p] : order) {
+      // The margin covers the rounding of the slab distances.
+      if (entry > bound + 1e-9 * std::abs(bound)) break;
+      bound = test(p);
+    }
   });
 }
 
