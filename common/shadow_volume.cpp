@@ -687,6 +687,14 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
       lv.candidates.insert(lv.candidates.end(), found.begin(), found.end());
       lv.candidate_first[r + 1] = static_cast<int>(lv.candidates.size());
     }
+    lv.candidate_direct.resize(lv.candidates.size());
+    for (size_t k = 0; k < lv.candidates.size(); ++k) {
+      const LightVolumes::Occluder& oc = lv.occluders[lv.candidates[k]];
+      if (oc.bound >= 0 || oc.count != 1) continue;
+      const ShadowVolume& vol = lv.set.volumes[oc.first];
+      if (vol.kind != VolumeKind::kConvex) continue;
+      lv.candidate_direct[k] = {vol.first, vol.count, oc.decides ? 0.0 : lv.slack};
+    }
     sv.lights.push_back(std::move(lv));
   }
   for (LightVolumes& lv : sv.lights) {
@@ -727,11 +735,22 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   crossings.clear();
   bool ray = false;
   bool shadowed = false;
-  // Containment in one candidate's volumes; true if it gives t_pj = 0:
-  // an opaque volume holds the point (no ray needed), or the exact test of
-  // a curved body, CSG or transparent occluder met an opaque surface. The
+  // A candidate whose volume holds the point: true if it gives t_pj = 0,
+  // because the volume is an opaque one's (no ray needed) or the exact test of a
+  // curved body, CSG or transparent occluder met an opaque surface. The
   // exact test runs at once, so an opaque curved body ends the search as
   // early as a shadow ray's first hit would.
+  auto inside_occluder = [&](int a, bool decides) {
+    if (!decides) {
+      if (!ray) ++stats.rays_shadow;
+      ray = true;
+      if (!exact_test(ps, a, seg, crossings, stats)) return false;
+    }
+    if (last_occluder) *last_occluder = a;
+    shadowed = true;
+    return true;
+  };
+  // Containment in one candidate's volumes, then the above.
   auto occluder = [&](int a) {
     const LightVolumes::Occluder& oc = lv.occluders[a];
     if (oc.bound >= 0) {
@@ -743,15 +762,7 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
       ++stats.tests_shadow_volume;
       inside = lv.set.contains(v, origin, oc.decides ? 0.0 : lv.slack);
     }
-    if (!inside) return false;
-    if (!oc.decides) {
-      if (!ray) ++stats.rays_shadow;
-      ray = true;
-      if (!exact_test(ps, a, seg, crossings, stats)) return false;
-    }
-    if (last_occluder) *last_occluder = a;
-    shadowed = true;
-    return true;
+    return inside && inside_occluder(a, oc.decides);
   };
   // The occluder that shadowed the previous point is likely to shadow this
   // one too (neighbouring points); any opaque one gives t_pj = 0. It is not
@@ -768,8 +779,24 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
     ce = lv.candidates.data() + lv.candidate_first[receiver + 1];
   }
   if (cb && ce - cb <= kWalkAbove) {
-    for (const int* c = cb; c != ce; ++c) {
-      if (*c != first && occluder(*c)) return Color(0.0);
+    const LightVolumes::Direct* d = lv.candidate_direct.data() + (cb - lv.candidates.data());
+    for (const int* c = cb; c != ce; ++c, ++d) {
+      if (*c == first) continue;
+      if (d->count < 0) {
+        if (occluder(*c)) return Color(0.0);
+        continue;
+      }
+      // VolumeSet::contains on the candidate's one convex volume.
+      ++stats.tests_shadow_volume;
+      const HalfSpace* pl = lv.set.planes.data() + d->first;
+      bool inside = true;
+      for (int i = 0; i < d->count; ++i) {
+        if (glm::dot(pl[i].m, origin) - pl[i].h > d->slack) {
+          inside = false;
+          break;
+        }
+      }
+      if (inside && inside_occluder(*c, lv.occluders[*c].decides)) return Color(0.0);
     }
   } else if (!ps.bvh.nodes.empty()) {
     // Top down through the hierarchy: outside a box's shadow volume,

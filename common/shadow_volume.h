@@ -114,6 +114,14 @@ struct LightVolumes {
   // candidates[candidate_first[r], candidate_first[r + 1]), increasing.
   std::vector<int> candidate_first;
   std::vector<int> candidates;
+  // Per entry of `candidates`: where the occluder is one convex volume with
+  // no bound (most curved bodies and polygons), its planes, so the search
+  // reads them without two dependent lookups; count < 0 otherwise.
+  struct Direct {
+    int first = 0, count = -1;
+    double slack = 0;
+  };
+  std::vector<Direct> candidate_direct;
   // Slack of the conservative tests (boxes, bounding polyhedra, transparent
   // occluders, candidates): beyond the offset of shadow-ray origins
   // (PreparedScene::eps) and far beyond rounding.
