@@ -441,10 +441,10 @@ int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& 
     // them. Sides: the planes through the light and the silhouette edges,
     // the edges of light-facing faces whose plane through the light leaves
     // the whole polyhedron on one side (paper Fig. 6).
+    // Sides first: a point beside the volume (most points tested) is
+    // rejected by one of them, and the cap rejects only points between the
+    // light and the body.
     const Vec3 inner = centroid(verts);
-    for (size_t k = 0; k < faces.size(); ++k) {
-      if (front[k]) out.planes.push_back(face_planes[k]);
-    }
     double scale = glm::length(light - inner);
     for (const Vec3& p : verts) scale = std::max(scale, glm::length(p - inner));
     const double tol = 1e-12 * scale;
@@ -463,6 +463,9 @@ int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& 
         }
         if (silhouette) out.planes.push_back(s);
       }
+    }
+    for (size_t k = 0; k < faces.size(); ++k) {
+      if (front[k]) out.planes.push_back(face_planes[k]);
     }
   }
   v.count = static_cast<int>(out.planes.size()) - v.first;
