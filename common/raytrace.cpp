@@ -24,6 +24,7 @@ Color beer(const Color& q, double d) {
 // search bound takes (a library call per primitive test otherwise).
 double next_up(double x) {
   if (x > 0 && x < kInf) return std::bit_cast<double>(std::bit_cast<uint64_t>(x) + 1);
+  if (x == kInf) return x;  // no crossing yet: the bound stays infinite
   return std::nextafter(x, kInf);
 }
 
@@ -84,8 +85,14 @@ std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, dou
   thread_local std::vector<std::pair<double, int>> order;
   order.clear();
   const RayInv ri(ray);
-  for (const int p : prims) order.emplace_back(box_entry(ps_.prims.bounds[p], ri, tmin), p);
-  std::sort(order.begin(), order.end());
+  for (const int p : prims) {
+    // Insertion: the lists are a few primitives long.
+    const std::pair<double, int> e(box_entry(ps_.prims.bounds[p], ri, tmin), p);
+    order.push_back(e);
+    size_t k = order.size() - 1;
+    for (; k > 0 && e < order[k - 1]; --k) order[k] = order[k - 1];
+    order[k] = e;
+  }
   return nearest_by(ray, tmin, tmax, [&](auto& test) {
     double bound = tmax;
     for (const auto& [entry, p] : order) {
