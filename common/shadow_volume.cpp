@@ -604,6 +604,48 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
     }
     node_boxes[ni] = b;
   }
+  // Receivers cut into slices (ReceiverParts): untransformed cones at
+  // least two diameters long, one slice per diameter, at most kMaxParts.
+  // Each slice's hull: squares circumscribing the larger end circle, at the
+  // slice's ends moved out by more than the shadow-ray offset (an origin
+  // eps off the surface may lie just past a slice boundary).
+  constexpr int kMaxParts = 8;
+  std::vector<std::vector<std::vector<Vec3>>> part_hulls(n);
+  if (search) {
+    sv.parts.resize(n);
+    int slots = 0;
+    for (int i = 0; i < n; ++i) {
+      const PrimRef& ref = set.prims[i];
+      if (ref.kind != PrimKind::kCone || !set.cones[ref.index].frame.identity) continue;
+      const Cone& c = set.cones[ref.index].c;
+      const Vec3 d = c.apex - c.base;
+      const double len = glm::length(d);
+      const double rmax = std::max(std::abs(c.base_radius), std::abs(c.apex_radius));
+      if (!(len > 0) || !(rmax > 0) || !std::isfinite(len)) continue;
+      const int k = std::min(kMaxParts, static_cast<int>(len / (2.0 * rmax)));
+      if (k < 2) continue;
+      ReceiverParts& rp = sv.parts[i];
+      rp.base = c.base;
+      rp.scaled_axis = d / (len * len);
+      rp.count = k;
+      rp.slot = slots;
+      slots += k;
+      const Vec3 a = d / len;
+      const Vec3 u = any_perpendicular(a), v = glm::cross(a, u);
+      const double margin = (8.0 * ps.eps + 1e-9 * (len + max_component(glm::abs(c.base)))) / len;
+      for (int q = 0; q < k; ++q) {
+        std::vector<Vec3> pts;
+        for (const double t : {static_cast<double>(q) / k - margin, static_cast<double>(q + 1) / k + margin}) {
+          const Vec3 centre = c.base + t * d;
+          const double rho = rmax * (1.0 + 1e-9);  // the larger end's square all along
+          for (const double su : {-1.0, 1.0}) {
+            for (const double sw : {-1.0, 1.0}) pts.push_back(centre + rho * (su * u + sw * v));
+          }
+        }
+        part_hulls[i].push_back(std::move(pts));
+      }
+    }
+  }
   for (const Light& light : ps.scene.lights) {
     LightVolumes lv;
     lv.position = light.position;
@@ -690,13 +732,35 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
       lv.candidates.insert(lv.candidates.end(), found.begin(), found.end());
       lv.candidate_first[r + 1] = static_cast<int>(lv.candidates.size());
     }
-    lv.candidate_direct.resize(lv.candidates.size());
-    for (size_t k = 0; k < lv.candidates.size(); ++k) {
-      const LightVolumes::Occluder& oc = lv.occluders[lv.candidates[k]];
-      if (oc.bound >= 0 || oc.count != 1) continue;
+    auto direct_of = [&](int a) {
+      LightVolumes::Direct d;
+      const LightVolumes::Occluder& oc = lv.occluders[a];
+      if (oc.bound >= 0 || oc.count != 1) return d;
       const ShadowVolume& vol = lv.set.volumes[oc.first];
-      if (vol.kind != VolumeKind::kConvex) continue;
-      lv.candidate_direct[k] = {vol.first, vol.count, oc.decides ? 0.0 : lv.slack};
+      if (vol.kind != VolumeKind::kConvex) return d;
+      return LightVolumes::Direct{vol.first, vol.count, oc.decides ? 0.0 : lv.slack};
+    };
+    lv.candidate_direct.resize(lv.candidates.size());
+    for (size_t k = 0; k < lv.candidates.size(); ++k) lv.candidate_direct[k] = direct_of(lv.candidates[k]);
+    // The slices' lists: the receiver's candidates whose volumes reach the
+    // slice's hull (the tests above, on fewer points).
+    lv.part_first.assign(1, 0);
+    for (int r = 0; r < n; ++r) {
+      for (const std::vector<Vec3>& hull : part_hulls[r]) {
+        for (int k = lv.candidate_first[r]; k < lv.candidate_first[r + 1]; ++k) {
+          const int a = lv.candidates[k];
+          const LightVolumes::Occluder& oc = lv.occluders[a];
+          if (oc.bound >= 0 && separated(lv.set, oc.bound, hull, slack)) continue;
+          bool reaches = false;
+          for (int v = oc.first; v < oc.first + oc.count && !reaches; ++v) {
+            reaches = !separated(lv.set, v, hull, slack);
+          }
+          if (!reaches) continue;
+          lv.part_candidates.push_back(a);
+          lv.part_direct.push_back(lv.candidate_direct[k]);
+        }
+        lv.part_first.push_back(static_cast<int>(lv.part_candidates.size()));
+      }
     }
     sv.lights.push_back(std::move(lv));
   }
@@ -777,12 +841,24 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   }
   const int* cb = nullptr;
   const int* ce = nullptr;
+  const LightVolumes::Direct* db = nullptr;
   if (receiver >= 0) {
-    cb = lv.candidates.data() + lv.candidate_first[receiver];
-    ce = lv.candidates.data() + lv.candidate_first[receiver + 1];
+    const ReceiverParts* rp = ps.volumes->parts.empty() ? nullptr : &ps.volumes->parts[receiver];
+    if (rp && rp->count > 0) {
+      // The slice of the receiver that holds the origin.
+      const double s = glm::dot(origin - rp->base, rp->scaled_axis) * rp->count;
+      const int slot = rp->slot + (s > 0 ? std::min(rp->count - 1, static_cast<int>(s)) : 0);
+      cb = lv.part_candidates.data() + lv.part_first[slot];
+      ce = lv.part_candidates.data() + lv.part_first[slot + 1];
+      db = lv.part_direct.data() + lv.part_first[slot];
+    } else {
+      cb = lv.candidates.data() + lv.candidate_first[receiver];
+      ce = lv.candidates.data() + lv.candidate_first[receiver + 1];
+      db = lv.candidate_direct.data() + lv.candidate_first[receiver];
+    }
   }
   if (cb && ce - cb <= kWalkAbove) {
-    const LightVolumes::Direct* d = lv.candidate_direct.data() + (cb - lv.candidates.data());
+    const LightVolumes::Direct* d = db;
     for (const int* c = cb; c != ce; ++c, ++d) {
       if (*c == first) continue;
       if (d->count < 0) {

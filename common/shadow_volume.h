@@ -122,14 +122,32 @@ struct LightVolumes {
     double slack = 0;
   };
   std::vector<Direct> candidate_direct;
+  // Per slice of a receiver cut into parts (ShadowVolumes::parts): the
+  // occluders that can shadow that slice, a subset of the receiver's
+  // candidates, part_candidates[part_first[slot], part_first[slot + 1]),
+  // increasing, with their Direct entries.
+  std::vector<int> part_first;
+  std::vector<int> part_candidates;
+  std::vector<Direct> part_direct;
   // Slack of the conservative tests (boxes, bounding polyhedra, transparent
   // occluders, candidates): beyond the offset of shadow-ray origins
   // (PreparedScene::eps) and far beyond rounding.
   double slack = 0;
 };
 
+// A long cone or cylinder as a receiver is cut into `count` slices along
+// its axis, each with its own candidate list (a point near one end is not
+// shadowed by what can only reach the other). A shadow-ray origin o lies in
+// slice floor(count * dot(o - base, scaled_axis)), clamped.
+struct ReceiverParts {
+  Vec3 base{0.0}, scaled_axis{0.0};  // (apex - base) / |apex - base|^2
+  int count = 0;                     // 0: not cut
+  int slot = 0;                      // its first slice's index in part_first
+};
+
 struct ShadowVolumes {
   std::vector<LightVolumes> lights;
+  std::vector<ReceiverParts> parts;  // per primitive (search only)
   // Configuration IV: the boxes' volumes (node_volume) and the front/back
   // relations (candidates) are built, and points reached by secondary rays
   // search them (volume_transmittance). Otherwise (II, III) only the

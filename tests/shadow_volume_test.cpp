@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <glm/gtc/matrix_transform.hpp>
+#include <numbers>
 #include <random>
 
 #include "common/polyhedron.h"
@@ -636,6 +637,93 @@ TEST(ShadowVolumeScenes, GlassShadowsEqualRayTracedTransmittance) {
   EXPECT_GT(dark, 10) << "no point beyond the critical angle (paper Fig. 8a)";
   EXPECT_LT(vs.rays_shadow, rs.rays_shadow);
   expect_iv_agrees(s, "glass shadows");
+}
+
+// A long cylinder as a receiver is cut into slices, each searching only the
+// occluders that reach it (ReceiverParts). Points all over its surface,
+// near the slices' boundaries and just past its ends included, get the
+// very same t_pj as a shadow ray gives, and as the whole candidate list.
+TEST(ShadowVolumeScenes, ReceiverSlicesGiveTheShadowRaysTransmittance) {
+  Scene s = floor_scene(Vec3(0.5, 6, 1.5));
+  s.lights.push_back(Light{Vec3(-5, 3, -2), std::nullopt});
+  s.lights.push_back(Light{Vec3(6, 0.8, 0.3), std::nullopt});
+  Material glass;
+  glass.kd = 0.1;
+  glass.t = 0.8;
+  glass.ior = 1.5;
+  glass.absorption = Color(0.1, 0.2, 0.4);
+  s.materials.push_back(glass);
+  const int glass_material = static_cast<int>(s.materials.size()) - 1;
+  const Vec3 base(-4, 1, 0), apex(4, 1.3, 0.2);
+  Object cyl;
+  cyl.shape = Cone{base, 0.25, apex, 0.25, false};
+  s.objects.push_back(cyl);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1), h(0, 1);
+  for (int k = 0; k < 24; ++k) {
+    // Occluders above, beside and below the cylinder, along its length.
+    const Vec3 c(4.5 * u(rng), 1.2 + 1.5 * u(rng), 1.2 * u(rng));
+    if (glm::length(glm::vec<2, double>(c.y - 1.15, c.z - 0.1)) < 0.7) continue;
+    Object o;
+    o.material = k % 4 == 0 ? glass_material : 0;
+    if (k % 3 == 0) {
+      o.shape = Sphere{c, 0.1 + 0.3 * h(rng)};
+    } else if (k % 3 == 1) {
+      o.shape = Cone{c, 0.1 + 0.1 * h(rng), c + Vec3(u(rng), u(rng), u(rng)), 0.1 * h(rng), false};
+    } else {
+      o.shape = make_box(c - Vec3(0.1 + 0.3 * h(rng)), c + Vec3(0.1 + 0.3 * h(rng)));
+    }
+    s.objects.push_back(o);
+  }
+  // A thin slab whose shadow from light 0 falls across the middle slice
+  // boundary (t = 1/2): a slice that stopped short of it would lose it.
+  s.objects.push_back(box_object(Vec3(0.189, 2.95, 0.234), Vec3(0.193, 3.05, 1.034)));
+  RenderParams rt;
+  auto ref = prepare_scene(s, rt);
+  auto iv = prepare_scene(s, config_iv());
+  ASSERT_TRUE(ref.ok() && iv.ok());
+  const PreparedScene& ps = **iv;
+  int receiver = -1;
+  for (int i = 0; i < static_cast<int>(ps.prims.prims.size()); ++i) {
+    if (ps.prims.prims[i].object == 1) receiver = i;
+  }
+  ASSERT_GE(receiver, 0);
+  ASSERT_EQ(ps.volumes->parts.size(), ps.prims.prims.size());
+  const int slices = ps.volumes->parts[receiver].count;
+  ASSERT_GE(slices, 2) << "the cylinder is not cut, the test proves nothing";
+  Stats rs, vs;
+  Tracer tracer(**ref, rs);
+  const Vec3 d = apex - base;
+  const Vec3 a = glm::normalize(d);
+  const Vec3 e1 = any_perpendicular(a), e2 = glm::cross(a, e1);
+  int shadowed = 0, lit = 0, tinted = 0, compared = 0;
+  for (int i = 0; i < 30000; ++i) {
+    // Half the points within 1e-9 of a slice boundary (or an end).
+    double t = h(rng);
+    if (i % 2) t = std::round(t * slices) / slices + 1e-9 * u(rng);
+    t = std::clamp(t, 0.0, 1.0);
+    const double phi = 2 * std::numbers::pi * h(rng);
+    const Vec3 n = std::cos(phi) * e1 + std::sin(phi) * e2;
+    const Vec3 p = base + t * d + 0.25 * n;
+    for (int light = 0; light < static_cast<int>(s.lights.size()); ++light) {
+      if (glm::dot(n, s.lights[light].position - p) <= 0) continue;  // facing away
+      const Color want = tracer.transmittance(p, n, light);
+      const Vec3 origin = p + ps.eps * n;
+      ASSERT_EQ(volume_transmittance(ps, origin, light, receiver, vs), want)
+          << "t " << t << " phi " << phi << " light " << light;
+      ASSERT_EQ(volume_transmittance(ps, origin, light, -1, vs), want)
+          << "t " << t << " phi " << phi << " light " << light << " (no receiver)";
+      ++compared;
+      shadowed += want == Color(0.0);
+      lit += want == Color(1.0);
+      tinted += want != Color(0.0) && want != Color(1.0);
+    }
+  }
+  std::printf("cylinder in %d slices: %d points, %d shadowed, %d tinted, %d lit\n", slices,
+              compared, shadowed, tinted, lit);
+  EXPECT_GT(shadowed, 1000);
+  EXPECT_GT(tinted, 100);
+  EXPECT_GT(lit, 1000);
 }
 
 // Paper Fig. 8(a): where the straight path through the glass cylinder
