@@ -66,11 +66,11 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
   const PrimitiveSet& set = ps.prims;
 
   auto add_face = [&](const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
-                      bool curved) {
+                      bool curved, bool back = false) {
     bool clipped = false;
     const std::vector<Vec3> kept = clip_near(outline, pr, &clipped);
     if (curved && clipped) scan.trace_everything = true;
-    if (kept.size() < 3) return;
+    if (back || kept.size() < 3) return;
     ScanFace f;
     f.normal = normal;
     f.offset = offset;
@@ -128,8 +128,12 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
             std::vector<Vec3> pts;
             for (int v : face) pts.push_back(poly.vertices[v]);
             const Vec3 n = plane_normal(pts);
-            if (glm::dot(n, cam.from - pts[0]) > 0) eye_inside = false;
-            add_face(pts, n, glm::dot(n, pts[0]), i, true);
+            const bool front = glm::dot(n, cam.from - pts[0]) > 0;
+            if (front) eye_inside = false;
+            // A face turned away from the eye lies behind the polyhedron's
+            // front faces, whose outlines cover the body's: it is only
+            // checked against the near plane.
+            add_face(pts, n, glm::dot(n, pts[0]), i, true, !front);
           }
           if (eye_inside) scan.trace_everything = true;
         }
