@@ -39,7 +39,7 @@ Color segment_transmittance(const Scene& scene, const Ray& seg, std::vector<Cros
 class Tracer {
  public:
   Tracer(const PreparedScene& ps, Stats& stats)
-      : ps_(ps), stats_(stats), last_occluder_(ps.scene.lights.size(), -1) {}
+      : ps_(ps), stats_(stats), last_occluder_(ps.scene.lights.size() * kCacheLevels, -1) {}
 
   // Nearest surface along the ray in (tmin, tmax). Ties go to the lower
   // primitive index, so every traversal order gives the same answer.
@@ -81,6 +81,11 @@ class Tracer {
   // neighbouring samples are usually shadowed by the same object, so it is
   // tested first. Any opaque crossing gives t_pj = 0, so the answer does not
   // depend on which occluder is found.
+  // Per level of the ray tree (eye points, their reflections' points, ...)
+  // and light: neighbouring samples' points on one level are neighbours,
+  // those of two levels are not.
+  static constexpr int kCacheLevels = 4;
+  int cache_level_ = 0;
   std::vector<int> last_occluder_;
 };
 
