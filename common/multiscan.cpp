@@ -498,7 +498,13 @@ class SubLineBuilder {
     for (size_t k = 0; k + 1 < cuts_.size(); ++k) {
       const double a = cuts_[k], b = cuts_[k + 1];
       if (!(b > a) || a < s.x0 || b > s.x1) continue;
-      if (!shadows.uncertain(a, b)) {
+      // Interval ends are breakpoints, so an interval over the segment
+      // covers all of it; one that only touches an end (through rounding
+      // of x <-> a) is not counted.
+      constexpr double kTouch = 1e-9;  // pixels
+      const bool unsure = b - a > 2 * kTouch ? shadows.uncertain(a + kTouch, b - kTouch)
+                                             : shadows.uncertain(a, b);
+      if (!unsure) {
         // Between two interval ends, with only opaque volumes over it: one
         // state for the whole segment, cut at pixel edges.
         end_run();
@@ -512,20 +518,13 @@ class SubLineBuilder {
         continue;
       }
       // Inside a curved or transparent occluder's volume: exact tests at
-      // each pixel's piece, refined where they change (a piece the volume
-      // does not reach ends the run).
+      // each pixel's piece, refined where they change.
       for_pixels(a, b, [&](double x0, double x1) {
         p.x0 = x0;
         p.x1 = x1;
         p.lights = shadows.states(0.5 * (x0 + x1));
-        const bool unsure = x0 == a && x1 == b ? true : shadows.uncertain(x0, x1);
-        if (!unsure) end_run();
         out_->push_back(p);
-        if (unsure) {
-          keys.push_back(p.lights);
-        } else {
-          run_begin = out_->size();
-        }
+        keys.push_back(p.lights);
       });
     }
     end_run();
