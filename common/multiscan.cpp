@@ -308,7 +308,7 @@ class SubLineBuilder {
   // image point (i, j), and its radiance.
   struct Corner {
     bool done = false;
-    int prim = -1;
+    int material = -1;  // of the first surface hit (-1: none)
     Color colour{0.0};
   };
   // The samples of the last few rows, each row `per_row` of them. Rows are
@@ -376,7 +376,7 @@ class SubLineBuilder {
     Color lo(kInf), hi(-kInf), acc(0.0);
     bool smooth = true;
     auto agree = [&](const Corner& k) {
-      if (k.prim < 0 || material_of(k.prim) != material) return false;
+      if (k.material != material) return false;
       lo = glm::min(lo, k.colour);
       hi = glm::max(hi, k.colour);
       return true;
@@ -400,7 +400,7 @@ class SubLineBuilder {
     Color sum(0.0);
     int n = 0;
     for (int q = 0; q < g * g; ++q) {
-      if (in[q].prim >= 0 && material_of(in[q].prim) == material) {
+      if (in[q].material == material) {
         sum += in[q].colour;
         ++n;
       }
@@ -423,7 +423,7 @@ class SubLineBuilder {
         const double x = i + (q % g + 0.5) / g, y = j + (q / g + 0.5) / g;
         const Ray ray{cam_.from, cam_.direction(x, y)};
         const auto hit = eye_nearest(ray, x, y);
-        in[q].prim = hit ? hit->prim : -1;
+        in[q].material = hit ? material_of(hit->prim) : -1;
         in[q].colour = hit ? tracer_.shade(ray, *hit, 1, 1.0, nullptr) : ps_.scene.background;
       }
     }
@@ -442,7 +442,7 @@ class SubLineBuilder {
       const Ray ray{cam_.from, cam_.direction(i, j)};
       const auto hit = eye_nearest(ray, i, j);
       if (hit) {
-        k.prim = hit->prim;
+        k.material = material_of(hit->prim);
         k.colour = tracer_.shade(ray, *hit, 1, 1.0, nullptr);
       } else {
         k.colour = ps_.scene.background;
