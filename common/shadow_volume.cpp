@@ -681,6 +681,15 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
     // primitive. An occluder is dropped when its volume misses the
     // primitive's hull, or when it lies wholly behind the plane of a flat
     // primitive as seen from the light (a face cannot shadow itself).
+    // Can occluder a's volumes (its bound first) reach the hull `pts`?
+    auto reaches = [&](int a, const std::vector<Vec3>& pts) {
+      const LightVolumes::Occluder& oc = lv.occluders[a];
+      if (oc.bound >= 0 && separated(lv.set, oc.bound, pts, slack)) return false;
+      for (int v = oc.first; v < oc.first + oc.count; ++v) {
+        if (!separated(lv.set, v, pts, slack)) return true;
+      }
+      return false;
+    };
     lv.candidate_first.assign(n + 1, 0);
     std::vector<int> stack;
     std::vector<int> found;
@@ -704,13 +713,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
         for (int k = node.first; k < node.first + node.count; ++k) {
           const int a = ps.bvh.order[k];
           if (flat && a == r) continue;
-          const LightVolumes::Occluder& oc = lv.occluders[a];
-          if (oc.bound >= 0 && separated(lv.set, oc.bound, hr, slack)) continue;
-          bool reaches = false;
-          for (int v = oc.first; v < oc.first + oc.count && !reaches; ++v) {
-            reaches = !separated(lv.set, v, hr, slack);
-          }
-          if (!reaches) continue;
+          if (!reaches(a, hr)) continue;
           if (flat && lside != 0) {
             // Shadow-ray origins lie eps on the light's side of the face:
             // an occluder nowhere more than eps / 2 in front of the plane
@@ -749,13 +752,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
       for (const std::vector<Vec3>& hull : part_hulls[r]) {
         for (int k = lv.candidate_first[r]; k < lv.candidate_first[r + 1]; ++k) {
           const int a = lv.candidates[k];
-          const LightVolumes::Occluder& oc = lv.occluders[a];
-          if (oc.bound >= 0 && separated(lv.set, oc.bound, hull, slack)) continue;
-          bool reaches = false;
-          for (int v = oc.first; v < oc.first + oc.count && !reaches; ++v) {
-            reaches = !separated(lv.set, v, hull, slack);
-          }
-          if (!reaches) continue;
+          if (!reaches(a, hull)) continue;
           lv.part_candidates.push_back(a);
           lv.part_direct.push_back(lv.candidate_direct[k]);
         }
