@@ -85,13 +85,17 @@ std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, dou
   thread_local std::vector<std::pair<double, int>> order;
   order.clear();
   const RayInv ri(ray);
-  for (const int p : prims) {
-    // Insertion: the lists are a few primitives long.
-    const std::pair<double, int> e(box_entry(ps_.prims.bounds[p], ri, tmin), p);
-    order.push_back(e);
-    size_t k = order.size() - 1;
-    for (; k > 0 && e < order[k - 1]; --k) order[k] = order[k - 1];
-    order[k] = e;
+  for (const int p : prims) order.emplace_back(box_entry(ps_.prims.bounds[p], ri, tmin), p);
+  if (order.size() <= 16) {
+    // Insertion: the lists are mostly a few primitives long.
+    for (size_t i = 1; i < order.size(); ++i) {
+      const std::pair<double, int> e = order[i];
+      size_t k = i;
+      for (; k > 0 && e < order[k - 1]; --k) order[k] = order[k - 1];
+      order[k] = e;
+    }
+  } else {
+    std::sort(order.begin(), order.end());
   }
   return nearest_by(ray, tmin, tmax, [&](auto& test) {
     double bound = tmax;
