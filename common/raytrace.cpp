@@ -153,8 +153,7 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
   }
   // Configuration IV: containment in shadow volumes (paper §4.1).
   if (ps_.volumes && ps_.volumes->search) {
-    return volume_transmittance(ps_, origin, light, receiver, stats_,
-                                &last_occluder_[cache_level_ * ps_.scene.lights.size() + light]);
+    return volume_transmittance(ps_, origin, light, receiver, stats_, &last_occluder(light));
   }
   ++stats_.rays_shadow;
   const Ray seg{origin, lp - origin};  // t in (0, 1) spans the segment
@@ -169,13 +168,13 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
       const Material& m = ps_.scene.materials[ps_.scene.objects[crossings[i].leaf].material];
       if (m.t <= 0.0) {
         opaque = true;  // eq. (2): an opaque occluder stops everything
-        last_occluder_[cache_level_ * ps_.scene.lights.size() + light] = prim;
+        last_occluder(light) = prim;
         return -1.0;
       }
     }
     return 1.0;
   };
-  if (const int cached = last_occluder_[cache_level_ * ps_.scene.lights.size() + light]; cached >= 0) {
+  if (const int cached = last_occluder(light); cached >= 0) {
     if (test(cached) < 0) return Color(0.0);
     crossings.clear();  // seen again in the full search below
   }

@@ -87,6 +87,7 @@ class Tracer {
   static constexpr int kCacheLevels = 4;
   int cache_level_ = 0;
   std::vector<int> last_occluder_;
+  int& last_occluder(int light) { return last_occluder_[cache_level_ * ps_.scene.lights.size() + light]; }
 };
 
 // The ray-tracing path of render_band (--method raytrace).

@@ -400,10 +400,7 @@ bool VolumeSet::contains(int v, const Vec3& p, double slack) const {
     case VolumeKind::kEverywhere:
       return true;
     case VolumeKind::kConvex:
-      for (int i = vol.first; i < vol.first + vol.count; ++i) {
-        if (glm::dot(planes[i].m, p) - planes[i].h > slack) return false;
-      }
-      return true;
+      return inside_planes(vol.first, vol.count, p, slack);
     case VolumeKind::kOutside:
       for (int i = vol.first; i < vol.first + vol.count; ++i) {
         if (glm::dot(planes[i].m, p) - planes[i].h > -slack) return true;
@@ -633,11 +630,11 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
       const Vec3 a = d / len;
       const Vec3 u = any_perpendicular(a), v = glm::cross(a, u);
       const double margin = (8.0 * ps.eps + 1e-9 * (len + max_component(glm::abs(c.base)))) / len;
+      const double rho = rmax * (1.0 + 1e-9);  // the larger end's square all along
       for (int q = 0; q < k; ++q) {
         std::vector<Vec3> pts;
         for (const double t : {static_cast<double>(q) / k - margin, static_cast<double>(q + 1) / k + margin}) {
           const Vec3 centre = c.base + t * d;
-          const double rho = rmax * (1.0 + 1e-9);  // the larger end's square all along
           for (const double su : {-1.0, 1.0}) {
             for (const double sw : {-1.0, 1.0}) pts.push_back(centre + rho * (su * u + sw * v));
           }
@@ -741,7 +738,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
       if (oc.bound >= 0 || oc.count != 1) return d;
       const ShadowVolume& vol = lv.set.volumes[oc.first];
       if (vol.kind != VolumeKind::kConvex) return d;
-      return LightVolumes::Direct{vol.first, vol.count, oc.decides ? 0.0 : lv.slack};
+      return LightVolumes::Direct{vol.first, vol.count, oc.decides};
     };
     lv.candidate_direct.resize(lv.candidates.size());
     for (size_t k = 0; k < lv.candidates.size(); ++k) lv.candidate_direct[k] = direct_of(lv.candidates[k]);
@@ -862,17 +859,12 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
         if (occluder(*c)) return Color(0.0);
         continue;
       }
-      // VolumeSet::contains on the candidate's one convex volume.
+      // The candidate's one convex volume, as occluder() would test it.
       ++stats.tests_shadow_volume;
-      const HalfSpace* pl = lv.set.planes.data() + d->first;
-      bool inside = true;
-      for (int i = 0; i < d->count; ++i) {
-        if (glm::dot(pl[i].m, origin) - pl[i].h > d->slack) {
-          inside = false;
-          break;
-        }
+      if (lv.set.inside_planes(d->first, d->count, origin, d->decides ? 0.0 : lv.slack) &&
+          inside_occluder(*c, d->decides)) {
+        return Color(0.0);
       }
-      if (inside && inside_occluder(*c, lv.occluders[*c].decides)) return Color(0.0);
     }
   } else if (!ps.bvh.nodes.empty()) {
     // Top down through the hierarchy: outside a box's shadow volume,

@@ -65,6 +65,14 @@ struct VolumeSet {
   // Is p in volume v? Every plane is moved outward by `slack` (0: the exact
   // volume; > 0: a conservative one, for culling and candidates).
   bool contains(int v, const Vec3& p, double slack) const;
+  // Is p inside planes [first, first + count), each moved out by `slack`?
+  // (contains() for a kConvex volume.)
+  bool inside_planes(int first, int count, const Vec3& p, double slack) const {
+    for (int i = first; i < first + count; ++i) {
+      if (glm::dot(planes[i].m, p) - planes[i].h > slack) return false;
+    }
+    return true;
+  }
 };
 
 // The shadow volume of a convex polyhedron (faces listed as outlines, any
@@ -119,7 +127,7 @@ struct LightVolumes {
   // reads them without two dependent lookups; count < 0 otherwise.
   struct Direct {
     int first = 0, count = -1;
-    double slack = 0;
+    bool decides = false;  // the occluder's
   };
   std::vector<Direct> candidate_direct;
   // Per slice of a receiver cut into parts (ShadowVolumes::parts): the
