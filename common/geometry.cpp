@@ -7,26 +7,6 @@
 namespace locus {
 namespace {
 
-
-// Roots of a t^2 + b t + c = 0 in increasing order, computed without
-// catastrophic cancellation. Returns the number of real roots (0 or 2).
-int solve_quadratic(double a, double b, double c, double* t0, double* t1) {
-  if (a == 0.0) {
-    if (b == 0.0) return 0;
-    *t0 = *t1 = -c / b;
-    return 2;
-  }
-  const double disc = b * b - 4.0 * a * c;
-  if (disc < 0.0) return 0;
-  const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
-  double r0 = q / a;
-  double r1 = q != 0.0 ? c / q : r0;
-  if (r0 > r1) std::swap(r0, r1);
-  *t0 = r0;
-  *t1 = r1;
-  return 2;
-}
-
 Ray to_object(const QuadricFrame& f, const Ray& ray) {
   if (f.identity) return ray;
   return Ray{transform_point(f.object_from_world, ray.origin),

@@ -2,7 +2,9 @@
 #pragma once
 
 #include <glm/glm.hpp>
+#include <cmath>
 #include <limits>
+#include <utility>
 
 namespace locus {
 
@@ -25,6 +27,26 @@ inline bool is_finite(const Vec3& v) { return is_finite(v.x) && is_finite(v.y) &
 // Apply an affine transform to a point / a direction / a normal.
 inline Vec3 transform_point(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 inline Vec3 transform_vector(const Mat4& m, const Vec3& v) { return Vec3(m * glm::dvec4(v, 0.0)); }
+
+// Roots of a t^2 + b t + c = 0 in increasing order, computed without
+// catastrophic cancellation. Returns the number of real roots (0 or 2; a
+// linear equation's one root is returned twice).
+inline int solve_quadratic(double a, double b, double c, double* t0, double* t1) {
+  if (a == 0.0) {
+    if (b == 0.0) return 0;
+    *t0 = *t1 = -c / b;
+    return 2;
+  }
+  const double disc = b * b - 4.0 * a * c;
+  if (disc < 0.0) return 0;
+  const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
+  double r0 = q / a;
+  double r1 = q != 0.0 ? c / q : r0;
+  if (r0 > r1) std::swap(r0, r1);
+  *t0 = r0;
+  *t1 = r1;
+  return 2;
+}
 
 // An arbitrary unit vector perpendicular to unit vector n.
 inline Vec3 any_perpendicular(const Vec3& n) {

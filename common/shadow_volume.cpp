@@ -292,11 +292,6 @@ std::vector<Vec3> hull_points(const PreparedScene& ps, int prim,
   return pts;
 }
 
-bool is_opaque(const PreparedScene& ps, int prim) {
-  const Scene& s = ps.scene;
-  return s.materials[s.objects[ps.prims.prims[prim].object].material].t <= 0.0;
-}
-
 // The volume of the convex hull of a planar outline (plane `plane`).
 int add_hull_volume(VolumeSet& out, const std::vector<Vec3>& verts, const HalfSpace& plane,
                     const Vec3& light) {
@@ -766,6 +761,11 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
     }
   }
   return sv;
+}
+
+bool is_opaque(const PreparedScene& ps, int prim) {
+  const Scene& s = ps.scene;
+  return s.materials[s.objects[ps.prims.prims[prim].object].material].t <= 0.0;
 }
 
 bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<Crossing>& crossings,

@@ -178,6 +178,9 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search);
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
                            Stats& stats, int* last_occluder = nullptr);
 
+// Whether prims[prim]'s material lets no light through.
+bool is_opaque(const PreparedScene& ps, int prim);
+
 // The exact segment test of one occluder (a curved body, CSG, a
 // transparent or unformed volume) along `seg` (t in (0, 1)): its crossings
 // are appended; true if one of them is opaque (eq. (2): t_pj = 0).

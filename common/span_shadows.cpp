@@ -239,6 +239,122 @@ struct SpanLine {
   double a_first, a_last;  // the span's first and last pixel
 };
 
+// Exact shadow intervals of opaque spheres and cones (docs/shadow-volumes.md
+// "Exact intervals of curved occluders"). The lines through the light L
+// and the span's shadow-ray origins O(a) form a pencil in one plane, with
+// directions (nw + a nu) (O(a) - L) = p0 + a p1, linear in a. The line at
+// a meets the body's quadric where e(a) = e2 a^2 + e1 a + e0 >= 0. For a
+// sphere that is the shadow. For a cone or cylinder, inside that range,
+// whether the line meets the body between its rims changes only where it
+// passes through a point of a rim circle; between two such a, one exact
+// test decides. Either way the result is the shadow ray's (eqs. (2), (3))
+// when the body lies strictly between the origins and the light: a line
+// that meets it then does so inside the segment from O(a) to L.
+struct Pencil {
+  Vec3 light, p0, p1;
+};
+
+// Whether prim is a sphere or cone (untransformed) lying strictly between
+// the heights h0 (the shadow-ray origins) and hl (the light), by `margin`;
+// heights are sigma (n . x - offset).
+bool between_origins_and_light(const PrimitiveSet& prims, int prim, const Vec3& n, double offset,
+                               double sigma, double h0, double hl, double margin) {
+  const PrimRef& ref = prims.prims[prim];
+  double lo, hi;
+  if (ref.kind == PrimKind::kSphere) {
+    const SpherePrim& s = prims.spheres[ref.index];
+    if (!s.frame.identity) return false;
+    const double h = sigma * (glm::dot(n, s.s.center) - offset);
+    lo = h - s.s.radius;
+    hi = h + s.s.radius;
+  } else if (ref.kind == PrimKind::kCone) {
+    const ConePrim& c = prims.cones[ref.index];
+    if (!c.frame.identity) return false;
+    // A rim circle of radius r reaches r sqrt(1 - (n . axis)^2) off its centre's height.
+    const double na = glm::dot(n, c.axis.a);
+    const double spread = std::sqrt(std::max(0.0, 1.0 - na * na));
+    const double hb = sigma * (glm::dot(n, c.c.base) - offset);
+    const double ha = hb + sigma * na * c.axis.h;
+    const double eb = c.c.base_radius * spread, ea = c.c.apex_radius * spread;
+    lo = std::min(hb - eb, ha - ea);
+    hi = std::max(hb + eb, ha + ea);
+  } else {
+    return false;
+  }
+  return lo > h0 + margin && hi < hl - margin;
+}
+
+// e(a)'s coefficients {e2, e1, e0} for prim (a sphere or cone). The line
+// L + t (p0 + a p1) meets the quadric where A t^2 + 2 B t + C = 0 (the
+// forms of intersect_sphere and intersect_cone), with A quadratic in a, B
+// linear and C constant: e = B^2 - A C.
+void pencil_quadric(const PrimitiveSet& prims, int prim, const Pencil& pen, double e[3]) {
+  double a0, a1, a2, b0, b1, cq;
+  const PrimRef& ref = prims.prims[prim];
+  if (ref.kind == PrimKind::kSphere) {
+    const Sphere& s = prims.spheres[ref.index].s;
+    const Vec3 co = pen.light - s.center;
+    a0 = glm::dot(pen.p0, pen.p0);
+    a1 = 2.0 * glm::dot(pen.p0, pen.p1);
+    a2 = glm::dot(pen.p1, pen.p1);
+    b0 = glm::dot(co, pen.p0);
+    b1 = glm::dot(co, pen.p1);
+    cq = glm::dot(co, co) - s.radius * s.radius;
+  } else {
+    const ConePrim& c = prims.cones[ref.index];
+    const Vec3& ax = c.axis.a;
+    const double k = c.axis.k;
+    const Vec3 co = pen.light - c.c.base;
+    const double ca = glm::dot(co, ax);
+    const Vec3 cp = co - ca * ax;
+    const double rc = c.c.base_radius + k * ca;
+    const double d0 = glm::dot(pen.p0, ax), d1 = glm::dot(pen.p1, ax);
+    const Vec3 q0 = pen.p0 - d0 * ax, q1 = pen.p1 - d1 * ax;
+    a0 = glm::dot(q0, q0) - k * k * d0 * d0;
+    a1 = 2.0 * (glm::dot(q0, q1) - k * k * d0 * d1);
+    a2 = glm::dot(q1, q1) - k * k * d1 * d1;
+    b0 = glm::dot(cp, q0) - k * rc * d0;
+    b1 = glm::dot(cp, q1) - k * rc * d1;
+    cq = glm::dot(cp, cp) - rc * rc;
+  }
+  e[0] = b1 * b1 - a2 * cq;
+  e[1] = 2.0 * b0 * b1 - a1 * cq;
+  e[2] = b0 * b0 - a0 * cq;
+}
+
+// The a where the pencil's line passes through a point of one of cone
+// prim's rim circles, appended to `ev`. False if the pencil's plane is
+// parallel to the rims' planes (a rim would then be met along an arc or
+// not at all): the caller falls back to the bounding volume.
+bool rim_events(const ConePrim& c, const Pencil& pen, std::vector<double>& ev) {
+  const Vec3& ax = c.axis.a;
+  // The pencil's plane (normal m) cuts a rim circle (centre r, radius
+  // rho, in the plane normal to ax) in at most two points, on the chord
+  // along e = m x ax.
+  const Vec3 m = glm::cross(pen.p0, pen.p1);
+  const Vec3 mp = m - glm::dot(m, ax) * ax;
+  const double mp2 = glm::dot(mp, mp);  // = |e|^2
+  if (!(mp2 > 1e-24 * glm::dot(m, m))) return false;
+  const Vec3 e = glm::cross(m, ax);
+  for (int end = 0; end < 2; ++end) {
+    const Vec3 r = end == 0 ? c.c.base : c.c.base + c.axis.h * ax;
+    const double rho = end == 0 ? c.c.base_radius : c.c.apex_radius;
+    const double g = glm::dot(m, r - pen.light);
+    const double d2 = g * g / mp2;  // squared distance from r to the chord
+    if (d2 > rho * rho) continue;
+    const Vec3 x0 = r - (g / mp2) * mp;
+    const double half = std::sqrt((rho * rho - d2) / mp2);
+    for (const double sgn : {-1.0, 1.0}) {
+      // The a whose direction p0 + a p1 is parallel to x - L.
+      const Vec3 x = x0 + sgn * half * e - pen.light;
+      const Vec3 c0 = glm::cross(x, pen.p0), c1 = glm::cross(x, pen.p1);
+      const double den = glm::dot(c1, c1);
+      if (den > 0) ev.push_back(-glm::dot(c0, c1) / den);
+    }
+  }
+  return true;
+}
+
 // The range [lo, hi] of a where O(a) lies inside every plane of volume v
 // (each moved out by `slack`). A plane m . x <= h at O(a), multiplied by
 // the denominator nw + a nu (of sign sigma), reads alpha + beta a <= 0:
@@ -490,6 +606,70 @@ void SpanShadows::compute_light(int j) {
   l.nu = glm::dot(n, cam.u);
   l.a_first = a_line_lo_;
   l.a_last = a_line_hi_;
+  // Opaque spheres and cones between the face and the light get exact
+  // intervals (Pencil): heights above the face on the light's side.
+  const double sigma = s_->side[j] ? 1.0 : -1.0;
+  const double h_light = sigma * (glm::dot(n, lv.position) - f.offset);
+  const Vec3 g = l.eye_delta - lv.position;
+  const Pencil pen{lv.position, l.nw * g + l.num * l.w_bv, l.nu * g + l.num * l.u};
+  thread_local std::vector<Crossing> crossings;
+  // The exact intervals of occluder c on the line, appended to `out`;
+  // false if they cannot be found.
+  auto exact_intervals = [&](int c) {
+    const PrimRef& ref = ps_.prims.prims[c];
+    std::vector<double>& rims = events_;
+    rims.clear();
+    if (ref.kind == PrimKind::kCone && !rim_events(ps_.prims.cones[ref.index], pen, rims)) return false;
+    double e[3];
+    pencil_quadric(ps_.prims, c, pen, e);
+    auto meets = [&](double a) { return (e[0] * a + e[1]) * a + e[2] >= 0; };
+    // [a_first, a_last] cut at e's roots: the pieces where the lines meet
+    // the quadric.
+    double cut[4] = {l.a_first, l.a_last, l.a_last, l.a_last};
+    int nc = 2;
+    double t0, t1;
+    if (solve_quadratic(e[0], e[1], e[2], &t0, &t1)) {
+      for (const double t : {t0, t1}) {
+        if (t > cut[nc - 2] && t < l.a_last) cut[nc - 1] = t, cut[nc++] = l.a_last;
+      }
+    }
+    bool open = false;
+    double start = 0;
+    // The parts [a0, ...) in increasing order, shadowed or not: merged.
+    auto piece = [&](double a0, bool in) {
+      if (in && !open) start = a0;
+      if (!in && open) out.push_back(Interval{c, true, start, a0, false});
+      open = in;
+    };
+    std::sort(rims.begin(), rims.end());
+    for (int k = 0; k + 1 < nc; ++k) {
+      const double a0 = cut[k], a1 = cut[k + 1];
+      if (!(a1 > a0)) continue;
+      if (!meets(0.5 * (a0 + a1))) {
+        piece(a0, false);
+        continue;
+      }
+      if (ref.kind == PrimKind::kSphere) {
+        piece(a0, true);
+        continue;
+      }
+      // A cone's piece, cut where the lines pass through its rims; each
+      // part decided by the exact test at its middle.
+      double x = a0;
+      for (size_t q = 0; q <= rims.size(); ++q) {
+        const double y = q < rims.size() ? rims[q] : a1;
+        if (!(y > x) || (q < rims.size() && y >= a1)) continue;
+        const double a = 0.5 * (x + y);
+        const Vec3 d = l.w_bv + a * l.u;
+        const Vec3 o = l.eye_delta + (l.num / (l.nw + a * l.nu)) * d;
+        crossings.clear();
+        piece(x, exact_test(ps_, c, Ray{o, lv.position - o}, crossings, stats_));
+        x = y;
+      }
+    }
+    if (open) out.push_back(Interval{c, true, start, l.a_last, false});
+    return true;
+  };
   // One candidate occluder c: the interval of each of its volumes that
   // `each_volume(fn)` hands to fn (all of them, or a group's list).
   auto occluder_volumes = [&](int c, auto&& each_volume) {
@@ -497,6 +677,11 @@ void SpanShadows::compute_light(int j) {
     if (oc.bound >= 0) {
       ++stats_.tests_shadow_volume;
       if (!meets_span(lv.set, oc.bound, l, lv.slack)) return;
+    }
+    if (!oc.decides && is_opaque(ps_, c) &&
+        between_origins_and_light(ps_.prims, c, n, f.offset, sigma, ps_.eps, h_light, lv.slack) &&
+        exact_intervals(c)) {
+      return;
     }
     const double slack = oc.decides ? 0.0 : lv.slack;
     each_volume([&](int v) {

@@ -132,6 +132,7 @@ class SpanShadows : public KnownShadows {
   const GroupSlot& group_candidates(int light);
   int group_used_ = 0;
   std::vector<int> group_slot_of_face_;
+  std::vector<double> events_;  // compute_light's scratch
 };
 
 }  // namespace locus

@@ -726,6 +726,96 @@ TEST(ShadowVolumeScenes, ReceiverSlicesGiveTheShadowRaysTransmittance) {
   EXPECT_GT(lit, 1000);
 }
 
+// Opaque spheres and cones between a floor and its lights get exact
+// intervals on each sub-scanline (span_shadows.cpp, Pencil): no point of
+// the floor is then uncertain, and every point's state is what a shadow
+// ray says, right up to the intervals' ends. The bodies include tubes seen
+// along their axis from a light (its light passes through the bore: a
+// shadow with a hole, whose edges are rim events), cones, frustums, capped
+// ones, tubes tilted every way, and a sphere beyond one light.
+TEST(ShadowVolumeScenes, CurvedOccludersGetExactIntervals) {
+  Scene s = floor_scene(Vec3(0.3, 7, 0.4));
+  s.lights.push_back(Light{Vec3(-3, 5, -1), std::nullopt});
+  s.camera.width = 80;
+  s.camera.height = 60;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1), h(0, 1);
+  auto add = [&](Shape shape) {
+    Object o;
+    o.shape = std::move(shape);
+    s.objects.push_back(o);
+  };
+  // Tubes pointing at light 0: its light goes through their bores.
+  for (const Vec3& c : {Vec3(-1.5, 2.0, 1.0), Vec3(1.6, 1.5, -1.2)}) {
+    const Vec3 a = glm::normalize(s.lights[0].position - c);
+    add(Cone{c - 0.4 * a, 0.35, c + 0.4 * a, 0.35, false});
+  }
+  // Above light 1 (and below light 0): it shadows the floor from light 0
+  // only.
+  add(Sphere{Vec3(-2.5, 6, -0.5), 0.4});
+  for (int k = 0; k < 14; ++k) {
+    const Vec3 c(3.5 * u(rng), 0.9 + 2.2 * h(rng), 3.5 * u(rng));
+    const Vec3 d(0.8 * u(rng), 0.8 * u(rng), 0.8 * u(rng));
+    const double r = 0.1 + 0.3 * h(rng);
+    switch (k % 4) {
+      case 0: add(Sphere{c, r}); break;
+      case 1: add(Cone{c, r, c + d, r, k % 8 == 1}); break;                // cylinders
+      case 2: add(Cone{c, r, c + d, 0.0, false}); break;                    // cones
+      default: add(Cone{c, r, c + d, 0.5 * r * h(rng), k % 8 == 3}); break;  // frustums
+    }
+  }
+  RenderParams rt;
+  RenderParams p = config_iv();
+  p.aa = 4;
+  auto ref = prepare_scene(s, rt);
+  auto iv = prepare_scene(s, p);
+  ASSERT_TRUE(ref.ok() && iv.ok());
+  const PreparedScene& ps = **iv;
+  const CameraFrame& cam = ps.camera;
+  Stats rs, vs;
+  Tracer tracer(**ref, rs);
+  SpanShadows shadows(ps, 0.0, vs);
+  shadows.set_group_rows(8.0);
+  std::vector<double> xs;
+  int compared = 0, shadowed = 0;
+  for (int k = 0; k <= 4 * cam.height; ++k) {
+    const double y = k / 4.0;
+    shadows.set_line(y);
+    const int row = std::min(k / 4, cam.height - 1);
+    for (const int f : ps.scan->cover[row]) {
+      const ScanFace& face = ps.scan->faces[f];
+      if (ps.prims.prims[face.prim].object != 0 || y < face.ymin || y > face.ymax) continue;
+      shadows.begin_span(f, 0.0, static_cast<double>(cam.width));
+      ASSERT_FALSE(shadows.uncertain(0.0, cam.width)) << "line " << y << ": an exact test is left";
+      xs.clear();
+      shadows.breakpoints(xs);
+      std::vector<double> probes;
+      for (int i = 0; i < 40; ++i) probes.push_back(cam.width * h(rng));
+      for (const double x : xs) {
+        for (const double dx : {-1e-6, 1e-6}) probes.push_back(x + dx);
+      }
+      for (const double x : probes) {
+        if (!(x > 0 && x < cam.width)) continue;
+        const Vec3 dir = cam.direction(x, y);
+        const double t = (face.offset - glm::dot(face.normal, cam.from)) / glm::dot(face.normal, dir);
+        if (!(t > 0)) continue;
+        const Vec3 pt = cam.from + t * dir;
+        const LightStates st = shadows.states(x);
+        for (int light = 0; light < 2; ++light) {
+          const bool dark = tracer.transmittance(pt, face.normal, light) == Color(0.0);
+          ASSERT_EQ((st.opaque >> light) & 1, dark ? 1u : 0u)
+              << "light " << light << " at (" << x << ", " << y << ")";
+          ++compared;
+          shadowed += dark;
+        }
+      }
+    }
+  }
+  std::printf("exact curved intervals: %d states compared, %d shadowed\n", compared, shadowed);
+  EXPECT_GT(compared, 10000);
+  EXPECT_GT(shadowed, 2000);
+}
+
 // Paper Fig. 8(a): where the straight path through the glass cylinder
 // leaves it beyond the critical angle, no light of that source reaches the
 // floor; the rest of the cylinder's shadow is tinted, not black.
