@@ -787,6 +787,41 @@ bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<C
   return false;
 }
 
+namespace {
+
+// Whether the solid of sphere or cone `prim` (a frustum's is convex, caps
+// or not) lies wholly behind a plane that has both the shadow-ray origin o
+// and the light l strictly in front: then the segment cannot meet its
+// surface. The plane is the one that touches the solid where it is nearest
+// o (a sphere's tangent plane; a cone's along its generator on o's side).
+// A convex receiver's own surface thus never shadows a point that faces
+// the light from outside, which is where most of its samples lie.
+bool beyond_support(const PrimitiveSet& prims, int prim, const Vec3& o, const Vec3& l) {
+  const PrimRef& ref = prims.prims[prim];
+  if (ref.kind == PrimKind::kSphere) {
+    const SpherePrim& sp = prims.spheres[ref.index];
+    if (!sp.frame.identity) return false;
+    const Vec3 v = o - sp.s.center;
+    const double d = glm::length(v);
+    const double r = sp.s.radius * d;  // both sides times |v|
+    return d > sp.s.radius && glm::dot(v, l - sp.s.center) > r;
+  }
+  if (ref.kind != PrimKind::kCone) return false;
+  const ConePrim& c = prims.cones[ref.index];
+  if (!c.frame.identity) return false;
+  // n = e - k a (e: o's radial direction): n . (x - base) <= r0 over the
+  // solid, since its radius at axial s is r0 + k s.
+  const Vec3 v = o - c.c.base;
+  const Vec3 w = v - glm::dot(v, c.axis.a) * c.axis.a;
+  const double d = glm::length(w);
+  if (!(d > 0)) return false;
+  const Vec3 n = w / d - c.axis.k * c.axis.a;
+  const double r0 = c.c.base_radius;
+  return glm::dot(n, v) > r0 && glm::dot(n, l - c.c.base) > r0;
+}
+
+}  // namespace
+
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
                            Stats& stats, int* last_occluder) {
   const LightVolumes& lv = ps.volumes->lights[light];
@@ -833,6 +868,8 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
     first = *last_occluder;
     if (occluder(first)) return Color(0.0);
   }
+  // The receiver itself, when it cannot shadow the origin (beyond_support).
+  const int self = receiver >= 0 && beyond_support(ps.prims, receiver, origin, lv.position) ? receiver : -1;
   const int* cb = nullptr;
   const int* ce = nullptr;
   const LightVolumes::Direct* db = nullptr;
@@ -854,7 +891,7 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   if (cb && ce - cb <= kWalkAbove) {
     const LightVolumes::Direct* d = db;
     for (const int* c = cb; c != ce; ++c, ++d) {
-      if (*c == first) continue;
+      if (*c == first || *c == self) continue;
       if (d->count < 0) {
         if (occluder(*c)) return Color(0.0);
         continue;
@@ -874,7 +911,7 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
     // for less than the volume's 7 to 9 planes; the near child first.
     traverse_bvh(ps.bvh, seg, 0.0, 1.0, [&](int a) {
       ++stats.tests_shadow_volume;
-      if (a == first || (cb && !std::binary_search(cb, ce, a))) return 1.0;
+      if (a == first || a == self || (cb && !std::binary_search(cb, ce, a))) return 1.0;
       return occluder(a) ? -1.0 : 1.0;
     });
     if (shadowed) return Color(0.0);
