@@ -787,15 +787,8 @@ bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<C
   return false;
 }
 
-namespace {
-
-// Whether the solid of sphere or cone `prim` (a frustum's is convex, caps
-// or not) lies wholly behind a plane that has both the shadow-ray origin o
-// and the light l strictly in front: then the segment cannot meet its
-// surface. The plane is the one that touches the solid where it is nearest
-// o (a sphere's tangent plane; a cone's along its generator on o's side).
-// A convex receiver's own surface thus never shadows a point that faces
-// the light from outside, which is where most of its samples lie.
+// The plane touches the solid where it is nearest o: a sphere's tangent
+// plane; a cone's along its generator on o's side.
 bool beyond_support(const PrimitiveSet& prims, int prim, const Vec3& o, const Vec3& l) {
   const PrimRef& ref = prims.prims[prim];
   if (ref.kind == PrimKind::kSphere) {
@@ -819,8 +812,6 @@ bool beyond_support(const PrimitiveSet& prims, int prim, const Vec3& o, const Ve
   const double r0 = c.c.base_radius;
   return glm::dot(n, v) > r0 && glm::dot(n, l - c.c.base) > r0;
 }
-
-}  // namespace
 
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
                            Stats& stats, int* last_occluder) {

@@ -178,6 +178,13 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search);
 Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int light, int receiver,
                            Stats& stats, int* last_occluder = nullptr);
 
+// Whether the solid of sphere or cone `prim` (a frustum's is convex, caps
+// or not) lies wholly behind a plane that has the shadow-ray origin o and
+// the light l strictly in front, so that the segment cannot meet its
+// surface. A convex receiver's own surface thus never shadows a point that
+// faces the light from outside, where most of its samples lie.
+bool beyond_support(const PrimitiveSet& prims, int prim, const Vec3& o, const Vec3& l);
+
 // Whether prims[prim]'s material lets no light through.
 bool is_opaque(const PreparedScene& ps, int prim);
 

@@ -122,6 +122,56 @@ TEST(ShadowVolume, PolyhedronAgreesWithShadowSegments) {
   }
 }
 
+// beyond_support (a receiver skipping itself): wherever it says the plane
+// touching a sphere's or cone's solid has the origin and the light in
+// front, the segment between them meets no surface of it. Points just
+// outside the surfaces, facing the light, and points anywhere else.
+TEST(ShadowVolume, BeyondTheSupportingPlaneNothingIsHit) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1), h(0, 1);
+  Scene s;
+  for (int k = 0; k < 60; ++k) {
+    const Vec3 c(u(rng), u(rng), u(rng));
+    const Vec3 d(u(rng), u(rng), u(rng));
+    const double r = 0.1 + 0.5 * h(rng);
+    Object o;
+    switch (k % 4) {
+      case 0: o.shape = Sphere{c, r}; break;
+      case 1: o.shape = Cone{c, r, c + d, r, k % 8 == 1}; break;
+      case 2: o.shape = Cone{c, r, c + d, 0.0, false}; break;
+      default: o.shape = Cone{c, 0.05 * r, c + d, r, k % 8 == 3}; break;  // widening
+    }
+    s.objects.push_back(o);
+  }
+  const PrimitiveSet set = build_primitives(s);
+  int skipped = 0, near_surface = 0;
+  for (int prim = 0; prim < static_cast<int>(set.prims.size()); ++prim) {
+    const Aabb& box = set.bounds[prim];
+    for (int i = 0; i < 4000; ++i) {
+      const Vec3 light = 3.0 * Vec3(u(rng), u(rng), u(rng));
+      Vec3 o = 2.0 * Vec3(u(rng), u(rng), u(rng));
+      if (i % 2) {
+        // Just off the surface: the nearest crossing along a ray aimed
+        // into the body's box.
+        const Vec3 aim = box.lo + Vec3(h(rng), h(rng), h(rng)) * (box.hi - box.lo);
+        const Ray probe{o, glm::normalize(aim - o)};
+        const auto c = intersect_nearest(set, prim, probe, 0.0, kInf);
+        if (!c) continue;
+        const Vec3 p = probe.origin + c->t * probe.dir;
+        o = p + (glm::dot(c->normal, light - p) >= 0 ? 1e-7 : -1e-7) * c->normal;
+      }
+      if (!beyond_support(set, prim, o, light)) continue;
+      ++skipped;
+      near_surface += i % 2;
+      ASSERT_FALSE(intersect_any(set, prim, Ray{o, light - o}, 0.0, 1.0))
+          << "primitive " << prim << " origin (" << o.x << ", " << o.y << ", " << o.z << ")";
+    }
+  }
+  std::printf("beyond the supporting plane: %d segments, %d from the surface\n", skipped,
+              near_surface);
+  EXPECT_GT(near_surface, 20000);
+}
+
 TEST(ShadowVolume, LightExactlyOnAFacesPlane) {
   // The light in the plane x = 1 of the box's +x face (outside the box):
   // that face is seen edge-on; the volume is still exact.
