@@ -859,8 +859,11 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
     first = *last_occluder;
     if (occluder(first)) return Color(0.0);
   }
-  // The receiver itself, when it cannot shadow the origin (beyond_support).
-  const int self = receiver >= 0 && beyond_support(ps.prims, receiver, origin, lv.position) ? receiver : -1;
+  // Whether candidate a is to be skipped: the one tested first, or the
+  // receiver itself where it cannot shadow the origin (beyond_support).
+  auto skip = [&](int a) {
+    return a == first || (a == receiver && beyond_support(ps.prims, receiver, origin, lv.position));
+  };
   const int* cb = nullptr;
   const int* ce = nullptr;
   const LightVolumes::Direct* db = nullptr;
@@ -882,7 +885,7 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   if (cb && ce - cb <= kWalkAbove) {
     const LightVolumes::Direct* d = db;
     for (const int* c = cb; c != ce; ++c, ++d) {
-      if (*c == first || *c == self) continue;
+      if (skip(*c)) continue;
       if (d->count < 0) {
         if (occluder(*c)) return Color(0.0);
         continue;
@@ -902,7 +905,7 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
     // for less than the volume's 7 to 9 planes; the near child first.
     traverse_bvh(ps.bvh, seg, 0.0, 1.0, [&](int a) {
       ++stats.tests_shadow_volume;
-      if (a == first || a == self || (cb && !std::binary_search(cb, ce, a))) return 1.0;
+      if (skip(a) || (cb && !std::binary_search(cb, ce, a))) return 1.0;
       return occluder(a) ? -1.0 : 1.0;
     });
     if (shadowed) return Color(0.0);
