@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "common/eye_candidates.h"
+#include "common/pencil.h"
 #include "common/raytrace.h"
 #include "common/scanline.h"
 #include "common/span_shadows.h"
@@ -32,6 +33,11 @@ constexpr double kSilhouetteCorner = 0.5;
 // The sub-scanlines of this many pixel rows share their spans' candidate
 // occluders (SpanShadows::set_group_rows; docs/multiscan.md).
 constexpr double kShadowGroupRows = 8.0;
+
+// silhouette_guess's probes lie this far (pixels) on either side of the
+// outline it checks: the change is then located to kBisectTolerance, as
+// bisection would.
+constexpr double kSilhouetteCheck = 0.5 * kBisectTolerance;
 
 // A visible figure's piece of one sub-scanline, inside one pixel.
 struct Piece {
@@ -203,10 +209,16 @@ class SubLineBuilder {
   // kBisectTolerance where the key changes; `key_at(x)` gives the key at x.
   // Where it is a third key (a surface or shadow between the two samples),
   // both halves are searched in turn, so every change found is recorded.
-  // Appends the changes to `out` in x order: (x, key from x).
-  template <class Key, class KeyAt>
-  void changes(double xl, Key kl, double xr, const Key& kr, KeyAt& key_at,
+  // First, `guess(xl, kl, xr, kr, &x)` may find the change at once
+  // (silhouette_guess). Appends the changes to `out` in x order: (x, key
+  // from x).
+  template <class Key, class KeyAt, class Guess>
+  void changes(double xl, Key kl, double xr, const Key& kr, KeyAt& key_at, Guess& guess,
                std::vector<std::pair<double, Key>>& out) {
+    if (double x; guess(xl, kl, xr, kr, &x)) {
+      out.emplace_back(x, kr);
+      return;
+    }
     while (xr - xl > kBisectTolerance) {
       const double xm = 0.5 * (xl + xr);
       Key km = key_at(xm);
@@ -215,7 +227,7 @@ class SubLineBuilder {
       } else if (km == kr) {
         xr = xm;
       } else {
-        changes(xl, kl, xm, km, key_at, out);
+        changes(xl, kl, xm, km, key_at, guess, out);
         kl = std::move(km);
         xl = xm;
       }
@@ -231,8 +243,8 @@ class SubLineBuilder {
   // This is the paper's convergence search (§3.3); a feature that begins
   // and ends between two samples is seen only where the bisection's probes
   // meet it (docs/multiscan.md).
-  template <class Key, class KeyAt, class Fill>
-  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill,
+  template <class Key, class KeyAt, class Fill, class Guess>
+  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill, Guess&& guess,
               std::vector<std::pair<double, Key>>& found) {
     const size_t n = keys.size();
     if (n == 0) return;
@@ -245,16 +257,18 @@ class SubLineBuilder {
     if (const Piece& p = run[0]; mid(p) - p.x0 > 2 * kEnd) {
       Key kl = key_at(p.x0 + kEnd);
       if (!(kl == keys[0])) {
-        changes(p.x0 + kEnd, kl, mid(p), keys[0], key_at, found);
+        changes(p.x0 + kEnd, kl, mid(p), keys[0], key_at, guess, found);
         start = std::move(kl);
       }
     }
     for (size_t k = 1; k < n; ++k) {
-      if (!(keys[k - 1] == keys[k])) changes(mid(run[k - 1]), keys[k - 1], mid(run[k]), keys[k], key_at, found);
+      if (!(keys[k - 1] == keys[k])) {
+        changes(mid(run[k - 1]), keys[k - 1], mid(run[k]), keys[k], key_at, guess, found);
+      }
     }
     if (const Piece& p = run[n - 1]; p.x1 - mid(p) > 2 * kEnd) {
       const Key kr = key_at(p.x1 - kEnd);
-      if (!(kr == keys[n - 1])) changes(mid(p), keys[n - 1], p.x1 - kEnd, kr, key_at, found);
+      if (!(kr == keys[n - 1])) changes(mid(p), keys[n - 1], p.x1 - kEnd, kr, key_at, guess, found);
     }
     if (found.empty()) return;
     run_.assign(run, run + n);
@@ -281,6 +295,43 @@ class SubLineBuilder {
     }
   }
 
+  // Where the first surface hit changes from kl (at xl) to kr (at xr) and
+  // one of them is a sphere or cone, the change is likely that body's
+  // outline on this sub-scanline: where the eye's rays touch its quadric
+  // or pass through a rim (common/pencil.h). Each such x in (xl, xr) is
+  // tried with a probe on either side, kSilhouetteCheck away; the first
+  // whose probes find kl and kr is the change, found in two probes where
+  // bisection takes six. A change elsewhere (one body entering another,
+  // or a third surface between) is left to bisection.
+  bool silhouette_guess(double xl, int kl, double xr, int kr, double* x) {
+    const double scale = cam_.tan_half * cam_.aspect;  // a = (2 x / width - 1) scale
+    const Pencil eye{cam_.from, cam_.w + (1.0 - 2.0 * y_ / cam_.height) * cam_.tan_half * cam_.v, cam_.u};
+    guesses_.clear();
+    for (const int k : {kl, kr}) {
+      if (k < 0) continue;
+      const PrimRef& ref = ps_.prims.prims[k];
+      const bool cone = ref.kind == PrimKind::kCone;
+      if (!(ref.kind == PrimKind::kSphere ? ps_.prims.spheres[ref.index].frame.identity
+                                          : cone && ps_.prims.cones[ref.index].frame.identity)) {
+        continue;
+      }
+      const size_t before = guesses_.size();
+      double e[3], t0, t1;
+      pencil_quadric(ps_.prims, k, eye, e);
+      if (solve_quadratic(e[0], e[1], e[2], &t0, &t1)) guesses_.insert(guesses_.end(), {t0, t1});
+      if (cone && !rim_events(ps_.prims.cones[ref.index], eye, guesses_)) guesses_.resize(before);
+    }
+    for (const double a : guesses_) {
+      const double g = 0.5 * cam_.width * (1.0 + a / scale);
+      if (!(g - kSilhouetteCheck > xl && g + kSilhouetteCheck < xr)) continue;
+      if (first_hit(g - kSilhouetteCheck) == kl && first_hit(g + kSilhouetteCheck) == kr) {
+        *x = g;
+        return true;
+      }
+    }
+    return false;
+  }
+
   // A run of curved bodies' spans: the first surface hit at one point per
   // pixel, refined where it changes (the true silhouettes); then each
   // piece's radiance (traced_colour).
@@ -299,6 +350,9 @@ class SubLineBuilder {
     });
     refine(
         begin, ids, [&](double x) { return first_hit(x); }, [](Piece& q, int id) { q.hit = id; },
+        [&](double xl, int kl, double xr, int kr, double* x) {
+          return silhouette_guess(xl, kl, xr, kr, x);
+        },
         found_ids_);
     auto direct = [&](double x) { return sample(x).second; };
     for (size_t k = begin; k < out_->size(); ++k) {
@@ -520,8 +574,11 @@ class SubLineBuilder {
     keys.clear();
     size_t run_begin = out_->size();
     auto end_run = [&] {
-      refine(run_begin, keys, [&](double x) { return shadows.states(x); },
-             [](Piece& q, const LightStates& st) { q.lights = st; }, found_states_);
+      refine(
+          run_begin, keys, [&](double x) { return shadows.states(x); },
+          [](Piece& q, const LightStates& st) { q.lights = st; },
+          [](double, const LightStates&, double, const LightStates&, double*) { return false; },
+          found_states_);
       keys.clear();
       run_begin = out_->size();
     };
@@ -580,6 +637,7 @@ class SubLineBuilder {
   std::vector<Piece> run_;
   std::vector<std::pair<double, int>> found_ids_;
   std::vector<std::pair<double, LightStates>> found_states_;
+  std::vector<double> guesses_;  // silhouette_guess's
   int j0_;
   int row_down_ = -1, row_up_ = -1;  // build()'s rows
   RowRing lattice_;  // pixel corners, a row of them per lattice row
