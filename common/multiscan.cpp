@@ -299,9 +299,9 @@ class SubLineBuilder {
   // one of them is a sphere or cone, the change is likely that body's
   // outline on this sub-scanline: where the eye's rays touch its quadric
   // or pass through a rim (common/pencil.h). Each such x in (xl, xr) is
-  // tried with a probe on either side, kSilhouetteCheck away; the first
-  // whose probes find kl and kr is the change, found in two probes where
-  // bisection takes six. A change elsewhere (one body entering another,
+  // tried with a probe on either side, kSilhouetteCheck away (or the
+  // sample at xl or xr, if nearer); the first whose probes find kl and kr
+  // is the change, found in two probes where bisection takes six. A change elsewhere (one body entering another,
   // or a third surface between) is left to bisection.
   bool silhouette_guess(double xl, int kl, double xr, int kr, double* x) {
     const double scale = cam_.tan_half * cam_.aspect;  // a = (2 x / width - 1) scale
@@ -323,8 +323,10 @@ class SubLineBuilder {
     }
     for (const double a : guesses_) {
       const double g = 0.5 * cam_.width * (1.0 + a / scale);
-      if (!(g - kSilhouetteCheck > xl && g + kSilhouetteCheck < xr)) continue;
-      if (first_hit(g - kSilhouetteCheck) == kl && first_hit(g + kSilhouetteCheck) == kr) {
+      if (!(g > xl && g < xr)) continue;
+      // A probe that would fall beyond xl or xr is the sample there.
+      const double gl = g - kSilhouetteCheck, gr = g + kSilhouetteCheck;
+      if ((gl <= xl || first_hit(gl) == kl) && (gr >= xr || first_hit(gr) == kr)) {
         *x = g;
         return true;
       }
