@@ -15,8 +15,10 @@
 // corner samples where those agree, and N/2 samples where the reflected or
 // refracted image has an edge (docs/multiscan.md). Inside a bounding polyhedron, where
 // the first surface hit changes between neighbouring samples, bisection
-// finds the true silhouette to kBisectTolerance; so does it where the
-// shadow of a curved or transparent occluder begins.
+// finds the true silhouette to kBisectTolerance (a sphere's or cone's
+// outline is tried first, and then found exactly); so does it where the
+// shadow of a curved or transparent occluder begins, unless that shadow's
+// interval is exact (an opaque sphere or cone between face and light).
 #pragma once
 
 #include "common/prepared.h"

@@ -26,9 +26,11 @@ struct LightStates {
 // The shadows of the spans of one row (paper §3.2 step 2): for a visible
 // span of a flat face, each candidate occluder's volume meets the segment
 // the scan plane cuts from the face in an interval, found once per span and
-// light; a pixel in an opaque interval is in shadow without any ray. Inside
-// the interval of a curved body's bounding polyhedron or of a transparent
-// occluder, the exact segment test decides per pixel (t_pj by eqs. (2), (3)).
+// light; a pixel in an opaque interval is in shadow without any ray. An
+// opaque sphere or cone between the face and the light has its exact
+// intervals (common/pencil.h). Inside the interval of another curved
+// body's bounding polyhedron or of a transparent occluder, the exact
+// segment test decides per pixel (t_pj by eqs. (2), (3)).
 class SpanShadows : public KnownShadows {
  public:
   // Spans on the sample line at image row coordinate y (row j's pixel
