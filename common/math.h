@@ -1,8 +1,8 @@
 // Vector types and small numeric helpers shared by the renderer.
 #pragma once
 
-#include <glm/glm.hpp>
 #include <cmath>
+#include <glm/glm.hpp>
 #include <limits>
 #include <utility>
 

@@ -244,8 +244,8 @@ class SubLineBuilder {
   // and ends between two samples is seen only where the bisection's probes
   // meet it (docs/multiscan.md).
   template <class Key, class KeyAt, class Fill, class Guess>
-  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill, Guess&& guess,
-              std::vector<std::pair<double, Key>>& found) {
+  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill,
+              Guess&& guess, std::vector<std::pair<double, Key>>& found) {
     const size_t n = keys.size();
     if (n == 0) return;
     // The pieces are read in place; copied only if they are to be cut.
@@ -301,11 +301,13 @@ class SubLineBuilder {
   // or pass through a rim (common/pencil.h). Each such x in (xl, xr) is
   // tried with a probe on either side, kSilhouetteCheck away (or the
   // sample at xl or xr, if nearer); the first whose probes find kl and kr
-  // is the change, found in two probes where bisection takes six. A change elsewhere (one body entering another,
-  // or a third surface between) is left to bisection.
+  // is the change, found in two probes where bisection takes six. A change
+  // elsewhere (one body entering another, or a third surface between) is
+  // left to bisection.
   bool silhouette_guess(double xl, int kl, double xr, int kr, double* x) {
     const double scale = cam_.tan_half * cam_.aspect;  // a = (2 x / width - 1) scale
-    const Pencil eye{cam_.from, cam_.w + (1.0 - 2.0 * y_ / cam_.height) * cam_.tan_half * cam_.v, cam_.u};
+    const Pencil eye{cam_.from, cam_.w + (1.0 - 2.0 * y_ / cam_.height) * cam_.tan_half * cam_.v,
+                     cam_.u};
     guesses_.clear();
     for (const int k : {kl, kr}) {
       if (k < 0) continue;

@@ -250,7 +250,9 @@ struct SpanLine {
 // passes through a point of a rim circle; between two such a, one exact
 // test decides. Either way the result is the shadow ray's (eqs. (2), (3))
 // when the body lies strictly between the origins and the light: a line
-// that meets it then does so inside the segment from O(a) to L.
+// that meets it then does so inside the segment from O(a) to L
+// (SpanShadows::compute_light's exact_intervals).
+//
 // Whether prim is a sphere or cone (untransformed) lying strictly between
 // the heights h0 (the shadow-ray origins) and hl (the light), by `margin`;
 // heights are sigma (n . x - offset).
@@ -533,7 +535,8 @@ void SpanShadows::compute_light(int j) {
   l.a_first = a_line_lo_;
   l.a_last = a_line_hi_;
   // Opaque spheres and cones between the face and the light get exact
-  // intervals (Pencil): heights above the face on the light's side.
+  // intervals (the pencil from the light through the line's origins, see
+  // above); heights are above the face, on the light's side.
   const double sigma = s_->side[j] ? 1.0 : -1.0;
   const double h_light = sigma * (glm::dot(n, lv.position) - f.offset);
   const Vec3 g = l.eye_delta - lv.position;
@@ -544,7 +547,9 @@ void SpanShadows::compute_light(int j) {
     const PrimRef& ref = ps_.prims.prims[c];
     std::vector<double>& rims = events_;
     rims.clear();
-    if (ref.kind == PrimKind::kCone && !rim_events(ps_.prims.cones[ref.index], pen, rims)) return false;
+    if (ref.kind == PrimKind::kCone && !rim_events(ps_.prims.cones[ref.index], pen, rims)) {
+      return false;
+    }
     double e[3];
     pencil_quadric(ps_.prims, c, pen, e);
     auto meets = [&](double a) { return (e[0] * a + e[1]) * a + e[2] >= 0; };
@@ -579,7 +584,7 @@ void SpanShadows::compute_light(int j) {
         continue;
       }
       // A cone's piece, cut where the lines pass through its rims; each
-      // part decided by the exact test at its middle.
+      // part decided at its middle.
       const ConePrim& cone = ps_.prims.cones[ref.index];
       double x = a0;
       for (size_t q = 0; q <= rims.size(); ++q) {

@@ -280,7 +280,9 @@ TEST(Multiscan, CurvedOutlinesAreExactOnEachSubScanline) {
     double x0 = 0;
     bool in = covered(1e-9, y);
     auto add = [&](double a, double b) {
-      for (int i = 0; i < w; ++i) length[g][i] += std::max(0.0, std::min(b, i + 1.0) - std::max(a, double(i)));
+      for (int i = 0; i < w; ++i) {
+        length[g][i] += std::max(0.0, std::min(b, i + 1.0) - std::max(a, double(i)));
+      }
     };
     for (int k = 1; k <= 32 * w; ++k) {
       double xr = k / 32.0;
@@ -299,7 +301,9 @@ TEST(Multiscan, CurvedOutlinesAreExactOnEachSubScanline) {
   for (int j = 0; j < h; ++j) {
     for (int i = 0; i < w; ++i) {
       double want = 0;
-      for (int k = 0; k <= n; ++k) want += (k == 0 || k == n ? 0.5 : 1.0) / n * length[j * n + k][i];
+      for (int k = 0; k <= n; ++k) {
+        want += (k == 0 || k == n ? 0.5 : 1.0) / n * length[j * n + k][i];
+      }
       if (!(want > 0 && want < 1)) continue;
       const double err = std::abs(r.pixels.pixel(i, j)[0] - want);
       ++edge;
@@ -308,8 +312,8 @@ TEST(Multiscan, CurvedOutlinesAreExactOnEachSubScanline) {
       worst = std::max(worst, err);
     }
   }
-  std::printf("curved outlines: %d edge pixels, %d exact to 1e-5, rms %.2e, max %.2e\n", edge, exact,
-              std::sqrt(sum2 / edge), worst);
+  std::printf("curved outlines: %d edge pixels, %d exact to 1e-5, rms %.2e, max %.2e\n", edge,
+              exact, std::sqrt(sum2 / edge), worst);
   EXPECT_GT(edge, 100);
   EXPECT_GT(exact, 0.95 * edge);
 }

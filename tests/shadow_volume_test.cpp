@@ -136,10 +136,18 @@ TEST(ShadowVolume, BeyondTheSupportingPlaneNothingIsHit) {
     const double r = 0.1 + 0.5 * h(rng);
     Object o;
     switch (k % 4) {
-      case 0: o.shape = Sphere{c, r}; break;
-      case 1: o.shape = Cone{c, r, c + d, r, k % 8 == 1}; break;
-      case 2: o.shape = Cone{c, r, c + d, 0.0, false}; break;
-      default: o.shape = Cone{c, 0.05 * r, c + d, r, k % 8 == 3}; break;  // widening
+      case 0:
+        o.shape = Sphere{c, r};
+        break;
+      case 1:
+        o.shape = Cone{c, r, c + d, r, k % 8 == 1};
+        break;
+      case 2:
+        o.shape = Cone{c, r, c + d, 0.0, false};
+        break;
+      default:  // widening
+        o.shape = Cone{c, 0.05 * r, c + d, r, k % 8 == 3};
+        break;
     }
     s.objects.push_back(o);
   }
@@ -808,10 +816,18 @@ TEST(ShadowVolumeScenes, CurvedOccludersGetExactIntervals) {
     const Vec3 d(0.8 * u(rng), 0.8 * u(rng), 0.8 * u(rng));
     const double r = 0.1 + 0.3 * h(rng);
     switch (k % 4) {
-      case 0: add(Sphere{c, r}); break;
-      case 1: add(Cone{c, r, c + d, r, k % 8 == 1}); break;                // cylinders
-      case 2: add(Cone{c, r, c + d, 0.0, false}); break;                    // cones
-      default: add(Cone{c, r, c + d, 0.5 * r * h(rng), k % 8 == 3}); break;  // frustums
+      case 0:
+        add(Sphere{c, r});
+        break;
+      case 1:  // cylinders
+        add(Cone{c, r, c + d, r, k % 8 == 1});
+        break;
+      case 2:  // cones
+        add(Cone{c, r, c + d, 0.0, false});
+        break;
+      default:  // frustums
+        add(Cone{c, r, c + d, 0.5 * r * h(rng), k % 8 == 3});
+        break;
     }
   }
   RenderParams rt;
@@ -847,7 +863,8 @@ TEST(ShadowVolumeScenes, CurvedOccludersGetExactIntervals) {
       for (const double x : probes) {
         if (!(x > 0 && x < cam.width)) continue;
         const Vec3 dir = cam.direction(x, y);
-        const double t = (face.offset - glm::dot(face.normal, cam.from)) / glm::dot(face.normal, dir);
+        const double t =
+            (face.offset - glm::dot(face.normal, cam.from)) / glm::dot(face.normal, dir);
         if (!(t > 0)) continue;
         const Vec3 pt = cam.from + t * dir;
         const LightStates st = shadows.states(x);
