@@ -310,18 +310,8 @@ class SubLineBuilder {
                      cam_.u};
     guesses_.clear();
     for (const int k : {kl, kr}) {
-      if (k < 0) continue;
-      const PrimRef& ref = ps_.prims.prims[k];
-      const bool cone = ref.kind == PrimKind::kCone;
-      if (!(ref.kind == PrimKind::kSphere ? ps_.prims.spheres[ref.index].frame.identity
-                                          : cone && ps_.prims.cones[ref.index].frame.identity)) {
-        continue;
-      }
-      const size_t before = guesses_.size();
-      double e[3], t0, t1;
-      pencil_quadric(ps_.prims, k, eye, e);
-      if (solve_quadratic(e[0], e[1], e[2], &t0, &t1)) guesses_.insert(guesses_.end(), {t0, t1});
-      if (cone && !rim_events(ps_.prims.cones[ref.index], eye, guesses_)) guesses_.resize(before);
+      double e[3];
+      if (k >= 0 && plain_quadric(ps_.prims, k)) pencil_events(ps_.prims, k, eye, e, guesses_);
     }
     for (const double a : guesses_) {
       const double g = 0.5 * cam_.width * (1.0 + a / scale);

@@ -4,10 +4,12 @@
 #include <cmath>
 
 namespace locus {
+namespace {
 
-// The line P + t (p0 + a p1) meets the quadric where A t^2 + 2 B t + C = 0
-// (the forms of intersect_sphere and intersect_cone), with A quadratic in
-// a, B linear and C constant: e = B^2 - A C.
+// e(a)'s coefficients (pencil_events). The line P + t (p0 + a p1) meets
+// the quadric where A t^2 + 2 B t + C = 0 (the forms of intersect_sphere
+// and intersect_cone), with A quadratic in a, B linear and C constant:
+// e = B^2 - A C.
 void pencil_quadric(const PrimitiveSet& prims, int prim, const Pencil& pen, double e[3]) {
   double a0, a1, a2, b0, b1, cq;
   const PrimRef& ref = prims.prims[prim];
@@ -42,6 +44,9 @@ void pencil_quadric(const PrimitiveSet& prims, int prim, const Pencil& pen, doub
   e[2] = b0 * b0 - a0 * cq;
 }
 
+// The a where the pencil's line passes through a point of one of cone c's
+// rim circles, appended to `ev`; false if the pencil's plane is parallel to
+// the rims' planes.
 bool rim_events(const ConePrim& c, const Pencil& pen, std::vector<double>& ev) {
   const Vec3& ax = c.axis.a;
   // The pencil's plane (normal m) cuts a rim circle (centre r, radius
@@ -67,6 +72,25 @@ bool rim_events(const ConePrim& c, const Pencil& pen, std::vector<double>& ev) {
       const double den = glm::dot(c1, c1);
       if (den > 0) ev.push_back(-glm::dot(c0, c1) / den);
     }
+  }
+  return true;
+}
+
+}  // namespace
+
+bool pencil_events(const PrimitiveSet& prims, int prim, const Pencil& pen, double e[3],
+                   std::vector<double>& ev) {
+  const size_t before = ev.size();
+  pencil_quadric(prims, prim, pen, e);
+  double t0, t1;
+  if (solve_quadratic(e[0], e[1], e[2], &t0, &t1)) {
+    ev.push_back(t0);
+    if (t1 != t0) ev.push_back(t1);
+  }
+  const PrimRef& ref = prims.prims[prim];
+  if (ref.kind == PrimKind::kCone && !rim_events(prims.cones[ref.index], pen, ev)) {
+    ev.resize(before);
+    return false;
   }
   return true;
 }

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "common/bounding.h"
+#include "common/pencil.h"
 #include "common/polyhedron.h"
 #include "common/prepared.h"
 
@@ -790,18 +791,16 @@ bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<C
 // The plane touches the solid where it is nearest o: a sphere's tangent
 // plane; a cone's along its generator on o's side.
 bool beyond_support(const PrimitiveSet& prims, int prim, const Vec3& o, const Vec3& l) {
+  if (!plain_quadric(prims, prim)) return false;
   const PrimRef& ref = prims.prims[prim];
   if (ref.kind == PrimKind::kSphere) {
     const SpherePrim& sp = prims.spheres[ref.index];
-    if (!sp.frame.identity) return false;
     const Vec3 v = o - sp.s.center;
     const double d = glm::length(v);
     const double r = sp.s.radius * d;  // both sides times |v|
     return d > sp.s.radius && glm::dot(v, l - sp.s.center) > r;
   }
-  if (ref.kind != PrimKind::kCone) return false;
   const ConePrim& c = prims.cones[ref.index];
-  if (!c.frame.identity) return false;
   // n = e - k a (e: o's radial direction): n . (x - base) <= r0 over the
   // solid, since its radius at axial s is r0 + k s.
   const Vec3 v = o - c.c.base;

@@ -244,31 +244,30 @@ struct SpanLine {
 // "Exact intervals of curved occluders"). The lines through the light L
 // and the span's shadow-ray origins O(a) form a pencil (common/pencil.h),
 // with directions (nw + a nu) (O(a) - L) = p0 + a p1, linear in a. The
-// line at a meets the body's quadric where e(a) >= 0. For a
-// sphere that is the shadow. For a cone or cylinder, inside that range,
-// whether the line meets the body between its rims changes only where it
-// passes through a point of a rim circle; between two such a, one exact
-// test decides. Either way the result is the shadow ray's (eqs. (2), (3))
-// when the body lies strictly between the origins and the light: a line
-// that meets it then does so inside the segment from O(a) to L
+// line at a meets the body's quadric where e(a) >= 0: for a sphere that is
+// the shadow. For a cone or cylinder, whether the line meets the body
+// between its rims changes only at those ends or where it passes through a
+// point of a rim circle; between two such events, one line test decides.
+// Either way the result is the shadow ray's (eqs. (2), (3)) when the body
+// lies strictly between the origins and the light: a line that meets it
+// then does so inside the segment from O(a) to L
 // (SpanShadows::compute_light's exact_intervals).
 //
-// Whether prim is a sphere or cone (untransformed) lying strictly between
+// Whether prim is a plain quadric (common/pencil.h) lying strictly between
 // the heights h0 (the shadow-ray origins) and hl (the light), by `margin`;
 // heights are sigma (n . x - offset).
 bool between_origins_and_light(const PrimitiveSet& prims, int prim, const Vec3& n, double offset,
                                double sigma, double h0, double hl, double margin) {
+  if (!plain_quadric(prims, prim)) return false;
   const PrimRef& ref = prims.prims[prim];
   double lo, hi;
   if (ref.kind == PrimKind::kSphere) {
     const SpherePrim& s = prims.spheres[ref.index];
-    if (!s.frame.identity) return false;
     const double h = sigma * (glm::dot(n, s.s.center) - offset);
     lo = h - s.s.radius;
     hi = h + s.s.radius;
-  } else if (ref.kind == PrimKind::kCone) {
+  } else {
     const ConePrim& c = prims.cones[ref.index];
-    if (!c.frame.identity) return false;
     // A rim circle of radius r reaches r sqrt(1 - (n . axis)^2) off its centre's height.
     const double na = glm::dot(n, c.axis.a);
     const double spread = std::sqrt(std::max(0.0, 1.0 - na * na));
@@ -277,8 +276,6 @@ bool between_origins_and_light(const PrimitiveSet& prims, int prim, const Vec3& 
     const double eb = c.c.base_radius * spread, ea = c.c.apex_radius * spread;
     lo = std::min(hb - eb, ha - ea);
     hi = std::max(hb + eb, ha + ea);
-  } else {
-    return false;
   }
   return lo > h0 + margin && hi < hl - margin;
 }
@@ -544,60 +541,37 @@ void SpanShadows::compute_light(int j) {
   // The exact intervals of occluder c on the line, appended to `out`;
   // false if they cannot be found.
   auto exact_intervals = [&](int c) {
-    const PrimRef& ref = ps_.prims.prims[c];
-    std::vector<double>& rims = events_;
-    rims.clear();
-    if (ref.kind == PrimKind::kCone && !rim_events(ps_.prims.cones[ref.index], pen, rims)) {
-      return false;
-    }
+    std::vector<double>& ev = events_;
+    ev.clear();
     double e[3];
-    pencil_quadric(ps_.prims, c, pen, e);
-    auto meets = [&](double a) { return (e[0] * a + e[1]) * a + e[2] >= 0; };
-    // [a_first, a_last] cut at e's roots: the pieces where the lines meet
-    // the quadric.
-    double cut[4] = {l.a_first, l.a_last, l.a_last, l.a_last};
-    int nc = 2;
-    double t0, t1;
-    if (solve_quadratic(e[0], e[1], e[2], &t0, &t1)) {
-      for (const double t : {t0, t1}) {
-        if (t > cut[nc - 2] && t < l.a_last) cut[nc - 1] = t, cut[nc++] = l.a_last;
-      }
-    }
+    if (!pencil_events(ps_.prims, c, pen, e, ev)) return false;
+    // The line cut at the events inside it; each part decided at its
+    // middle: the pencil's line there meets the quadric (e >= 0) and, for
+    // a cone, the surface between its rims. The line meets the body only
+    // between the origin and the light (between_origins_and_light).
+    ev.erase(std::remove_if(ev.begin(), ev.end(),
+                            [&](double a) { return !(a > l.a_first && a < l.a_last); }),
+             ev.end());
+    std::sort(ev.begin(), ev.end());
+    ev.push_back(l.a_last);
+    const PrimRef& ref = ps_.prims.prims[c];
     bool open = false;
-    double start = 0;
-    // The parts [a0, ...) in increasing order, shadowed or not: merged.
-    auto piece = [&](double a0, bool in) {
-      if (in && !open) start = a0;
-      if (!in && open) out.push_back(Interval{c, true, start, a0, false});
-      open = in;
-    };
-    std::sort(rims.begin(), rims.end());
-    for (int k = 0; k + 1 < nc; ++k) {
-      const double a0 = cut[k], a1 = cut[k + 1];
-      if (!(a1 > a0)) continue;
-      if (!meets(0.5 * (a0 + a1))) {
-        piece(a0, false);
-        continue;
-      }
-      if (ref.kind == PrimKind::kSphere) {
-        piece(a0, true);
-        continue;
-      }
-      // A cone's piece, cut where the lines pass through its rims; each
-      // part decided at its middle.
-      const ConePrim& cone = ps_.prims.cones[ref.index];
-      double x = a0;
-      for (size_t q = 0; q <= rims.size(); ++q) {
-        const double y = q < rims.size() ? rims[q] : a1;
-        if (!(y > x) || (q < rims.size() && y >= a1)) continue;
-        // The pencil's whole line at the middle: it meets the cone only
-        // between the origin and the light (between_origins_and_light).
-        const double a = 0.5 * (x + y);
+    double start = 0, x = l.a_first;
+    for (const double y : ev) {
+      if (!(y > x)) continue;
+      const double a = 0.5 * (x + y);
+      bool in = (e[0] * a + e[1]) * a + e[2] >= 0;
+      if (in && ref.kind == PrimKind::kCone) {
+        const ConePrim& cone = ps_.prims.cones[ref.index];
         ++stats_.tests_ray_object;
-        piece(x, intersect_cone(cone.c, cone.axis, Ray{pen.point, pen.p0 + a * pen.p1}, -kInf, kInf,
-                                nullptr) > 0);
-        x = y;
+        in = intersect_cone(cone.c, cone.axis, Ray{pen.point, pen.p0 + a * pen.p1}, -kInf, kInf,
+                            nullptr) > 0;
       }
+      // Shadowed parts are merged into intervals.
+      if (in && !open) start = x;
+      if (!in && open) out.push_back(Interval{c, true, start, x, false});
+      open = in;
+      x = y;
     }
     if (open) out.push_back(Interval{c, true, start, l.a_last, false});
     return true;
