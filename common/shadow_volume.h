@@ -18,7 +18,8 @@
 //
 // Rows then find the shadows of their spans (SpanShadows in
 // common/span_shadows.h, paper §3.2 step 2), and points reached by
-// secondary rays search the hierarchy (volume_transmittance). Both give exactly what a shadow ray gives
+// secondary rays search the hierarchy (volume_transmittance,
+// shadow_search.cpp). Both give exactly what a shadow ray gives
 // (Tracer::transmittance), but at points within rounding of a shadow
 // boundary.
 #pragma once
