@@ -6,8 +6,8 @@
 #include <random>
 #include <thread>
 
-#include "server/paths.h"
-#include "server/rpc.h"
+#include "common/farm/paths.h"
+#include "proto/wire/rpc.h"
 
 namespace locus::client {
 namespace fs = std::filesystem;

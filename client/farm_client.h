@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "server/auth.h"
+#include "common/farm/auth.h"
+#include "common/farm/types.h"
 #include "server/coordinator.h"
-#include "server/farm_types.h"
 
 namespace locus::v1 {
 class ClientService;

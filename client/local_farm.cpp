@@ -14,7 +14,7 @@
 #include <thread>
 
 #include "client/farm_client.h"
-#include "server/auth.h"
+#include "common/farm/auth.h"
 
 namespace locus::client {
 namespace fs = std::filesystem;

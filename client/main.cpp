@@ -17,14 +17,13 @@
 #include "client/farm_client.h"
 #include "client/local_farm.h"
 #include "client/progress.h"
-#include "common/animation.h"
-#include "common/log.h"
+#include "common/base/log.h"
+#include "common/farm/auth.h"
 #include "common/render.h"
-#include "common/scene_io.h"
+#include "common/scene/animation.h"
+#include "common/scene/scene_io.h"
 #include "proto/scene.pb.h"
-#include "server/auth.h"
-#include "server/health.h"
-#include "worker/band_renderer.h"
+#include "proto/wire/health.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <string>
 
-#include "server/farm_types.h"
+#include "common/farm/types.h"
 
 namespace locus::client {
 

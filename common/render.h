@@ -1,84 +1,19 @@
-// The renderer's entry points. A worker renders a band (a range of pixel rows
-// of one frame) with render_band(); a whole image is one band.
+// The renderer's entry points, above every stage: a worker prepares a frame
+// once (prepare_scene, common/prepare/prepared.h) and renders bands of it
+// (render_band); a whole image is one band (render_image).
 #pragma once
 
 #include <cstdint>
 #include <memory>
 #include <string>
 
-#include "common/image.h"
-#include "common/scene.h"
-#include "common/status.h"
+#include "common/base/image.h"
+#include "common/base/params.h"
+#include "common/base/status.h"
+#include "common/prepare/prepared.h"
+#include "common/scene/scene.h"
 
 namespace locus {
-
-// METHOD.md §8 configurations: I = raytrace/none, II = local/none,
-// III = local/eye, IV = local/eye+shadow; raytrace/eye+shadow is the modern
-// BVH baseline.
-enum class Method { kRaytrace, kLocal };
-enum class Boxes { kNone, kEye, kEyeShadow };
-
-inline constexpr int kMaxAa = 64;
-// `--tess-tol`: largest screen-space deviation of a tessellated free-form
-// surface from the true one, in pixels (docs/tessellation.md).
-inline constexpr double kDefaultTessTol = 0.25;
-
-struct RenderParams {
-  Method method = Method::kRaytrace;
-  Boxes boxes = Boxes::kEyeShadow;
-  int spp = 1;       // raytrace: spp x spp stratified samples per pixel; 1 = pixel centre
-  // local: multi-scanning with `aa` sub-scanlines per pixel row (paper
-  // §3.3); 0 = point sampling at pixel centres.
-  int aa = 0;
-  int threads = 0;   // 0 = all cores
-  double tess_tol = kDefaultTessTol;  // Bezier surfaces: pixels, > 0
-};
-
-// Rows [y0, y1) of the frame.
-struct Band {
-  int y0 = 0;
-  int y1 = 0;
-};
-
-// Counters written by `--stats`. Key names are a contract (issue #2): later
-// work adds keys but never renames them.
-struct Stats {
-  double seconds_prepare = 0;
-  double seconds_render = 0;
-  // CPU time of the rendering threads, summed (a load-independent cost for
-  // benchmarks on a shared machine; not carried by the farm).
-  double seconds_render_cpu = 0;
-  // Cutting Bezier surfaces into triangles, part of seconds_prepare.
-  double seconds_tessellate = 0;
-  // Triangles the frame is made of after tessellation (meshes, patch fans
-  // and tessellated surfaces). Summing bands or frames keeps the largest.
-  uint64_t geometry_triangles = 0;
-  uint64_t rays_eye = 0;
-  uint64_t rays_reflected = 0;
-  uint64_t rays_refracted = 0;
-  uint64_t rays_shadow = 0;
-  uint64_t tests_ray_object = 0;
-  // Configuration IV: point-in-shadow-volume and span-against-volume tests
-  // (paper §4.1; docs/shadow-volumes.md).
-  uint64_t tests_shadow_volume = 0;
-  uint64_t pixels_total = 0;
-  uint64_t pixels_ray_traced = 0;  // pixels where an eye, reflected or refracted ray was cast
-  uint64_t spans_total = 0;        // local method: visible spans over all rows
-  uint64_t spans_ray_traced = 0;   // spans whose pixels were ray traced
-  // How shadows were found: "rays" (raytrace), "volumes+rays" (II, III:
-  // spans by volumes, secondary points by rays), "volumes" (IV).
-  std::string shadow_method = "rays";
-
-  Stats& operator+=(const Stats& o);
-  std::string to_json() const;
-};
-
-// Everything derived from a scene before rendering (acceleration structures,
-// resolved lights). Immutable and shareable between threads and bands.
-class PreparedScene;
-
-Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
-                                                           const RenderParams& params);
 
 struct BandResult {
   Image pixels;  // width x (y1 - y0)

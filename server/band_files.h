@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "common/image.h"
-#include "common/status.h"
-#include "server/farm_types.h"
+#include "common/base/image.h"
+#include "common/base/status.h"
+#include "common/farm/types.h"
 
 namespace locus::farm {
 

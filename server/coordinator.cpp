@@ -1,6 +1,6 @@
 #include "server/coordinator.h"
 
-#include "common/band_split.h"
+#include "common/farm/band_split.h"
 
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
@@ -16,14 +16,14 @@
 #include <set>
 #include <tuple>
 
-#include "common/animation.h"
-#include "common/image.h"
-#include "common/log.h"
-#include "common/scene_io.h"
-#include "common/validate.h"
+#include "common/base/image.h"
+#include "common/base/log.h"
+#include "common/farm/paths.h"
+#include "common/scene/animation.h"
+#include "common/scene/scene_io.h"
+#include "common/scene/validate.h"
 #include "server/band_files.h"
 #include "server/metrics.h"
-#include "server/paths.h"
 
 namespace locus::farm {
 namespace fs = std::filesystem;

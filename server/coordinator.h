@@ -17,8 +17,8 @@
 #include <thread>
 #include <vector>
 
+#include "common/farm/types.h"
 #include "proto/scene.pb.h"
-#include "server/farm_types.h"
 #include "server/latency.h"
 #include "server/scheduler.h"
 #include "server/store.h"
@@ -46,41 +46,10 @@ struct CoordinatorOptions {
   // fsync band files, frames and their directory before the store names
   // them (survives a power loss); without it a kill -9 is still survived.
   bool fsync = true;
-  // Cut frames into bands of equal predicted cost (common/band_split.h)
+  // Cut frames into bands of equal predicted cost (common/farm/band_split.h)
   // rather than equal height; local method only.
   bool cost_bands = true;
   NowFn now = [] { return SteadyClock::now(); };
-};
-
-// A submission as the client sends it, before validation.
-struct SubmitRequest {
-  v1::Scene scene;
-  std::string scene_name;
-  RenderSettings render;
-  int width = 0;  // 0: the scene camera's
-  int height = 0;
-  int frame_first = 1;
-  int frame_last = 1;
-  int bands = 0;  // 0: default_bands()
-  std::string output;
-  double orbit_degrees = 0;
-  // The client's token for this submission, reused on retries: a second
-  // submission with the same id returns the first one's job.
-  std::string request_id;
-};
-
-struct Registration {
-  std::string worker_id;
-  Millis heartbeat{0};
-  Millis lease{0};
-};
-
-struct FileChunk {
-  int frame = 0;
-  std::string file_name;
-  int64_t offset = 0;
-  std::string data;
-  bool last = false;
 };
 
 // Return false to stop a stream (the client has gone).

@@ -8,8 +8,8 @@
 #include <csignal>
 #include <cstdio>
 
-#include "common/log.h"
-#include "server/auth.h"
+#include "common/base/log.h"
+#include "common/farm/auth.h"
 #include "server/coordinator.h"
 #include "server/grpc_service.h"
 #include "server/metrics.h"

@@ -1,9 +1,9 @@
 // The coordinator's gRPC adapter: ClientService and WorkerService check
-// each call's credentials (server/auth.h) and forward to the handlers
+// each call's credentials (common/farm/auth.h) and forward to the handlers
 // (server/handlers.h), counting each call's bytes (server/metrics.h).
 // Lifecycle: start (bind, with TLS or explicitly insecure), serve, drain
 // (SIGTERM), shutdown with a deadline, wait. The standard health service
-// answers on the main port and, plaintext, on --health (server/health.h).
+// answers on the main port and, plaintext, on --health (proto/wire/health.h).
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -11,10 +11,10 @@
 #include <memory>
 #include <string>
 
+#include "proto/wire/health.h"
+#include "proto/wire/rpc.h"
 #include "server/coordinator.h"
 #include "server/handlers.h"
-#include "server/health.h"
-#include "server/rpc.h"
 
 namespace locus::rpc {
 

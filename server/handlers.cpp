@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "server/rpc.h"
+#include "proto/wire/rpc.h"
 
 namespace locus::rpc {
 namespace {

@@ -9,7 +9,7 @@
 #include <variant>
 #include <vector>
 
-#include "server/farm_types.h"
+#include "common/farm/types.h"
 
 namespace locus::farm {
 

@@ -7,8 +7,8 @@
 #include <cstring>
 #include <random>
 
-#include "common/animation.h"
-#include "common/log.h"
+#include "common/base/log.h"
+#include "common/scene/animation.h"
 
 namespace locus::farm {
 namespace {

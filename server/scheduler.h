@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-#include "server/farm_types.h"
+#include "common/farm/types.h"
 #include "server/journal.h"
 
 namespace locus::farm {

@@ -12,13 +12,13 @@
 #include <thread>
 
 #include "client/farm_client.h"
-#include "common/image.h"
+#include "common/base/image.h"
 #include "common/render.h"
-#include "common/scene_io.h"
+#include "common/scene/scene_io.h"
 #include "proto/locus.grpc.pb.h"
+#include "proto/wire/rpc.h"
 #include "server/coordinator.h"
 #include "server/grpc_service.h"
-#include "server/rpc.h"
 #include "worker/band_renderer.h"
 #include "worker/worker_client.h"
 

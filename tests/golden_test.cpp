@@ -10,9 +10,9 @@
 #include <cstdlib>
 #include <string>
 
-#include "common/image.h"
+#include "common/base/image.h"
 #include "common/render.h"
-#include "common/scene_io.h"
+#include "common/scene/scene_io.h"
 
 namespace locus {
 namespace {

@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "common/image.h"
-#include "common/prepared.h"
-#include "common/raytrace.h"
+#include "common/base/image.h"
+#include "common/prepare/prepared.h"
 #include "common/render.h"
-#include "common/scanline.h"
-#include "common/scene_io.h"
+#include "common/scan/scanline.h"
+#include "common/scene/scene_io.h"
+#include "common/trace/raytrace.h"
 
 namespace locus {
 namespace testing_util {

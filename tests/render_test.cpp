@@ -7,8 +7,8 @@
 #include <cstring>
 #include <random>
 
-#include "common/polyhedron.h"
 #include "common/render.h"
+#include "common/scene/polyhedron.h"
 
 namespace locus {
 namespace {

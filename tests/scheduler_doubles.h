@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "server/farm_types.h"
+#include "common/farm/types.h"
 
 namespace locus::farm::test_doubles {
 

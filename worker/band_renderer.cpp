@@ -2,11 +2,11 @@
 
 #include <cstdio>
 
-#include "common/animation.h"
-#include "common/prepared.h"
-#include "common/scene_io.h"
+#include "common/farm/paths.h"
+#include "common/prepare/prepared.h"
+#include "common/scene/animation.h"
+#include "common/scene/scene_io.h"
 #include "proto/scene.pb.h"
-#include "server/paths.h"
 
 namespace locus::farm {
 

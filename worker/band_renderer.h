@@ -8,9 +8,9 @@
 #include <memory>
 #include <string>
 
+#include "common/farm/types.h"
 #include "common/render.h"
-#include "common/scene.h"
-#include "server/farm_types.h"
+#include "common/scene/scene.h"
 
 namespace locus {
 namespace v1 {
@@ -29,7 +29,7 @@ class BandRenderer {
 
   bool has_scene(const std::string& hash) const { return scenes_.count(hash) != 0; }
   // Converts and keeps a scene received from the coordinator; its mesh
-  // paths confined under the mesh root (server/paths.h).
+  // paths confined under the mesh root (common/farm/paths.h).
   Status add_scene(const std::string& hash, const v1::Scene& scene, const std::string& name);
   // Renders the band of `task`; its scene must have been added. The
   // returned output carries pixels and stats (ids are the caller's).

@@ -11,8 +11,8 @@
 #include <cstdlib>
 #include <thread>
 
-#include "common/log.h"
-#include "server/health.h"
+#include "common/base/log.h"
+#include "proto/wire/health.h"
 #include "server/metrics.h"
 #include "worker/worker_client.h"
 #include "worker/worker_metrics.h"

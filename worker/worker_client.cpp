@@ -10,8 +10,8 @@
 #include <optional>
 #include <thread>
 
-#include "common/log.h"
-#include "server/rpc.h"
+#include "common/base/log.h"
+#include "proto/wire/rpc.h"
 #include "worker/band_renderer.h"
 #include "worker/worker_metrics.h"
 

@@ -10,8 +10,8 @@
 #include <memory>
 #include <string>
 
-#include "server/auth.h"
-#include "server/farm_types.h"
+#include "common/farm/auth.h"
+#include "common/farm/types.h"
 
 namespace locus::farm {
 

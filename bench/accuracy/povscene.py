@@ -75,7 +75,7 @@ def normalize(a):
 
 
 def any_perpendicular(n):
-    """The same choice as common/math.h, so prisms get the same vertices."""
+    """The same choice as common/base/math.h, so prisms get the same vertices."""
     a = [1, 0, 0] if abs(n[0]) < 0.6 else ([0, 1, 0] if abs(n[1]) < 0.6 else [0, 0, 1])
     return normalize(cross(n, a))
 

@@ -1,6 +1,6 @@
 // locus-band-balance: load imbalance of a frame's bands (issue #9 item 4).
 // Renders every band of one frame alone, one thread each, with bands of
-// equal height and with bands of equal predicted cost (common/band_split.h),
+// equal height and with bands of equal predicted cost (common/farm/band_split.h),
 // and prints each band's CPU seconds (best of --reps) and the imbalance:
 // the slowest band's time over the mean. In a farm with as many workers as
 // bands, the frame takes as long as its slowest band.
@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <numeric>
 
-#include "common/band_split.h"
-#include "common/scene_io.h"
+#include "common/farm/band_split.h"
+#include "common/scene/scene_io.h"
 
 namespace {
 using namespace locus;

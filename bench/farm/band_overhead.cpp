@@ -11,11 +11,11 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "common/scene_io.h"
+#include "common/scene/scene_io.h"
 #include "proto/locus.grpc.pb.h"
+#include "proto/wire/rpc.h"
 #include "server/coordinator.h"
 #include "server/grpc_service.h"
-#include "server/rpc.h"
 
 namespace {
 using namespace locus;

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "client/farm_client.h"
-#include "common/scene_io.h"
+#include "common/scene/scene_io.h"
 
 namespace {
 

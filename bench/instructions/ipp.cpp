@@ -3,8 +3,8 @@
 // bench/instructions/run.sh builds and runs it.
 #include <cstdio>
 #include <cstdlib>
-#include "common/scene_io.h"
 #include "common/render.h"
+#include "common/scene/scene_io.h"
 using namespace locus;
 int main(int argc, char** argv) {
   auto s = load_scene(argv[1]);

@@ -6,7 +6,7 @@
 #
 # Why a harness: OpenImageIO pulls in libhwy, whose start-up runs RDTSCP,
 # an instruction valgrind cannot run; ipp.cpp links the renderer's objects
-# without common/image.cpp, so no OpenImageIO is loaded.
+# without common/base/image.cpp, so no OpenImageIO is loaded.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build}

@@ -42,7 +42,7 @@ sha256_text = acc.sha256_text
 Cache = acc.Cache
 fmt = acc.fmt
 
-# POV-Ray's ray depth: SHADING.md "Ray tree" (common/raytrace.cpp kMaxDepth = 5,
+# POV-Ray's ray depth: SHADING.md "Ray tree" (common/trace/raytrace.cpp kMaxDepth = 5,
 # the primary ray has depth 1) is POV-Ray's max_trace_level 5 (its primary
 # ray is level 1 too). povscene.py writes it into every translated file; the
 # include header sets it for files we do not write (SPD's own .pov).

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # tests/faults/run.sh [BINDIR]: the farm across three hosts while faults are
 # injected (plaintext with --insecure: security is tested by
-# tests/farm_security_test.cpp; here only faults). The hosts are network
+# tests/wire/farm_security_test.cpp; here only faults). The hosts are network
 # namespaces made here: one coordinator
 # host (a bridge, 10.77.0.1) and two worker hosts (10.77.0.2, 10.77.0.3)
 # joined to it by veth pairs. Every address is inside those namespaces;

@@ -13,8 +13,8 @@
 #include <string>
 #include <string_view>
 
-#include "common/scene_io.h"
-#include "common/status.h"
+#include "common/base/status.h"
+#include "common/scene/scene_io.h"
 #include "proto/scene.pb.h"
 
 namespace locus::fuzz {

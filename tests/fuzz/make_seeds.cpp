@@ -7,7 +7,7 @@
 #include <fstream>
 #include <string>
 
-#include "common/scene_io.h"
+#include "common/scene/scene_io.h"
 #include "proto/locus.pb.h"
 #include "tests/fuzz/coordinator_input.h"
 

@@ -3,7 +3,7 @@
 // and its bounds.
 #include <gtest/gtest.h>
 
-#include "common/shadow_volume.h"
+#include "common/prepare/shadow_volume.h"
 #include "tests/stability/stability.h"
 
 namespace locus {

@@ -59,13 +59,13 @@
 #include <string>
 #include <vector>
 
-#include "common/image.h"
-#include "common/multiscan.h"
-#include "common/polyhedron.h"
-#include "common/prepared.h"
-#include "common/raytrace.h"
+#include "common/base/image.h"
+#include "common/prepare/prepared.h"
 #include "common/render.h"
-#include "common/scanline.h"
+#include "common/scan/multiscan.h"
+#include "common/scan/scanline.h"
+#include "common/scene/polyhedron.h"
+#include "common/trace/raytrace.h"
 #include "tests/render_compare.h"
 
 namespace locus {

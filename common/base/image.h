@@ -1,0 +1,35 @@
+// Linear float RGB images and their output through OpenImageIO.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "common/base/math.h"
+#include "common/base/status.h"
+
+namespace locus {
+
+// Row-major, top row first, 3 floats (linear RGB) per pixel.
+struct Image {
+  int width = 0;
+  int height = 0;
+  std::vector<float> rgb;
+
+  Image() = default;
+  Image(int w, int h) : width(w), height(h), rgb(static_cast<size_t>(w) * h * 3, 0.0f) {}
+  float* pixel(int x, int y) { return &rgb[(static_cast<size_t>(y) * width + x) * 3]; }
+  const float* pixel(int x, int y) const { return &rgb[(static_cast<size_t>(y) * width + x) * 3]; }
+};
+
+// Writes by extension: .png (8-bit, round(255 * clamp(v, 0, 1)), no transfer
+// curve), .exr (float, linear, unclamped), .tif (16-bit). SHADING.md "Output".
+Status write_image(const std::string& path, const Image& image);
+Result<Image> read_image(const std::string& path);
+
+// 8-bit quantisation used by every 8-bit output (SHADING.md "Output").
+inline int quantize8(float v) {
+  const float c = !(v > 0.0f) ? 0.0f : (v > 1.0f ? 1.0f : v);
+  return static_cast<int>(c * 255.0f + 0.5f);
+}
+
+}  // namespace locus

@@ -1,0 +1,197 @@
+#include "common/base/log.h"
+
+#include <spdlog/pattern_formatter.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/sinks/stdout_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <array>
+#include <cstdio>
+#include <ctime>
+#include <utility>
+
+namespace locus {
+namespace {
+
+// The band this thread works on; job empty: none.
+struct BandIds {
+  std::string job;
+  int frame = -1;
+  int band = -1;
+};
+thread_local BandIds current_band;
+
+// %* in the text pattern: "[job j0001 frame 3 band 7] ", or nothing.
+class BandFlag final : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg&, const std::tm&,
+              spdlog::memory_buf_t& dest) override {
+    const BandIds& ids = current_band;
+    if (ids.job.empty()) return;
+    std::string s = "[job " + ids.job;
+    if (ids.frame >= 0) s += " frame " + std::to_string(ids.frame);
+    if (ids.band >= 0) s += " band " + std::to_string(ids.band);
+    s += "] ";
+    dest.append(s.data(), s.data() + s.size());
+  }
+  std::unique_ptr<custom_flag_formatter> clone() const override {
+    return std::make_unique<BandFlag>();
+  }
+};
+
+// One JSON object per line: time (UTC, ms), level, logger, msg, and the
+// band's ids when the thread has them.
+class JsonFormatter final : public spdlog::formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, spdlog::memory_buf_t& dest) override {
+    const auto since_epoch = msg.time.time_since_epoch();
+    const auto secs = std::chrono::duration_cast<std::chrono::seconds>(since_epoch);
+    const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(since_epoch - secs);
+    const std::time_t t = secs.count();
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    std::array<char, 40> time{};
+    const size_t n = std::strftime(time.data(), time.size(), "%Y-%m-%dT%H:%M:%S", &tm);
+    std::snprintf(time.data() + n, time.size() - n, ".%03dZ", static_cast<int>(ms.count()));
+
+    const auto level = spdlog::level::to_string_view(msg.level);
+    std::string s = "{\"time\":\"" + std::string(time.data()) + "\",\"level\":\"" +
+                    std::string(level.data(), level.size()) + "\",\"logger\":\"" +
+                    json_escape(std::string_view(msg.logger_name.data(), msg.logger_name.size())) +
+                    "\",\"msg\":\"" +
+                    json_escape(std::string_view(msg.payload.data(), msg.payload.size())) + "\"";
+    const BandIds& ids = current_band;
+    if (!ids.job.empty()) s += ",\"job\":\"" + json_escape(ids.job) + "\"";
+    if (ids.frame >= 0) s += ",\"frame\":" + std::to_string(ids.frame);
+    if (ids.band >= 0) s += ",\"band\":" + std::to_string(ids.band);
+    s += "}\n";
+    dest.append(s.data(), s.data() + s.size());
+  }
+  std::unique_ptr<spdlog::formatter> clone() const override {
+    return std::make_unique<JsonFormatter>();
+  }
+};
+
+// Length of the valid UTF-8 sequence at s[i], or 0 (RFC 3629: no overlong
+// forms, no surrogates, nothing past U+10FFFF).
+size_t utf8_length(std::string_view s, size_t i) {
+  const auto byte = [&](size_t k) { return static_cast<unsigned char>(s[k]); };
+  const unsigned char c = byte(i);
+  size_t n = 0;
+  unsigned char lo = 0x80, hi = 0xBF;  // the range of the second byte
+  if (c >= 0xC2 && c <= 0xDF) {
+    n = 2;
+  } else if (c >= 0xE0 && c <= 0xEF) {
+    n = 3;
+    if (c == 0xE0) lo = 0xA0;
+    if (c == 0xED) hi = 0x9F;
+  } else if (c >= 0xF0 && c <= 0xF4) {
+    n = 4;
+    if (c == 0xF0) lo = 0x90;
+    if (c == 0xF4) hi = 0x8F;
+  } else {
+    return 0;
+  }
+  if (i + n > s.size() || byte(i + 1) < lo || byte(i + 1) > hi) return 0;
+  for (size_t k = 2; k < n; ++k) {
+    if (byte(i + k) < 0x80 || byte(i + k) > 0xBF) return 0;
+  }
+  return n;
+}
+
+}  // namespace
+
+Result<LogFormat> parse_log_format(std::string_view name) {
+  if (name == "text") return LogFormat::kText;
+  if (name == "json") return LogFormat::kJson;
+  return InvalidArgument("--log-format '" + std::string(name) + "': expected text or json");
+}
+
+std::unique_ptr<spdlog::formatter> make_log_formatter(LogFormat format) {
+  if (format == LogFormat::kJson) return std::make_unique<JsonFormatter>();
+  auto f = std::make_unique<spdlog::pattern_formatter>();
+  f->add_flag<BandFlag>('*').set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%n] [%^%l%$] %*%v");
+  return f;
+}
+
+Status setup_logging(LogFormat format, std::string_view level) {
+  static constexpr std::array<std::string_view, 7> kLevels = {"trace", "debug",    "info", "warn",
+                                                              "error", "critical", "off"};
+  bool known = false;
+  for (std::string_view l : kLevels) known = known || l == level;
+  if (!known) {
+    return InvalidArgument("--log-level '" + std::string(level) +
+                           "': expected trace, debug, info, warn, error, critical or off");
+  }
+  // JSON lines are for machines: no colour codes in them.
+  std::shared_ptr<spdlog::sinks::sink> sink;
+  if (format == LogFormat::kJson) {
+    sink = std::make_shared<spdlog::sinks::stderr_sink_mt>();
+  } else {
+    sink = std::make_shared<spdlog::sinks::stderr_color_sink_mt>();
+  }
+  auto logger = std::make_shared<spdlog::logger>("locus", std::move(sink));
+  logger->set_formatter(make_log_formatter(format));
+  logger->set_level(spdlog::level::from_str(std::string(level)));
+  spdlog::set_default_logger(std::move(logger));
+  return Status::Ok();
+}
+
+BandLogScope::BandLogScope(std::string job, int frame, int band)
+    : job_(std::exchange(current_band.job, std::move(job))),
+      frame_(std::exchange(current_band.frame, frame)),
+      band_(std::exchange(current_band.band, band)) {}
+
+BandLogScope::~BandLogScope() {
+  current_band.job = std::move(job_);
+  current_band.frame = frame_;
+  current_band.band = band_;
+}
+
+std::string json_escape(std::string_view text) {
+  std::string out;
+  out.reserve(text.size() + 8);
+  for (size_t i = 0; i < text.size();) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    if (c >= 0x80) {
+      const size_t n = utf8_length(text, i);
+      if (n == 0) {
+        out += "\xEF\xBF\xBD";  // U+FFFD for a byte that starts no valid sequence
+        ++i;
+      } else {
+        out.append(text.substr(i, n));
+        i += n;
+      }
+      continue;
+    }
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      default:
+        if (c < 0x20 || c == 0x7f) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out += static_cast<char>(c);
+        }
+    }
+    ++i;
+  }
+  return out;
+}
+
+}  // namespace locus

@@ -1,0 +1,48 @@
+// The processes' logs: spdlog on stderr, as text lines or one JSON object
+// per line (`--log-format json`, for log collectors in containers). A line
+// written while a thread works on a band carries the band's ids: the job,
+// the frame and the band (BandLogScope), as fields in JSON and as a
+// "[job j0001 frame 3 band 7]" prefix in text.
+#pragma once
+
+#include <spdlog/formatter.h>
+
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "common/base/status.h"
+
+namespace locus {
+
+enum class LogFormat { kText, kJson };
+// "text" or "json"; otherwise InvalidArgument naming the flag.
+Result<LogFormat> parse_log_format(std::string_view name);
+
+// The default logger "locus" on stderr in `format`, at `level` ("info",
+// "debug", "warn", ...; InvalidArgument otherwise). stdout stays for what
+// scripts read.
+Status setup_logging(LogFormat format, std::string_view level = "info");
+
+// The formatter setup_logging() installs, for tests.
+std::unique_ptr<spdlog::formatter> make_log_formatter(LogFormat format);
+
+// The ids of the band this thread works on, while in scope (nested scopes
+// restore the outer ids). frame or band -1: not known (a job-wide line).
+class BandLogScope {
+ public:
+  explicit BandLogScope(std::string job, int frame = -1, int band = -1);
+  ~BandLogScope();
+  BandLogScope(const BandLogScope&) = delete;
+  BandLogScope& operator=(const BandLogScope&) = delete;
+
+ private:
+  std::string job_;
+  int frame_, band_;
+};
+
+// `text` as the body of a JSON string: quotes, backslashes and control
+// characters escaped, invalid UTF-8 replaced by U+FFFD.
+std::string json_escape(std::string_view text);
+
+}  // namespace locus

@@ -1,0 +1,167 @@
+#include "common/farm/auth.h"
+
+#include <openssl/crypto.h>
+#include <openssl/sha.h>
+#include <sys/stat.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <spdlog/spdlog.h>
+
+namespace locus::farm {
+namespace {
+
+constexpr std::string_view kBearer = "Bearer ";
+// Longer tokens are refused unread: no reason to hash megabytes.
+constexpr size_t kMaxTokenBytes = 4096;
+
+std::string_view trim(std::string_view s) {
+  const auto space = [](char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; };
+  while (!s.empty() && space(s.front())) s.remove_prefix(1);
+  while (!s.empty() && space(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+// A header value carries visible ASCII only; so must a token.
+bool printable(std::string_view s) {
+  for (unsigned char c : s)
+    if (c < 0x21 || c > 0x7e) return false;
+  return true;
+}
+
+// The tokens of a file: one per line, # comments and blank lines skipped.
+// `flag` names the file in messages ("--client-tokens").
+Result<std::vector<std::string>> read_tokens(const std::string& path, const std::string& flag) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return FailedPrecondition(flag + " " + path + ": cannot read the file");
+  std::vector<std::string> tokens;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const std::string_view t = trim(line);
+    if (t.empty() || t.front() == '#') continue;
+    if (!printable(t) || t.size() > kMaxTokenBytes) {
+      return InvalidArgument(flag + " " + path + ":" + std::to_string(number) +
+                             ": a token is 1.." + std::to_string(kMaxTokenBytes) +
+                             " visible ASCII characters without spaces");
+    }
+    tokens.emplace_back(t);
+  }
+  if (tokens.empty()) {
+    return InvalidArgument(flag + " " + path +
+                           ": holds no token (one per line; # starts a comment)");
+  }
+  struct stat st {};
+  if (stat(path.c_str(), &st) == 0 && (st.st_mode & (S_IRWXG | S_IRWXO)) != 0) {
+    spdlog::warn("{} {}: readable by other users; chmod 600 it", flag, path);
+  }
+  return tokens;
+}
+
+}  // namespace
+
+const char* role_name(Role role) { return role == Role::kClient ? "client" : "worker"; }
+
+Result<std::string> load_token(const std::string& token_file) {
+  if (!token_file.empty()) {
+    auto tokens = read_tokens(token_file, "--token-file");
+    if (!tokens.ok()) return tokens.status();
+    return tokens->front();
+  }
+  const char* env = std::getenv("LOCUS_TOKEN");
+  if (env == nullptr) return std::string();
+  const std::string_view t = trim(env);
+  if (!printable(t) || t.size() > kMaxTokenBytes) {
+    return InvalidArgument("LOCUS_TOKEN: a token is 1.." + std::to_string(kMaxTokenBytes) +
+                           " visible ASCII characters without spaces");
+  }
+  return std::string(t);
+}
+
+Result<std::string> random_token() {
+  std::ifstream in("/dev/urandom", std::ios::binary);
+  unsigned char bytes[32];
+  if (!in.read(reinterpret_cast<char*>(bytes), sizeof bytes))
+    return Internal("cannot read /dev/urandom for a token");
+  static const char* kHex = "0123456789abcdef";
+  std::string token;
+  for (unsigned char b : bytes) {
+    token += kHex[b >> 4];
+    token += kHex[b & 15];
+  }
+  return token;
+}
+
+Result<Authenticator> Authenticator::from_files(const std::string& client_tokens,
+                                                const std::string& worker_tokens) {
+  auto clients = read_tokens(client_tokens, "--client-tokens");
+  if (!clients.ok()) return clients.status();
+  auto workers = read_tokens(worker_tokens, "--worker-tokens");
+  if (!workers.ok()) return workers.status();
+  return from_tokens(*clients, *workers);
+}
+
+Authenticator Authenticator::from_tokens(const std::vector<std::string>& client_tokens,
+                                         const std::vector<std::string>& worker_tokens) {
+  Authenticator a;
+  a.enforcing_ = true;
+  for (const std::string& t : client_tokens) a.add(t, Role::kClient);
+  for (const std::string& t : worker_tokens) a.add(t, Role::kWorker);
+  return a;
+}
+
+void Authenticator::add(std::string_view token, Role role) {
+  Entry e;
+  SHA256(reinterpret_cast<const unsigned char*>(token.data()), token.size(), e.digest.data());
+  for (Entry& have : tokens_) {
+    if (have.digest == e.digest) {
+      (role == Role::kClient ? have.client : have.worker) = true;
+      return;
+    }
+  }
+  (role == Role::kClient ? e.client : e.worker) = true;
+  tokens_.push_back(e);
+}
+
+Status Authenticator::check(Role needed, std::string_view authorization,
+                            bool peer_certificate_verified, std::string_view method) const {
+  const std::string call(method);
+  if (needed == Role::kWorker && worker_certificate_ && !peer_certificate_verified) {
+    return Status(Code::kUnauthenticated,
+                  call + ": a worker must present a client certificate signed by the "
+                         "coordinator's --tls-ca (locus-worker --tls-cert/--tls-key)");
+  }
+  if (!enforcing_) return Status::Ok();
+  if (authorization.empty()) {
+    return Status(Code::kUnauthenticated,
+                  call + ": no bearer token (give --token-file FILE or set LOCUS_TOKEN)");
+  }
+  if (authorization.size() <= kBearer.size() || authorization.substr(0, kBearer.size()) != kBearer ||
+      authorization.size() - kBearer.size() > kMaxTokenBytes) {
+    return Status(Code::kUnauthenticated,
+                  call + ": the authorization header is not \"Bearer <token>\"");
+  }
+  const std::string_view token = authorization.substr(kBearer.size());
+  // Constant time in the token's contents: the digest of what was sent is
+  // compared with every known digest in full, without stopping at a match.
+  Digest digest;
+  SHA256(reinterpret_cast<const unsigned char*>(token.data()), token.size(), digest.data());
+  bool known = false, client = false, worker = false;
+  for (const Entry& e : tokens_) {
+    const bool same = CRYPTO_memcmp(e.digest.data(), digest.data(), digest.size()) == 0;
+    known |= same;
+    client |= same & e.client;
+    worker |= same & e.worker;
+  }
+  if (!known) return Status(Code::kUnauthenticated, call + ": the token is not valid here");
+  if ((needed == Role::kClient && !client) || (needed == Role::kWorker && !worker)) {
+    const Role has = client ? Role::kClient : Role::kWorker;
+    return Status(Code::kPermissionDenied, call + ": a " + role_name(has) +
+                                               " token may not make this call (" +
+                                               role_name(needed) + " tokens only)");
+  }
+  return Status::Ok();
+}
+
+}  // namespace locus::farm

@@ -1,0 +1,30 @@
+// Cost-aware band splitting (issue #9 item 4): a cheap pre-pass predicts
+// what each pixel row costs to render from the localization (which spans
+// are ray traced, how many rays and shadow tests they need), and the rows
+// are cut into bands of equal predicted cost instead of equal height.
+// docs/farm.md "Cost-aware bands".
+#pragma once
+
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/render.h"
+#include "common/scene/scene.h"
+
+namespace locus {
+
+// The pre-pass renders at most this many rows (and proportionally fewer
+// columns), point sampled.
+inline constexpr int kPreviewRows = 64;
+
+// Predicted relative cost of each of the scene's camera.height rows under
+// `params` (the scene posed at the frame wanted). Deterministic: counts,
+// not clocks; relative units (about one point-sampled diffuse pixel).
+Result<std::vector<double>> predict_row_costs(const Scene& scene, const RenderParams& params);
+
+// Cuts rows [0, costs.size()) into `bands` bands of nearly equal total cost:
+// edges[0] = 0 < edges[1] < ... < edges[bands] = costs.size(), so every band
+// has at least one row. Requires 1 <= bands <= costs.size().
+std::vector<int> split_rows_by_cost(const std::vector<double>& costs, int bands);
+
+}  // namespace locus

@@ -1,0 +1,170 @@
+#include "common/farm/types.h"
+
+#include "common/scene/animation.h"
+
+#include <openssl/evp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "common/scene/validate.h"
+
+namespace locus::farm {
+
+Result<RenderParams> to_render_params(const RenderSettings& s, int threads) {
+  RenderParams p;
+  if (s.method == "raytrace") {
+    p.method = Method::kRaytrace;
+  } else if (s.method.empty() || s.method == "local") {
+    p.method = Method::kLocal;
+  } else {
+    return InvalidArgument("render method '" + s.method + "' is unknown; use raytrace or local");
+  }
+  if (s.boxes.empty() || s.boxes == "eye+shadow") {
+    p.boxes = Boxes::kEyeShadow;
+  } else if (s.boxes == "eye") {
+    p.boxes = Boxes::kEye;
+  } else if (s.boxes == "none") {
+    p.boxes = Boxes::kNone;
+  } else {
+    return InvalidArgument("boxes '" + s.boxes + "' is unknown; use none, eye or eye+shadow");
+  }
+  p.spp = s.spp == 0 ? 1 : s.spp;
+  if (p.spp < 1 || p.spp > 64) {
+    return InvalidArgument("spp must be between 1 and 64, got " + std::to_string(s.spp));
+  }
+  p.aa = s.aa >= 0 ? s.aa : (p.method == Method::kLocal ? kDefaultAa : 0);
+  if (s.aa < -1 || p.aa > kMaxAa) {
+    return InvalidArgument("aa must be between 0 and " + std::to_string(kMaxAa) + ", got " +
+                           std::to_string(s.aa));
+  }
+  if (p.method == Method::kLocal && p.spp != 1) {
+    return InvalidArgument("--spp " + std::to_string(p.spp) +
+                           ": the local method anti-aliases by multi-scanning; use --aa N");
+  }
+  if (p.method == Method::kRaytrace && p.aa != 0) {
+    return InvalidArgument("--aa " + std::to_string(p.aa) +
+                           ": multi-scanning needs --method local; the ray tracer uses --spp N");
+  }
+  if (!(s.tess_tol > 0.0 && std::isfinite(s.tess_tol))) {
+    return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
+                           format_number(s.tess_tol));
+  }
+  p.tess_tol = s.tess_tol;
+  p.threads = threads;
+  return p;
+}
+
+RenderSettings from_render_params(const RenderParams& p) {
+  RenderSettings s;
+  s.method = p.method == Method::kLocal ? "local" : "raytrace";
+  s.boxes = p.boxes == Boxes::kNone ? "none" : (p.boxes == Boxes::kEye ? "eye" : "eye+shadow");
+  s.spp = p.spp;
+  s.aa = p.aa;
+  s.tess_tol = p.tess_tol;
+  return s;
+}
+
+const char* job_state_name(JobState s) {
+  switch (s) {
+    case JobState::kQueued:
+      return "queued";
+    case JobState::kRunning:
+      return "running";
+    case JobState::kSucceeded:
+      return "succeeded";
+    case JobState::kFailed:
+      return "failed";
+    case JobState::kCancelled:
+      return "cancelled";
+  }
+  return "unknown";
+}
+
+Band band_rows(int height, int bands, int index) {
+  // 64-bit products: height * index overflows int for tall frames cut finely.
+  const auto at = [&](int i) { return static_cast<int>(static_cast<int64_t>(height) * i / bands); };
+  return Band{at(index), at(index + 1)};
+}
+
+Band band_rows(int height, int bands, const std::vector<int>& edges, int index) {
+  if (static_cast<int>(edges.size()) == bands + 1) return Band{edges[index], edges[index + 1]};
+  return band_rows(height, bands, index);
+}
+
+Band band_rows(const JobSpec& spec, int index) {
+  return band_rows(spec.height, spec.bands, spec.band_edges, index);
+}
+
+Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
+                  int frame_last, double orbit_degrees) {
+  Scene s = base;
+  s.camera.width = width;
+  s.camera.height = height;
+  return scene_at_frame(s, frame, Orbit{orbit_degrees, frame_first, frame_last});
+}
+
+
+std::string band_edges_text(const std::vector<int>& edges) {
+  std::string out;
+  for (size_t i = 0; i < edges.size(); ++i) {
+    if (i) out += ' ';
+    out += std::to_string(edges[i]);
+  }
+  return out;
+}
+
+Result<std::vector<int>> band_edges_from_text(const std::string& text, int height, int bands) {
+  std::vector<int> edges;
+  std::istringstream in(text);
+  long long v;
+  while (in >> v) {
+    if (v < 0 || v > height) return InvalidArgument("band edges: " + std::to_string(v) + " is outside 0.." + std::to_string(height));
+    edges.push_back(static_cast<int>(v));
+  }
+  if (!in.eof()) return InvalidArgument("band edges: not a list of integers: '" + text + "'");
+  if (edges.empty()) return edges;
+  bool ok = static_cast<int>(edges.size()) == bands + 1 && edges.front() == 0 && edges.back() == height;
+  for (size_t i = 1; ok && i < edges.size(); ++i) ok = edges[i] > edges[i - 1];
+  if (!ok) {
+    return InvalidArgument("band edges: expected " + std::to_string(bands + 1) +
+                           " increasing rows from 0 to " + std::to_string(height) + ", got '" + text + "'");
+  }
+  return edges;
+}
+
+int min_bands(int width, int height) {
+  const int64_t frame_bytes = static_cast<int64_t>(width) * height * 3 * 4;
+  return static_cast<int>(std::max<int64_t>(1, (frame_bytes + kMaxBandBytes - 1) / kMaxBandBytes));
+}
+
+int default_bands(int width, int height, int frames, int workers) {
+  // 16 bands per worker (at least 2 workers' worth, as workers may join
+  // later) spread over the frames: rows differ in cost by orders of
+  // magnitude (sky against glass), so many small bands keep the last band's
+  // tail short, while a band costs well under a millisecond of overhead
+  // (bench/results/farm.md). On 2 workers a frame gets 32 bands: 1.8x the
+  // speed of 1 worker where 16 bands gave 1.5x.
+  const int64_t target = 16 * static_cast<int64_t>(std::max(workers, 2));
+  const int64_t per_frame = (target + frames - 1) / std::max(frames, 1);
+  const int64_t n = std::max<int64_t>(per_frame, min_bands(width, height));
+  return static_cast<int>(std::clamp<int64_t>(n, 1, std::max(height, 1)));
+}
+
+std::string content_hash(std::string_view bytes) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_Digest(bytes.data(), bytes.size(), md, &len, EVP_sha256(), nullptr);
+  std::string hex;
+  hex.reserve(len * 2);
+  char buf[3];
+  for (unsigned int i = 0; i < len; ++i) {
+    std::snprintf(buf, sizeof buf, "%02x", md[i]);
+    hex += buf;
+  }
+  return hex;
+}
+
+}  // namespace locus::farm

@@ -1,0 +1,237 @@
+// The farm's vocabulary as plain C++ types, shared by the coordinator's
+// scheduling logic, the worker's rendering logic and the CLI. No gRPC here:
+// proto/wire/rpc.h converts between these and proto/locus.proto.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/base/image.h"
+#include "common/base/params.h"
+#include "common/base/status.h"
+#include "common/scene/scene.h"
+#include "common/scene/scene_io.h"
+#include "proto/scene.pb.h"
+
+namespace locus::farm {
+
+using SteadyClock = std::chrono::steady_clock;
+using TimePoint = SteadyClock::time_point;
+using Millis = std::chrono::milliseconds;
+// Injected wherever time matters, so tests drive leases with a fake clock.
+using NowFn = std::function<TimePoint()>;
+
+// The limits a coordinator enforces on every job (docs/farm.md "Limits"):
+// the defaults of its flags, and the most the flags allow.
+inline constexpr int kMaxFramesPerJob = 100000;
+inline constexpr int64_t kMaxBandsPerJob = 1000000;
+
+struct Limits {
+  int max_resolution = kMaxResolution;  // pixels per side (--max-resolution)
+  int max_objects = 100000;             // objects in a scene (--max-objects)
+  int max_frames = kMaxFramesPerJob;    // frames per job (--max-frames)
+  int64_t max_bands = kMaxBandsPerJob;  // frames x bands per job (--max-bands)
+  int max_jobs = 1000;                  // jobs queued or running at once (--max-jobs)
+};
+// gRPC's message size limit, set explicitly on every server and channel; a
+// band's pixels must fit in one message with room to spare.
+inline constexpr int kMaxMessageBytes = 64 << 20;
+inline constexpr int64_t kMaxBandBytes = 48 << 20;
+
+// How every pixel is computed; the names are those of the CLI flags.
+// `--aa` of `locus render` and of jobs that do not say: multi-scanning
+// with 4 sub-scanlines per pixel row (issue #6).
+inline constexpr int kDefaultAa = 4;
+
+// Defaults are those of `locus render`: configuration IV.
+struct RenderSettings {
+  std::string method = "local";
+  std::string boxes = "eye+shadow";
+  int spp = 1;
+  // local only: sub-scanlines per pixel row, 0 = point sampling; -1: the
+  // method's default (kDefaultAa for local).
+  int aa = -1;
+  double tess_tol = kDefaultTessTol;  // pixels (--tess-tol)
+};
+
+// Checks the names and ranges; the thread count is the worker's own.
+Result<RenderParams> to_render_params(const RenderSettings& settings, int threads);
+RenderSettings from_render_params(const RenderParams& params);
+
+enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
+const char* job_state_name(JobState state);
+inline bool is_terminal(JobState s) {
+  return s == JobState::kSucceeded || s == JobState::kFailed || s == JobState::kCancelled;
+}
+
+// A validated job as the scheduler sees it. The scene itself lives in the
+// coordinator's scene store under `scene_hash`.
+struct JobSpec {
+  std::string scene_hash;
+  std::string scene_name;
+  RenderSettings render;
+  int width = 0;
+  int height = 0;
+  int frame_first = 1;
+  int frame_last = 1;
+  int bands = 1;       // per frame, 1..height
+  std::string output;  // file-name pattern, e.g. "shot_####.png"
+  double orbit_degrees = 0;
+  // Row edges of the bands, bands + 1 of them from 0 to height, when the
+  // coordinator split by predicted cost (common/farm/band_split.h); empty:
+  // equal heights (band_rows(height, bands, i)).
+  std::vector<int> band_edges;
+
+  int frames() const { return frame_last - frame_first + 1; }
+  int64_t bands_total() const { return static_cast<int64_t>(frames()) * bands; }
+};
+
+// Rows of band `index` when `height` rows are cut into `bands` bands: as
+// equal as integers allow, every row in exactly one band.
+Band band_rows(int height, int bands, int index);
+// Rows of band `index` of a job: its band_edges if it has them.
+Band band_rows(const JobSpec& spec, int index);
+// Rows of band `index` cut at `edges` (bands + 1 of them), or of equal
+// heights if `edges` is empty.
+Band band_rows(int height, int bands, const std::vector<int>& edges, int index);
+// band_edges as text ("0 12 30 ... 512") and back; from_text checks that
+// there are bands + 1 strictly increasing edges from 0 to height, and
+// returns an empty vector (equal split) for empty text.
+std::string band_edges_text(const std::vector<int>& edges);
+Result<std::vector<int>> band_edges_from_text(const std::string& text, int height, int bands);
+
+// The default split when a job does not give --bands: enough bands to keep
+// every worker busy with several each, fewer per frame when the frames
+// themselves give the parallelism, and at least enough that every band fits
+// in one message.
+int default_bands(int width, int height, int frames, int workers);
+// The fewest bands whose pixels each fit in kMaxBandBytes.
+int min_bands(int width, int height);
+
+// A band leased to a worker: everything a stateless worker needs but the
+// scene, which it fetches once per hash.
+struct BandTask {
+  std::string lease_id;
+  Millis lease_remaining{0};
+  std::string job_id;
+  std::string scene_hash;
+  int frame = 0;
+  int band = 0;
+  int y0 = 0;
+  int y1 = 0;
+  int width = 0;
+  int height = 0;
+  RenderSettings render;
+  double orbit_degrees = 0;
+  int frame_first = 0;
+  int frame_last = 0;
+};
+
+// What a worker returns for a band: its pixels (linear RGB floats, rows
+// y0..y1-1) or the error that prevented them.
+struct BandOutput {
+  std::string worker_id;
+  std::string lease_id;
+  std::vector<float> rgb;
+  Stats stats;
+  std::string error;
+  bool handed_back = false;  // the worker is stopping and gives the band back unrendered
+};
+
+struct JobInfo {
+  std::string job_id;
+  JobState state = JobState::kQueued;
+  JobSpec spec;
+  int64_t bands_done = 0;
+  int frames_done = 0;  // stitched and written
+  std::vector<int> frames_written;
+  std::string error;
+  double seconds_elapsed = 0;
+  Stats stats;
+  int64_t results_discarded = 0;   // results that lost a race to another lease of their band
+  int64_t speculative_leases = 0;  // second leases of bands running far longer than their peers
+  std::vector<std::string> quarantined;  // worker names that get no more bands of this job
+};
+
+struct WorkerInfo {
+  std::string worker_id;
+  std::string name;
+  int threads = 1;
+  bool busy = false;
+  std::string job_id;  // of the band in hand
+  int frame = 0;
+  int band = 0;
+  int64_t bands_done = 0;
+  double seconds_since_seen = 0;
+};
+
+// A frame whose bands are all in their band files, ready to be stitched
+// and written (server/band_files.h).
+struct FrameReady {
+  std::string job_id;
+  int frame = 0;
+  std::string file_name;
+  int width = 0;
+  int height = 0;
+  int bands = 0;
+  std::vector<int> band_edges;  // as JobSpec::band_edges
+};
+
+// The state of the farm at one moment (Scheduler::counts()), for the
+// metrics' gauges.
+struct FarmCounts {
+  int64_t bands_queued = 0;       // waiting for a worker
+  int64_t bands_running = 0;      // under a lease (a speculated band counts once)
+  int64_t bands_done = 0;         // of the jobs the coordinator holds
+  std::array<int64_t, 5> jobs{};  // by JobState
+  int64_t workers = 0;            // registered and not dropped
+};
+
+// A submission as the client sends it, before validation.
+struct SubmitRequest {
+  v1::Scene scene;
+  std::string scene_name;
+  RenderSettings render;
+  int width = 0;  // 0: the scene camera's
+  int height = 0;
+  int frame_first = 1;
+  int frame_last = 1;
+  int bands = 0;  // 0: default_bands()
+  std::string output;
+  double orbit_degrees = 0;
+  // The client's token for this submission, reused on retries: a second
+  // submission with the same id returns the first one's job.
+  std::string request_id;
+};
+
+struct Registration {
+  std::string worker_id;
+  Millis heartbeat{0};
+  Millis lease{0};
+};
+
+struct FileChunk {
+  int frame = 0;
+  std::string file_name;
+  int64_t offset = 0;
+  std::string data;
+  bool last = false;
+};
+
+// Hex SHA-256: scenes are addressed by the hash of their serialized form.
+std::string content_hash(std::string_view bytes);
+
+// The frame's still scene exactly as every renderer of the farm builds it:
+// the resolution set, then scene_at_frame() with the job's orbit. The
+// in-process `locus render --workers 0` calls it too.
+Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
+                  int frame_last, double orbit_degrees);
+
+
+}  // namespace locus::farm

@@ -1,0 +1,70 @@
+#include "common/prepare/prepared.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "common/prepare/scan_scene.h"
+#include "common/prepare/shadow_volume.h"
+#include "common/prepare/tessellate.h"
+
+namespace locus {
+
+CameraFrame::CameraFrame(const Camera& c)
+    : from(c.from),
+      tan_half(std::tan(glm::radians(c.angle) * 0.5)),
+      aspect(static_cast<double>(c.width) / c.height),
+      hither(c.hither),
+      width(c.width),
+      height(c.height) {
+  w = glm::normalize(c.at - c.from);
+  u = glm::normalize(glm::cross(w, c.up));
+  v = glm::cross(u, w);
+}
+
+namespace {
+// Free-form surfaces become triangles first (METHOD.md §3): everything after
+// this sees a mesh.
+Scene tessellated(const Scene& s, const RenderParams& params, double* seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  Scene out = tessellate_scene(s, params.tess_tol);
+  *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+}  // namespace
+
+PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
+    : scene(tessellated(s, params, &seconds_tessellate)),
+      camera(scene.camera),
+      prims(build_primitives(scene)) {
+  bvh_for_rays = params.boxes != Boxes::kNone;
+  bvh_for_shadows = params.boxes == Boxes::kEyeShadow;
+  if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
+  for (int j = 0; j < static_cast<int>(s.lights.size()); ++j) emission.push_back(light_emission(s, j));
+  ambient = ambient_intensity(s);
+  // Secondary rays start this far off the surface: relative to the scene's
+  // size, far above double rounding, far below any feature of SPD scenes.
+  Aabb world;
+  for (const Aabb& b : prims.bounds) world.extend(b);
+  double scale = 1.0;
+  if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+  eps = 1e-9 * std::min(scale, 1e7) * 100.0;
+  if (params.method == Method::kLocal) scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
+  // The scanline pass finds the shadows of its spans with shadow volumes
+  // (paper §3.2 step 2) in configurations II-IV; IV also searches the
+  // boxes' volumes for points reached by secondary rays (paper §4.1).
+  if (params.method == Method::kLocal) {
+    volumes = std::make_shared<const ShadowVolumes>(build_shadow_volumes(*this, bvh_for_shadows));
+  }
+}
+
+Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
+                                                           const RenderParams& params) {
+  if (Status s = check_render_params(params); !s.ok()) return s;
+  if (scene.camera.width < 1 || scene.camera.height < 1) {
+    return InvalidArgument("image size must be positive");
+  }
+  return std::shared_ptr<const PreparedScene>(std::make_shared<PreparedScene>(scene, params));
+}
+
+}  // namespace locus

@@ -1,0 +1,58 @@
+// PreparedScene: everything derived from a scene before its rows are
+// rendered. Built once per frame, shared read-only by threads and bands.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "common/base/params.h"
+#include "common/geometry/bvh.h"
+#include "common/geometry/geometry.h"
+#include "common/prepare/scan_scene.h"
+#include "common/scene/scene.h"
+
+namespace locus {
+
+struct ShadowVolumes;  // common/prepare/shadow_volume.h
+
+// SHADING.md "Camera and pixels".
+struct CameraFrame {
+  Vec3 from, u, v, w;
+  double tan_half = 0, aspect = 1, hither = 0;
+  int width = 0, height = 0;
+
+  explicit CameraFrame(const Camera& c);
+  // Unit direction of the point sample at image coordinates (x, y).
+  Vec3 direction(double x, double y) const {
+    return glm::normalize(w + (2.0 * x / width - 1.0) * tan_half * aspect * u +
+                          (1.0 - 2.0 * y / height) * tan_half * v);
+  }
+};
+
+class PreparedScene {
+ public:
+  PreparedScene(const Scene& s, const RenderParams& params);
+
+  double seconds_tessellate = 0;  // set first: the scene below is tessellated
+  Scene scene;                    // Bezier surfaces already cut into meshes
+  CameraFrame camera;
+  PrimitiveSet prims;
+  Bvh bvh;
+  bool bvh_for_rays = true;     // eye, reflected and refracted rays
+  bool bvh_for_shadows = true;  // shadow rays
+  std::vector<Color> emission;  // per light, resolved
+  double ambient = 0;
+  double eps = 1e-9;            // offset of secondary ray origins
+  std::unique_ptr<ScanScene> scan;  // the local method's faces (--method local)
+  // Configuration IV (--method local --boxes eye+shadow): shadow volumes
+  // replace shadow rays (paper §4.1).
+  std::shared_ptr<const ShadowVolumes> volumes;
+};
+
+// The paper's §3 steps ii-iii for one frame: tessellation, primitives and
+// their hierarchy of boxes, the scan scene and the shadow volumes. Checks
+// `params` first (check_render_params) and the image size.
+Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
+                                                           const RenderParams& params);
+
+}  // namespace locus

@@ -1,0 +1,168 @@
+#include "common/prepare/scan_scene.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/prepare/bounding.h"
+#include "common/prepare/prepared.h"
+
+namespace locus {
+namespace {
+
+struct Projector {
+  const CameraFrame& cam;
+  double z_near;
+
+  double depth(const Vec3& p) const { return glm::dot(p - cam.from, cam.w); }
+  // Image coordinates of a point in front of the eye (SHADING.md camera,
+  // inverted): x right, y down, in pixels.
+  Vec2 project(const Vec3& p) const {
+    const Vec3 q = p - cam.from;
+    const double zc = glm::dot(q, cam.w);
+    return Vec2(0.5 * cam.width * (1.0 + glm::dot(q, cam.u) / (zc * cam.tan_half * cam.aspect)),
+                0.5 * cam.height * (1.0 - glm::dot(q, cam.v) / (zc * cam.tan_half)));
+  }
+};
+
+// Sutherland-Hodgman against the near plane depth >= z_near. Sets *clipped
+// when any part of the outline lay behind it.
+std::vector<Vec3> clip_near(const std::vector<Vec3>& poly, const Projector& pr, bool* clipped) {
+  std::vector<Vec3> out;
+  const size_t n = poly.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3& a = poly[i];
+    const Vec3& b = poly[(i + 1) % n];
+    const double da = pr.depth(a) - pr.z_near, db = pr.depth(b) - pr.z_near;
+    if (da >= 0) out.push_back(a);
+    if ((da >= 0) != (db >= 0)) {
+      out.push_back(a + (da / (da - db)) * (b - a));
+    }
+    if (da < 0) *clipped = true;
+  }
+  return out;
+}
+
+Vec3 plane_normal(const std::vector<Vec3>& pts) {
+  Vec3 n(0.0);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec3& a = pts[i];
+    const Vec3& b = pts[(i + 1) % pts.size()];
+    n += glm::cross(a, b);
+  }
+  const double len = glm::length(n);
+  return len > 0 ? n / len : Vec3(0.0);
+}
+
+}  // namespace
+
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
+  ScanScene scan;
+  const CameraFrame& cam = ps.camera;
+  // Anything nearer than the near plane is clipped away; the near plane is
+  // far in front of hither's sphere so nothing visible is lost (pixels whose
+  // surface lies within hither are traced instead, see local_rows).
+  const double z_near = std::max(1e-12, 1e-6 * std::max(cam.hither, ps.eps));
+  const Projector pr{cam, z_near};
+  const PrimitiveSet& set = ps.prims;
+
+  auto add_face = [&](const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
+                      bool curved, bool back = false) {
+    bool clipped = false;
+    const std::vector<Vec3> kept = clip_near(outline, pr, &clipped);
+    if (curved && clipped) scan.trace_everything = true;
+    if (back || kept.size() < 3) return;
+    ScanFace f;
+    f.normal = normal;
+    f.offset = offset;
+    f.prim = prim;
+    f.curved = curved;
+    if (!curved && cam.hither > 0) {
+      // Conservative: the plane passes within hither of the eye and the
+      // face's bounding sphere reaches into hither's sphere.
+      Vec3 c(0.0);
+      for (const Vec3& p : kept) c += p;
+      c /= static_cast<double>(kept.size());
+      double r = 0;
+      for (const Vec3& p : kept) r = std::max(r, glm::length(p - c));
+      f.near_hither = std::abs(glm::dot(normal, cam.from) - offset) < cam.hither &&
+                      glm::length(c - cam.from) - r < cam.hither;
+    }
+    f.ymin = 1e300;
+    f.ymax = -1e300;
+    for (const Vec3& p : kept) {
+      f.outline.push_back(pr.project(p));
+      f.ymin = std::min(f.ymin, f.outline.back().y);
+      f.ymax = std::max(f.ymax, f.outline.back().y);
+    }
+    if (!(f.ymax > f.ymin)) return;  // edge-on in y: crosses no sample line
+    scan.faces.push_back(std::move(f));
+  };
+
+  // Bounding polyhedra are per object; a CSG or quadric object is one prim.
+  for (int i = 0; i < static_cast<int>(set.prims.size()); ++i) {
+    const PrimRef& ref = set.prims[i];
+    switch (ref.kind) {
+      case PrimKind::kPolygon: {
+        const PolygonPrim& p = set.polygons[ref.index];
+        add_face(polygon_outline(p), p.normal, p.offset, i, false);
+        break;
+      }
+      case PrimKind::kTriangle: {
+        const TrianglePrim& t = set.triangles[ref.index];
+        add_face({t.p0, t.p0 + t.e1, t.p0 + t.e2}, t.normal, glm::dot(t.normal, t.p0), i, false);
+        break;
+      }
+      case PrimKind::kConvex: {
+        const ConvexPrim& c = set.convexes[ref.index];
+        for (size_t k = 0; k < c.faces.size(); ++k) add_face(c.faces[k], c.normals[k], c.offsets[k], i, false);
+        break;
+      }
+      case PrimKind::kSphere:
+      case PrimKind::kCone:
+      case PrimKind::kCsg: {
+        for (const Polyhedron& poly : bounding_polyhedra(ps.scene, ref.object)) {
+          // The eye inside the polyhedron: the body may be anywhere along
+          // every eye ray.
+          bool eye_inside = true;
+          for (const auto& face : poly.faces) {
+            std::vector<Vec3> pts;
+            for (int v : face) pts.push_back(poly.vertices[v]);
+            const Vec3 n = plane_normal(pts);
+            const bool front = glm::dot(n, cam.from - pts[0]) > 0;
+            if (front) eye_inside = false;
+            // A face turned away from the eye lies behind the polyhedron's
+            // front faces, whose outlines cover the body's: it is only
+            // checked against the near plane.
+            add_face(pts, n, glm::dot(n, pts[0]), i, true, !front);
+          }
+          if (eye_inside) scan.trace_everything = true;
+        }
+        break;
+      }
+    }
+  }
+
+  scan.any_near_hither = std::any_of(scan.faces.begin(), scan.faces.end(),
+                                     [](const ScanFace& f) { return f.near_hither; });
+  // Rows whose sample line y = j + 0.5 lies in [ymin, ymax).
+  scan.rows.assign(cam.height, {});
+  for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
+    const ScanFace& face = scan.faces[f];
+    const double lo = std::ceil(face.ymin - 0.5), hi = std::ceil(face.ymax - 0.5);
+    const int j0 = static_cast<int>(std::max(0.0, lo));
+    const int j1 = static_cast<int>(std::min<double>(cam.height, hi));
+    for (int j = j0; j < j1; ++j) scan.rows[j].push_back(f);
+  }
+  if (multiscan) {
+    scan.cover.assign(cam.height, {});
+    for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
+      const ScanFace& face = scan.faces[f];
+      const int j0 = static_cast<int>(std::max(0.0, std::floor(face.ymin) - 1));
+      const int j1 = static_cast<int>(std::min<double>(cam.height, std::ceil(face.ymax) + 1));
+      for (int j = j0; j < j1; ++j) scan.cover[j].push_back(f);
+    }
+  }
+  return scan;
+}
+
+}  // namespace locus

@@ -1,0 +1,48 @@
+// The faces the scanline pass scans (paper §3.1; METHOD.md §4): every
+// polygon, polyhedron face, mesh triangle, and face of a curved body's
+// bounding polyhedron, projected once per frame and bucketed by the rows it
+// crosses. Built here, with the rest of the frame's preparation; scanned by
+// common/scan/scanline.h.
+#pragma once
+
+#include <vector>
+
+#include "common/base/math.h"
+
+namespace locus {
+
+class PreparedScene;
+
+// A face as the scanline pass sees it: its plane (world space) for depth,
+// and its outline projected to image coordinates (x right, y down, pixels).
+struct ScanFace {
+  Vec3 normal;          // plane: dot(normal, p) = offset
+  double offset = 0;
+  int prim = -1;        // index into PrimitiveSet::prims (the surface it belongs to)
+  bool curved = false;  // a face of a curved body's bounding polyhedron
+  // Part of the face lies within hither's sphere, so it is cut by a curved
+  // edge no scanline computation sees: its pixels are traced like a curved
+  // body's.
+  bool near_hither = false;
+  std::vector<Vec2> outline;  // projected, after clipping at the near plane
+  double ymin = 0, ymax = 0;
+};
+
+// Faces of a scene, bucketed by the rows whose sample lines they cross. Built
+// once per frame; rows are then independent of each other, so a band that
+// starts at any row computes exactly what an unbanded render does.
+struct ScanScene {
+  std::vector<ScanFace> faces;
+  std::vector<std::vector<int>> rows;  // rows[j]: faces crossing y = j + 0.5
+  // Multi-scanning only: cover[j]: faces meeting some y in [j, j + 1].
+  std::vector<std::vector<int>> cover;
+  // A curved body's bounding polyhedron contains the eye or is cut by the
+  // near plane: its span is the whole screen, every pixel is traced.
+  bool trace_everything = false;
+  // Some face reaches into hither's sphere (ScanFace::near_hither).
+  bool any_near_hither = false;
+};
+
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan);
+
+}  // namespace locus

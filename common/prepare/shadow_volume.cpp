@@ -1,0 +1,768 @@
+// Building the shadow volumes, the boxes' volumes and the candidate lists
+// (paper §4.1; docs/shadow-volumes.md). Their search at single points is in
+// shadow_search.cpp, on scanline spans in span_shadows.cpp.
+#include "common/prepare/shadow_volume.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <optional>
+
+#include "common/prepare/bounding.h"
+#include "common/prepare/prepared.h"
+#include "common/scene/polyhedron.h"
+
+namespace locus {
+namespace {
+
+bool lex_less(const Vec3& a, const Vec3& b) {
+  if (a.x != b.x) return a.x < b.x;
+  if (a.y != b.y) return a.y < b.y;
+  return a.z < b.z;
+}
+
+// The plane through the light and the edge {a, b}, with `inner` on its
+// inner side. It is computed from the edge's ends in a fixed order, so two
+// pieces of a polygon sharing an edge get planes that are exact negations
+// of each other: a point is never outside both. False when degenerate (the
+// light on the edge's line, or `inner` on the plane).
+bool side_plane(const Vec3& light, Vec3 a, Vec3 b, const Vec3& inner, HalfSpace* out) {
+  if (lex_less(b, a)) std::swap(a, b);
+  Vec3 m = glm::cross(b - a, light - a);
+  const double len = glm::length(m);
+  if (!(len > 0)) return false;
+  m /= len;
+  double h = glm::dot(m, a);
+  const double side = glm::dot(m, inner) - h;
+  if (!(side != 0)) return false;
+  if (side > 0) m = -m, h = -h;
+  *out = HalfSpace{m, h};
+  return true;
+}
+
+Vec3 centroid(const std::vector<Vec3>& pts) {
+  Vec3 c(0.0);
+  for (const Vec3& p : pts) c += p;
+  return c / static_cast<double>(std::max<size_t>(1, pts.size()));
+}
+
+// A planar outline in 2D: its points on the two axes that drop the
+// normal's dominant one (orientation kept or mirrored, never degenerate).
+std::vector<Vec2> outline_2d(const std::vector<Vec3>& verts, const Vec3& n) {
+  const Vec3 an = glm::abs(n);
+  const int drop = an.x > an.y ? (an.x > an.z ? 0 : 2) : (an.y > an.z ? 1 : 2);
+  const int u = (drop + 1) % 3, w = (drop + 2) % 3;
+  std::vector<Vec2> pts;
+  for (const Vec3& p : verts) pts.emplace_back(p[u], p[w]);
+  return pts;
+}
+
+// Twice the signed area of a 2D outline (> 0 counter-clockwise).
+double twice_area(const std::vector<Vec2>& pts) {
+  double area = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec2& a = pts[i];
+    const Vec2& b = pts[(i + 1) % pts.size()];
+    area += a.x * b.y - a.y * b.x;
+  }
+  return area;
+}
+
+// A polyhedron as outlines with outward planes.
+struct Outlines {
+  std::vector<std::vector<Vec3>> faces;
+  std::vector<HalfSpace> planes;
+};
+
+Outlines outlines_of(const Polyhedron& p) {
+  Outlines o;
+  const Vec3 c = centroid(p.vertices);
+  for (const auto& face : p.faces) {
+    std::vector<Vec3> pts;
+    for (int v : face) pts.push_back(p.vertices[v]);
+    Vec3 n = newell_normal(pts);
+    const Vec3 fc = centroid(pts);
+    if (glm::dot(n, fc - c) < 0) n = -n;
+    o.planes.push_back(HalfSpace{n, glm::dot(n, fc)});
+    o.faces.push_back(std::move(pts));
+  }
+  return o;
+}
+
+// Do two edges that share no vertex meet (touch or cross)?
+bool edges_meet(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
+  auto orient = [](const Vec2& p, const Vec2& q, const Vec2& r) {
+    const double v = (q.x - p.x) * (r.y - p.y) - (q.y - p.y) * (r.x - p.x);
+    return (v > 0) - (v < 0);
+  };
+  auto on = [](const Vec2& p, const Vec2& q, const Vec2& r) {  // r on segment pq, collinear
+    return std::min(p.x, q.x) <= r.x && r.x <= std::max(p.x, q.x) && std::min(p.y, q.y) <= r.y &&
+           r.y <= std::max(p.y, q.y);
+  };
+  const int o1 = orient(a, b, c), o2 = orient(a, b, d), o3 = orient(c, d, a), o4 = orient(c, d, b);
+  if (o1 != o2 && o3 != o4) return true;
+  return (o1 == 0 && on(a, b, c)) || (o2 == 0 && on(a, b, d)) || (o3 == 0 && on(c, d, a)) ||
+         (o4 == 0 && on(c, d, b));
+}
+
+// Ear clipping of a simple polygon given in 2D (any orientation). Appends
+// index triples to `tris`; false if the outline is not simple.
+bool ear_clip(const std::vector<Vec2>& pts, std::vector<std::array<int, 3>>& tris) {
+  const size_t m = pts.size();
+  for (size_t i = 0; i < m; ++i) {
+    for (size_t j = i + 2; j < m; ++j) {
+      if (i == 0 && j == m - 1) continue;  // neighbours through the closing edge
+      if (edges_meet(pts[i], pts[i + 1], pts[j], pts[(j + 1) % m])) return false;
+    }
+  }
+  std::vector<int> idx(pts.size());
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
+  const double area = twice_area(pts);
+  if (area == 0) return false;
+  const double orient = area > 0 ? 1.0 : -1.0;
+  auto cross = [&](int i, int j, int k) {
+    const Vec2 u = pts[j] - pts[i], v = pts[k] - pts[j];
+    return orient * (u.x * v.y - u.y * v.x);
+  };
+  // p inside or on the triangle (a, b, c) wound positively.
+  auto in_triangle = [&](const Vec2& p, int a, int b, int c) {
+    auto side = [&](int i, int j) {
+      const Vec2 u = pts[j] - pts[i], v = p - pts[i];
+      return orient * (u.x * v.y - u.y * v.x);
+    };
+    return side(a, b) >= 0 && side(b, c) >= 0 && side(c, a) >= 0;
+  };
+  while (idx.size() > 3) {
+    const int n = static_cast<int>(idx.size());
+    bool cut = false;
+    for (int k = 0; k < n && !cut; ++k) {
+      const int a = idx[(k + n - 1) % n], b = idx[k], c = idx[(k + 1) % n];
+      const double turn = cross(a, b, c);
+      if (turn == 0) {
+        // b on the line through its neighbours: between them it is a
+        // redundant vertex; a spike means the outline is not simple.
+        if (glm::dot(pts[a] - pts[b], pts[c] - pts[b]) >= 0) return false;
+        idx.erase(idx.begin() + k);
+        cut = true;
+        break;
+      }
+      if (turn < 0) continue;  // reflex corner
+      bool ear = true;
+      for (int j = 0; j < n && ear; ++j) {
+        const int v = idx[j];
+        if (v == a || v == b || v == c) continue;
+        if (in_triangle(pts[v], a, b, c)) ear = false;
+      }
+      if (!ear) continue;
+      tris.push_back({a, b, c});
+      idx.erase(idx.begin() + k);
+      cut = true;
+    }
+    if (!cut) return false;
+  }
+  if (idx.size() == 3 && cross(idx[0], idx[1], idx[2]) > 0)
+    tris.push_back({idx[0], idx[1], idx[2]});
+  return true;
+}
+
+// Is the outline (2D) convex and simple? Collinear and repeated vertices
+// are allowed.
+bool is_convex(const std::vector<Vec2>& pts) {
+  std::vector<Vec2> edges;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec2 e = pts[(i + 1) % pts.size()] - pts[i];
+    if (e != Vec2(0.0)) edges.push_back(e);
+  }
+  int sign = 0;
+  double turning = 0;
+  for (size_t i = 0; i < edges.size(); ++i) {
+    const Vec2& a = edges[i];
+    const Vec2& b = edges[(i + 1) % edges.size()];
+    const double c = a.x * b.y - a.y * b.x;
+    const int s = (c > 0) - (c < 0);
+    if (s != 0) {
+      if (sign != 0 && s != sign) return false;
+      sign = s;
+    }
+    turning += std::atan2(c, glm::dot(a, b));
+  }
+  // A star polygon turns the same way at every corner but winds twice.
+  return sign != 0 && std::abs(turning) < 2.0 * std::numbers::pi + 1e-6;
+}
+
+// Appends the volume of a convex planar piece: the cap (the plane, on the
+// far side from the light) and the planes through the light and each edge.
+void add_piece(VolumeSet& out, const std::vector<Vec3>& pts, const HalfSpace& cap,
+               const Vec3& light) {
+  ShadowVolume v{VolumeKind::kConvex, static_cast<int>(out.planes.size()), 0};
+  out.planes.push_back(cap);
+  const Vec3 inner = centroid(pts);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    HalfSpace s;
+    if (side_plane(light, pts[i], pts[(i + 1) % pts.size()], inner, &s)) out.planes.push_back(s);
+  }
+  v.count = static_cast<int>(out.planes.size()) - v.first;
+  out.volumes.push_back(v);
+}
+
+// The (conservative) test of a volume against a point set: true when no
+// point of `pts` can be in volume `v` even with `slack`.
+bool separated(const VolumeSet& set, int v, const std::vector<Vec3>& pts, double slack) {
+  const ShadowVolume& vol = set.volumes[v];
+  switch (vol.kind) {
+    case VolumeKind::kEverywhere:
+      return false;
+    case VolumeKind::kConvex:
+      for (int i = vol.first; i < vol.first + vol.count; ++i) {
+        const HalfSpace& p = set.planes[i];
+        bool all_out = true;
+        for (const Vec3& x : pts) {
+          if (!(glm::dot(p.m, x) - p.h > slack)) {
+            all_out = false;
+            break;
+          }
+        }
+        if (all_out) return true;
+      }
+      return false;
+    case VolumeKind::kOutside:
+      // Every point strictly inside the occluder: none is shadowed by it.
+      for (const Vec3& x : pts) {
+        for (int i = vol.first; i < vol.first + vol.count; ++i) {
+          if (!(glm::dot(set.planes[i].m, x) - set.planes[i].h < -slack)) return false;
+        }
+      }
+      return true;
+  }
+  return false;
+}
+
+// The outline of a flat primitive (polygon, triangle) as the ray tracer
+// hits it.
+std::vector<Vec3> flat_outline(const PreparedScene& ps, int prim) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  if (ref.kind == PrimKind::kPolygon) return polygon_outline(ps.prims.polygons[ref.index]);
+  const TrianglePrim& t = ps.prims.triangles[ref.index];
+  return {t.p0, t.p0 + t.e1, t.p0 + t.e2};
+}
+
+// The plane of a flat primitive (polygon, triangle); false for others.
+bool flat_plane(const PreparedScene& ps, int prim, HalfSpace* out) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  if (ref.kind == PrimKind::kPolygon) {
+    const PolygonPrim& p = ps.prims.polygons[ref.index];
+    *out = HalfSpace{p.normal, p.offset};
+    return true;
+  }
+  if (ref.kind == PrimKind::kTriangle) {
+    const TrianglePrim& t = ps.prims.triangles[ref.index];
+    *out = HalfSpace{t.normal, glm::dot(t.normal, t.p0)};
+    return true;
+  }
+  return false;
+}
+
+// The points that bound a primitive: every point of it lies in their hull.
+// Curved bodies and CSG: the vertices of their bounding polyhedra.
+std::vector<Vec3> hull_points(const PreparedScene& ps, int prim,
+                              const std::vector<Outlines>& leaves) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  std::vector<Vec3> pts;
+  switch (ref.kind) {
+    case PrimKind::kPolygon:
+    case PrimKind::kTriangle:
+      pts = flat_outline(ps, prim);
+      break;
+    case PrimKind::kConvex:
+      for (const auto& f : ps.prims.convexes[ref.index].faces)
+        pts.insert(pts.end(), f.begin(), f.end());
+      break;
+    default:
+      for (const Outlines& o : leaves) {
+        for (const auto& f : o.faces) pts.insert(pts.end(), f.begin(), f.end());
+      }
+      break;
+  }
+  return pts;
+}
+
+// The volume of the convex hull of a planar outline (plane `plane`).
+int add_hull_volume(VolumeSet& out, const std::vector<Vec3>& verts, const HalfSpace& plane,
+                    const Vec3& light) {
+  // Andrew's monotone chain on the 2D outline.
+  const std::vector<Vec2> p2 = outline_2d(verts, plane.m);
+  std::vector<int> idx(verts.size());
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) {
+    return p2[a].x != p2[b].x ? p2[a].x < p2[b].x : p2[a].y < p2[b].y;
+  });
+  auto turn = [&](int o, int a, int b) {
+    const Vec2 e = p2[a] - p2[o], f = p2[b] - p2[o];
+    return e.x * f.y - e.y * f.x;
+  };
+  std::vector<int> hull(2 * idx.size());
+  size_t k = 0;
+  for (size_t i = 0; i < idx.size(); ++i) {
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], idx[i]) <= 0) --k;
+    hull[k++] = idx[i];
+  }
+  for (size_t i = idx.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && turn(hull[k - 2], hull[k - 1], idx[i - 1]) <= 0) --k;
+    hull[k++] = idx[i - 1];
+  }
+  hull.resize(k > 0 ? k - 1 : 0);
+  const double s = glm::dot(plane.m, light) - plane.h;
+  if (hull.size() < 3 || s == 0) {
+    out.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
+    return static_cast<int>(out.volumes.size()) - 1;
+  }
+  std::vector<Vec3> pts;
+  for (int i : hull) pts.push_back(verts[i]);
+  add_piece(out, pts, s > 0 ? plane : HalfSpace{-plane.m, -plane.h}, light);
+  return static_cast<int>(out.volumes.size()) - 1;
+}
+
+void add_occluder(const PreparedScene& ps, int prim, const std::vector<Outlines>& leaves,
+                  const std::optional<ConvexPieces>& pieces, LightVolumes& lv) {
+  const PrimRef& ref = ps.prims.prims[prim];
+  const Vec3& light = lv.position;
+  LightVolumes::Occluder oc;
+  oc.first = static_cast<int>(lv.set.volumes.size());
+  switch (ref.kind) {
+    case PrimKind::kPolygon:
+    case PrimKind::kTriangle: {
+      HalfSpace plane;
+      flat_plane(ps, prim, &plane);
+      const std::vector<Vec3> verts = flat_outline(ps, prim);
+      oc.decides = is_opaque(ps, prim);
+      if (glm::dot(plane.m, light) == plane.h) break;  // edge-on to the light: no shadow
+      if (!pieces) {
+        // Not simple, so not cut: the hull's volume, then the exact test.
+        oc.decides = false;
+        add_hull_volume(lv.set, verts, plane, light);
+        break;
+      }
+      if (!oc.decides && pieces->size() > 1) {
+        // Transparent: the exact crossings decide anyway (eqs. (2), (3)),
+        // the hull's volume is enough to find the candidates.
+        add_hull_volume(lv.set, verts, plane, light);
+        break;
+      }
+      add_pieces_volumes(lv.set, verts, *pieces, plane.m, plane.h, light);
+      if (pieces->size() > 1) {
+        // A concave polygon's pieces: the volume of its convex hull bounds
+        // them all, and is tested first.
+        oc.count = static_cast<int>(lv.set.volumes.size()) - oc.first;
+        oc.bound = add_hull_volume(lv.set, verts, plane, light);
+        lv.occluders.push_back(oc);
+        return;
+      }
+      break;
+    }
+    case PrimKind::kConvex: {
+      const ConvexPrim& c = ps.prims.convexes[ref.index];
+      std::vector<HalfSpace> planes;
+      for (size_t k = 0; k < c.normals.size(); ++k)
+        planes.push_back(HalfSpace{c.normals[k], c.offsets[k]});
+      oc.decides = is_opaque(ps, prim);
+      add_polyhedron_volume(lv.set, c.faces, planes, light, oc.decides);
+      break;
+    }
+    default: {
+      // Curved bodies and CSG: their bounding polyhedra's volumes, then an
+      // exact test (paper §4.1).
+      oc.decides = false;
+      for (const Outlines& o : leaves)
+        add_polyhedron_volume(lv.set, o.faces, o.planes, light, false);
+      break;
+    }
+  }
+  oc.count = static_cast<int>(lv.set.volumes.size()) - oc.first;
+  lv.occluders.push_back(oc);
+}
+
+}  // namespace
+
+bool VolumeSet::contains(int v, const Vec3& p, double slack) const {
+  const ShadowVolume& vol = volumes[v];
+  switch (vol.kind) {
+    case VolumeKind::kEverywhere:
+      return true;
+    case VolumeKind::kConvex:
+      return inside_planes(vol.first, vol.count, p, slack);
+    case VolumeKind::kOutside:
+      for (int i = vol.first; i < vol.first + vol.count; ++i) {
+        if (glm::dot(planes[i].m, p) - planes[i].h > -slack) return true;
+      }
+      return false;
+  }
+  return true;
+}
+
+int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& faces,
+                          const std::vector<HalfSpace>& face_planes, const Vec3& light,
+                          bool solid) {
+  std::vector<Vec3> verts;
+  for (const auto& f : faces) verts.insert(verts.end(), f.begin(), f.end());
+  std::vector<bool> front(faces.size());
+  bool any_front = false;
+  for (size_t k = 0; k < faces.size(); ++k) {
+    front[k] = glm::dot(face_planes[k].m, light) - face_planes[k].h > 0;
+    any_front = any_front || front[k];
+  }
+  ShadowVolume v{VolumeKind::kConvex, static_cast<int>(out.planes.size()), 0};
+  if (!any_front) {
+    // The light inside (or on) the polyhedron. A ray from a point outside
+    // a solid occluder to the light crosses its surface, one from inside
+    // does not: the volume is the outside. A bounding polyhedron (the body
+    // may be anywhere inside it) gives no volume.
+    if (!solid) {
+      out.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
+      return static_cast<int>(out.volumes.size()) - 1;
+    }
+    v.kind = VolumeKind::kOutside;
+    out.planes.insert(out.planes.end(), face_planes.begin(), face_planes.end());
+  } else {
+    // Cap: the faces turned to the light; the volume lies behind all of
+    // them. Sides: the planes through the light and the silhouette edges,
+    // the edges of light-facing faces whose plane through the light leaves
+    // the whole polyhedron on one side (paper Fig. 6).
+    // Sides first: a point beside the volume (most points tested) is
+    // rejected by one of them, and the cap rejects only points between the
+    // light and the body.
+    const Vec3 inner = centroid(verts);
+    double scale = glm::length(light - inner);
+    for (const Vec3& p : verts) scale = std::max(scale, glm::length(p - inner));
+    const double tol = 1e-12 * scale;
+    for (size_t k = 0; k < faces.size(); ++k) {
+      if (!front[k]) continue;
+      const auto& f = faces[k];
+      for (size_t i = 0; i < f.size(); ++i) {
+        HalfSpace s;
+        if (!side_plane(light, f[i], f[(i + 1) % f.size()], inner, &s)) continue;
+        bool silhouette = true;
+        for (const Vec3& p : verts) {
+          if (glm::dot(s.m, p) - s.h > tol) {
+            silhouette = false;
+            break;
+          }
+        }
+        if (silhouette) out.planes.push_back(s);
+      }
+    }
+    for (size_t k = 0; k < faces.size(); ++k) {
+      if (front[k]) out.planes.push_back(face_planes[k]);
+    }
+  }
+  v.count = static_cast<int>(out.planes.size()) - v.first;
+  out.volumes.push_back(v);
+  return static_cast<int>(out.volumes.size()) - 1;
+}
+
+std::optional<ConvexPieces> convex_pieces(const std::vector<Vec3>& verts, const Vec3& n) {
+  ConvexPieces out;
+  if (verts.size() < 3) return out;
+  const std::vector<Vec2> pts = outline_2d(verts, n);
+  if (is_convex(pts)) {
+    out.emplace_back(verts.size());
+    for (size_t i = 0; i < verts.size(); ++i) out[0][i] = static_cast<int>(i);
+    return out;
+  }
+  // A concave outline (SPD gears): triangles, then merged across their
+  // diagonals while the union stays convex (Hertel-Mehlhorn), which leaves
+  // a few times fewer pieces.
+  std::vector<std::array<int, 3>> tris;
+  if (!ear_clip(pts, tris)) return std::nullopt;
+  // One pass over the diagonals (Hertel-Mehlhorn): drop each one whose two
+  // pieces make a convex union. Pieces keep the outline's orientation.
+  std::vector<std::vector<int>> piece;
+  for (const auto& t : tris) piece.push_back({t[0], t[1], t[2]});
+  std::vector<int> alive(piece.size(), 1);
+  std::map<std::pair<int, int>, int> owner;  // directed edge -> piece
+  for (size_t p = 0; p < piece.size(); ++p) {
+    for (size_t i = 0; i < 3; ++i)
+      owner[{piece[p][i], piece[p][(i + 1) % 3]}] = static_cast<int>(p);
+  }
+  const double orient = twice_area(pts) > 0 ? 1.0 : -1.0;
+  auto convex_corner = [&](int i, int j, int k) {
+    const Vec2 e = pts[j] - pts[i], f = pts[k] - pts[j];
+    return orient * (e.x * f.y - e.y * f.x) >= 0;
+  };
+  auto rotated = [](const std::vector<int>& v, int start) {
+    std::vector<int> r(v);
+    std::rotate(r.begin(), std::find(r.begin(), r.end(), start), r.end());
+    return r;
+  };
+  for (const auto& t : tris) {
+    for (int e = 0; e < 3; ++e) {
+      const int a = t[e], b = t[(e + 1) % 3];
+      const auto pa = owner.find({a, b}), pb = owner.find({b, a});
+      if (pa == owner.end() || pb == owner.end() || pa->second == pb->second) continue;
+      const int p = pa->second, q = pb->second;
+      std::vector<int> m = rotated(piece[p], b);        // b ... a
+      const std::vector<int> r = rotated(piece[q], a);  // a ... b
+      // The union is convex when its corners at a and b are.
+      if (!convex_corner(m[m.size() - 2], a, r[1]) || !convex_corner(r[r.size() - 2], b, m[1])) {
+        continue;
+      }
+      m.insert(m.end(), r.begin() + 1, r.end() - 1);
+      owner.erase({a, b});
+      owner.erase({b, a});
+      for (size_t i = 0; i < m.size(); ++i) owner[{m[i], m[(i + 1) % m.size()]}] = p;
+      piece[p] = std::move(m);
+      alive[q] = 0;
+    }
+  }
+  for (size_t p = 0; p < piece.size(); ++p) {
+    if (alive[p]) out.push_back(std::move(piece[p]));
+  }
+  return out;
+}
+
+int add_polygon_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Vec3& n, double d,
+                        const Vec3& light) {
+  const auto pieces = convex_pieces(verts, n);
+  if (!pieces) return -1;
+  return add_pieces_volumes(out, verts, *pieces, n, d, light);
+}
+
+int add_pieces_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const ConvexPieces& pieces,
+                       const Vec3& n, double d, const Vec3& light) {
+  const double s = glm::dot(n, light) - d;
+  if (s == 0) return 0;  // edge-on to the light: no shadow
+  // The cap keeps the side of the plane away from the light.
+  const HalfSpace cap = s > 0 ? HalfSpace{n, d} : HalfSpace{-n, -d};
+  std::vector<Vec3> pts;
+  for (const auto& piece : pieces) {
+    pts.clear();
+    for (int i : piece) pts.push_back(verts[i]);
+    add_piece(out, pts, cap, light);
+  }
+  return static_cast<int>(pieces.size());
+}
+
+ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
+  ShadowVolumes sv;
+  sv.search = search;
+  const PrimitiveSet& set = ps.prims;
+  const int n = static_cast<int>(set.prims.size());
+  // Bounding polyhedra of curved bodies, one per CSG leaf.
+  std::vector<std::vector<Outlines>> leaves(n);
+  for (int i = 0; i < n; ++i) {
+    const PrimKind k = set.prims[i].kind;
+    if (k != PrimKind::kSphere && k != PrimKind::kCone && k != PrimKind::kCsg) continue;
+    for (const Polyhedron& p : bounding_polyhedra(ps.scene, set.prims[i].object)) {
+      leaves[i].push_back(outlines_of(p));
+    }
+  }
+  std::vector<std::vector<Vec3>> hulls(n);
+  for (int i = 0; i < n; ++i) hulls[i] = hull_points(ps, i, leaves[i]);
+  // Convex pieces of polygons (triangles are one).
+  std::vector<std::optional<ConvexPieces>> pieces(n);
+  for (int i = 0; i < n; ++i) {
+    const PrimRef& ref = set.prims[i];
+    if (ref.kind == PrimKind::kPolygon) {
+      pieces[i] = convex_pieces(flat_outline(ps, i), set.polygons[ref.index].normal);
+    } else if (ref.kind == PrimKind::kTriangle) {
+      pieces[i] = ConvexPieces{{0, 1, 2}};
+    }
+  }
+
+  Aabb world;
+  for (const Aabb& b : set.bounds) world.extend(b);
+  double scale = 1.0;
+  if (!world.empty())
+    scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+
+  // The boxes of the shadow search: the hierarchy's, widened to the hulls
+  // (children follow their parent in ps.bvh.nodes).
+  std::vector<Aabb> node_boxes(ps.bvh.nodes.size());
+  for (int ni = static_cast<int>(ps.bvh.nodes.size()) - 1; ni >= 0; --ni) {
+    const BvhNode& node = ps.bvh.nodes[ni];
+    Aabb b = node.box;
+    if (node.count > 0) {
+      for (int k = node.first; k < node.first + node.count; ++k) {
+        for (const Vec3& x : hulls[ps.bvh.order[k]]) b.extend(x);
+      }
+    } else {
+      b.extend(node_boxes[ni + 1]);
+      b.extend(node_boxes[node.first]);
+    }
+    node_boxes[ni] = b;
+  }
+  // Receivers cut into slices (ReceiverParts): untransformed cones at
+  // least two diameters long, one slice per diameter, at most kMaxParts.
+  // Each slice's hull: squares circumscribing the larger end circle, at the
+  // slice's ends moved out by more than the shadow-ray offset (an origin
+  // eps off the surface may lie just past a slice boundary).
+  constexpr int kMaxParts = 8;
+  std::vector<std::vector<std::vector<Vec3>>> part_hulls(n);
+  if (search) {
+    sv.parts.resize(n);
+    int slots = 0;
+    for (int i = 0; i < n; ++i) {
+      const PrimRef& ref = set.prims[i];
+      if (ref.kind != PrimKind::kCone || !set.cones[ref.index].frame.identity) continue;
+      const Cone& c = set.cones[ref.index].c;
+      const Vec3 d = c.apex - c.base;
+      const double len = glm::length(d);
+      const double rmax = std::max(std::abs(c.base_radius), std::abs(c.apex_radius));
+      if (!(len > 0) || !(rmax > 0) || !std::isfinite(len)) continue;
+      const int k = std::min(kMaxParts, static_cast<int>(len / (2.0 * rmax)));
+      if (k < 2) continue;
+      ReceiverParts& rp = sv.parts[i];
+      rp.base = c.base;
+      rp.scaled_axis = d / (len * len);
+      rp.count = k;
+      rp.slot = slots;
+      slots += k;
+      const Vec3 a = d / len;
+      const Vec3 u = any_perpendicular(a), v = glm::cross(a, u);
+      const double margin = (8.0 * ps.eps + 1e-9 * (len + max_component(glm::abs(c.base)))) / len;
+      const double rho = rmax * (1.0 + 1e-9);  // the larger end's square all along
+      for (int q = 0; q < k; ++q) {
+        std::vector<Vec3> pts;
+        for (const double t : {static_cast<double>(q) / k - margin, static_cast<double>(q + 1) / k + margin}) {
+          const Vec3 centre = c.base + t * d;
+          for (const double su : {-1.0, 1.0}) {
+            for (const double sw : {-1.0, 1.0}) pts.push_back(centre + rho * (su * u + sw * v));
+          }
+        }
+        part_hulls[i].push_back(std::move(pts));
+      }
+    }
+  }
+  for (const Light& light : ps.scene.lights) {
+    LightVolumes lv;
+    lv.position = light.position;
+    // Shadow-ray origins lie ps.eps off the surface: conservative tests must
+    // reach that far, and beyond rounding.
+    lv.slack = 4.0 * ps.eps + 1e-12 * (scale + glm::length(light.position));
+    const double slack = lv.slack;
+    for (int i = 0; i < n; ++i) add_occluder(ps, i, leaves[i], pieces[i], lv);
+    if (!search) {
+      sv.lights.push_back(std::move(lv));
+      continue;
+    }
+    // The hierarchy's boxes (paper §4.1): a point outside a box's volume is
+    // shadowed by nothing in the box. Each box is widened to hold its
+    // occluders' own volumes' outlines (a curved body's bounding polyhedron
+    // reaches beyond the body's box), so a box's volume holds every volume
+    // below it and pruning by boxes never drops an interval.
+    for (const Aabb& vb : node_boxes) {
+      const Polyhedron box = make_box(vb.lo, vb.hi);
+      Outlines o;
+      for (const auto& face : box.faces) {
+        std::vector<Vec3> pts;
+        for (int v : face) pts.push_back(box.vertices[v]);
+        o.faces.push_back(std::move(pts));
+      }
+      const Vec3 lo = vb.lo, hi = vb.hi;
+      o.planes = {{Vec3(-1, 0, 0), -lo.x}, {Vec3(1, 0, 0), hi.x},   {Vec3(0, -1, 0), -lo.y},
+                  {Vec3(0, 1, 0), hi.y},   {Vec3(0, 0, -1), -lo.z}, {Vec3(0, 0, 1), hi.z}};
+      lv.node_volume.push_back(
+          add_polyhedron_volume(lv.set, o.faces, o.planes, lv.position, false));
+    }
+    // Front/back relations (paper §4.1): the occluders that can shadow each
+    // primitive. An occluder is dropped when its volume misses the
+    // primitive's hull, or when it lies wholly behind the plane of a flat
+    // primitive as seen from the light (a face cannot shadow itself).
+    // Can occluder a's volumes (its bound first) reach the hull `pts`?
+    auto reaches = [&](int a, const std::vector<Vec3>& pts) {
+      const LightVolumes::Occluder& oc = lv.occluders[a];
+      if (oc.bound >= 0 && separated(lv.set, oc.bound, pts, slack)) return false;
+      for (int v = oc.first; v < oc.first + oc.count; ++v) {
+        if (!separated(lv.set, v, pts, slack)) return true;
+      }
+      return false;
+    };
+    lv.candidate_first.assign(n + 1, 0);
+    std::vector<int> stack;
+    std::vector<int> found;
+    for (int r = 0; r < n; ++r) {
+      found.clear();
+      HalfSpace rplane;
+      const bool flat = flat_plane(ps, r, &rplane);
+      const double lside = flat ? glm::dot(rplane.m, lv.position) - rplane.h : 0.0;
+      const std::vector<Vec3>& hr = hulls[r];
+      stack.assign(1, 0);
+      while (!stack.empty() && !ps.bvh.nodes.empty()) {
+        const int ni = stack.back();
+        stack.pop_back();
+        if (separated(lv.set, lv.node_volume[ni], hr, slack)) continue;
+        const BvhNode& node = ps.bvh.nodes[ni];
+        if (node.count == 0) {
+          stack.push_back(ni + 1);
+          stack.push_back(node.first);
+          continue;
+        }
+        for (int k = node.first; k < node.first + node.count; ++k) {
+          const int a = ps.bvh.order[k];
+          if (flat && a == r) continue;
+          if (!reaches(a, hr)) continue;
+          if (flat && lside != 0) {
+            // Shadow-ray origins lie eps on the light's side of the face:
+            // an occluder nowhere more than eps / 2 in front of the plane
+            // cannot meet their segments.
+            const double sgn = lside > 0 ? 1.0 : -1.0;
+            bool in_front = false;
+            for (const Vec3& x : hulls[a]) {
+              if (sgn * (glm::dot(rplane.m, x) - rplane.h) > 0.5 * ps.eps) {
+                in_front = true;
+                break;
+              }
+            }
+            if (!in_front) continue;
+          }
+          found.push_back(a);
+        }
+      }
+      std::sort(found.begin(), found.end());
+      lv.candidates.insert(lv.candidates.end(), found.begin(), found.end());
+      lv.candidate_first[r + 1] = static_cast<int>(lv.candidates.size());
+    }
+    auto direct_of = [&](int a) {
+      LightVolumes::Direct d;
+      const LightVolumes::Occluder& oc = lv.occluders[a];
+      if (oc.bound >= 0 || oc.count != 1) return d;
+      const ShadowVolume& vol = lv.set.volumes[oc.first];
+      if (vol.kind != VolumeKind::kConvex) return d;
+      return LightVolumes::Direct{vol.first, vol.count, oc.decides};
+    };
+    lv.candidate_direct.resize(lv.candidates.size());
+    for (size_t k = 0; k < lv.candidates.size(); ++k) lv.candidate_direct[k] = direct_of(lv.candidates[k]);
+    // The slices' lists: the receiver's candidates whose volumes reach the
+    // slice's hull (the tests above, on fewer points).
+    lv.part_first.assign(1, 0);
+    for (int r = 0; r < n; ++r) {
+      for (const std::vector<Vec3>& hull : part_hulls[r]) {
+        for (int k = lv.candidate_first[r]; k < lv.candidate_first[r + 1]; ++k) {
+          const int a = lv.candidates[k];
+          if (!reaches(a, hull)) continue;
+          lv.part_candidates.push_back(a);
+          lv.part_direct.push_back(lv.candidate_direct[k]);
+        }
+        lv.part_first.push_back(static_cast<int>(lv.part_candidates.size()));
+      }
+    }
+    sv.lights.push_back(std::move(lv));
+  }
+  for (LightVolumes& lv : sv.lights) {
+    lv.set.cam.clear();
+    for (const HalfSpace& p : lv.set.planes) {
+      lv.set.cam.push_back({glm::dot(p.m, ps.camera.u), glm::dot(p.m, ps.camera.v),
+                            glm::dot(p.m, ps.camera.w), glm::dot(p.m, ps.camera.from) - p.h});
+    }
+  }
+  return sv;
+}
+
+bool is_opaque(const PreparedScene& ps, int prim) {
+  const Scene& s = ps.scene;
+  return s.materials[s.objects[ps.prims.prims[prim].object].material].t <= 0.0;
+}
+
+}  // namespace locus

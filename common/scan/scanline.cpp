@@ -1,0 +1,196 @@
+#include "common/scan/scanline.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/prepare/prepared.h"
+
+namespace locus {
+LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b) {
+  // 1/s = (nw + a nu) / num with a = (2x / width - 1) tan_half aspect.
+  const double nw = glm::dot(f.normal, cam.w) + b * glm::dot(f.normal, cam.v);
+  const double nu = glm::dot(f.normal, cam.u);
+  const double num = f.offset - glm::dot(f.normal, eye);
+  const double k = cam.tan_half * cam.aspect;
+  return LineDepth{(nw - k * nu) / num, 2.0 * k * nu / (cam.width * num)};
+}
+
+void outline_crossings(const ScanFace& f, double y, std::vector<double>& xs) {
+  xs.clear();
+  const size_t n = f.outline.size();
+  for (size_t k = 0; k < n; ++k) {
+    Vec2 p = f.outline[k], q = f.outline[(k + 1) % n];
+    if (p.y > q.y || (p.y == q.y && p.x > q.x)) std::swap(p, q);
+    if (!(p.y <= y && y < q.y)) continue;
+    xs.push_back(p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y));
+  }
+  std::sort(xs.begin(), xs.end());
+}
+
+std::optional<Crossing> hit_on_face(const PreparedScene& ps, const ScanFace& f, const Ray& ray) {
+  auto hit = intersect_nearest(ps.prims, f.prim, ray, ps.camera.hither, 1e300);
+  if (hit && !on_face(f, ray.origin, ray.dir, hit->t)) hit.reset();
+  return hit;
+}
+
+bool on_face(const ScanFace& f, const Vec3& origin, const Vec3& dir, double t) {
+  const double den = glm::dot(f.normal, dir);
+  if (den == 0) return false;
+  const double tp = (f.offset - glm::dot(f.normal, origin)) / den;
+  return std::abs(tp - t) <= 1e-7 * std::max(std::abs(tp), std::abs(t));
+}
+
+bool wins_tie(const ScanScene& scan, int fi, int fj) {
+  const ScanFace& f = scan.faces[fi];
+  const ScanFace& c = scan.faces[fj];
+  return (f.curved && !c.curved) ||
+         (f.curved == c.curved && (f.prim < c.prim || (f.prim == c.prim && fi < fj)));
+}
+
+RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const Vec3& eye, int row) {
+  const int width = cam.width;
+  RowVisibility vis;
+  vis.face.assign(width, -1);
+  vis.s.assign(width, 0.0);
+  const double yc = row + 0.5;
+  // Sample direction (unnormalised): w + a(x) u + b v (SHADING.md).
+  const double b = (1.0 - 2.0 * yc / cam.height) * cam.tan_half;
+  std::vector<double> xs;
+  for (int fi : scan.rows[row]) {
+    const ScanFace& f = scan.faces[fi];
+    outline_crossings(f, yc, xs);
+    const double nw = glm::dot(f.normal, cam.w) + b * glm::dot(f.normal, cam.v);
+    const double nu = glm::dot(f.normal, cam.u);
+    const double num = f.offset - glm::dot(f.normal, eye);
+    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+      // Pixel centres i + 0.5 in [xl, xr).
+      const int i0 = static_cast<int>(std::max(0.0, std::ceil(xs[k] - 0.5)));
+      const int i1 = static_cast<int>(std::min<double>(width, std::ceil(xs[k + 1] - 0.5)));
+      for (int i = i0; i < i1; ++i) {
+        const double a = (2.0 * (i + 0.5) / width - 1.0) * cam.tan_half * cam.aspect;
+        const double s = num / (nw + a * nu);
+        if (!(s > 0)) continue;
+        const int cur = vis.face[i];
+        bool take = cur < 0 || s < vis.s[i] * (1.0 - kTieRel);
+        if (!take && cur >= 0 && s <= vis.s[i] * (1.0 + kTieRel)) {
+          // Coincident: a bounding polyhedron wins (its pixel is traced, and
+          // the trace finds the truth); else the first-defined surface.
+          take = wins_tie(scan, fi, cur);
+        }
+        if (take) {
+          vis.face[i] = fi;
+          vis.s[i] = s;
+        }
+      }
+    }
+  }
+  for (int i = 0; i < width; ++i) {
+    if (i == 0 || vis.face[i] != vis.face[i - 1]) ++vis.spans;
+  }
+  return vis;
+}
+
+void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
+                      const std::vector<int>& faces, VisibleScratch& scratch,
+                      std::vector<VisibleSegment>& out) {
+  using Interval = DepthInterval;
+  const double b = (1.0 - 2.0 * y / cam.height) * cam.tan_half;
+  const double width = cam.width;
+  std::vector<Interval>& ivs = scratch.ivs;
+  std::vector<double>& xs = scratch.xs;
+  ivs.clear();
+  out.clear();
+  for (int fi : faces) {
+    const ScanFace& f = scan.faces[fi];
+    if (!(f.ymin <= y && y < f.ymax)) continue;
+    outline_crossings(f, y, xs);
+    const LineDepth d = line_depth(f, cam, cam.from, b);
+    for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+      const double xl = std::max(0.0, xs[k]), xr = std::min(width, xs[k + 1]);
+      if (xr > xl) ivs.push_back(Interval{xl, xr, fi, d});
+    }
+  }
+  std::vector<double>& events = scratch.events;
+  events.assign({0.0, width});
+  for (const Interval& iv : ivs) {
+    events.push_back(iv.xl);
+    events.push_back(iv.xr);
+  }
+  std::sort(events.begin(), events.end());
+  events.erase(std::unique(events.begin(), events.end()), events.end());
+  std::sort(ivs.begin(), ivs.end(), [](const Interval& a, const Interval& c) {
+    return a.xl < c.xl || (a.xl == c.xl && a.face < c.face);
+  });
+
+  auto emit = [&](double x0, double x1, int face) {
+    if (!(x1 > x0)) return;
+    if (!out.empty() && out.back().face == face && out.back().x1 == x0) {
+      out.back().x1 = x1;
+    } else {
+      out.push_back(VisibleSegment{x0, x1, face});
+    }
+  };
+  // Is a nearer than c at x? Larger 1/s is nearer; within kTieRel the
+  // surfaces coincide and the tie rule decides.
+  auto nearer = [&](const Interval& a, const Interval& c, double x) {
+    const double ga = a.d.at(x), gc = c.d.at(x);
+    if (!(gc > 0)) return ga > 0;
+    if (!(ga > 0)) return false;
+    if (ga > gc * (1.0 + kTieRel)) return true;
+    if (gc > ga * (1.0 + kTieRel)) return false;
+    return wins_tie(scan, a.face, c.face);
+  };
+  std::vector<const Interval*>& active = scratch.active;
+  active.clear();
+  size_t next = 0;
+  using Range = VisibleScratch::Range;
+  std::vector<Range>& stack = scratch.stack;
+  for (size_t e = 0; e + 1 < events.size(); ++e) {
+    const double lo = events[e], hi = events[e + 1];
+    while (next < ivs.size() && ivs[next].xl <= lo) active.push_back(&ivs[next++]);
+    std::erase_if(active, [&](const Interval* iv) { return iv->xr <= lo; });
+    if (active.empty()) {
+      emit(lo, hi, -1);
+      continue;
+    }
+    stack.assign(1, Range{lo, hi});
+    int splits = 0;
+    while (!stack.empty()) {
+      const Range r = stack.back();
+      stack.pop_back();
+      const double mid = 0.5 * (r.lo + r.hi);
+      const Interval* top = nullptr;
+      for (const Interval* iv : active) {
+        if (iv->d.at(mid) > 0 && (!top || nearer(*iv, *top, mid))) top = iv;
+      }
+      if (!top) {
+        emit(r.lo, r.hi, -1);
+        continue;
+      }
+      // A face nearer than the top at either end crosses it inside: split
+      // there (its depth line meets the top's).
+      double split = -1;
+      if (splits < 64) {
+        for (const Interval* iv : active) {
+          if (iv == top || !(nearer(*iv, *top, r.lo) || nearer(*iv, *top, r.hi))) continue;
+          const double den = iv->d.g1 - top->d.g1;
+          if (den == 0) continue;
+          const double x = (top->d.g0 - iv->d.g0) / den;
+          if (x > r.lo && x < r.hi) {
+            split = x;
+            break;
+          }
+        }
+      }
+      if (split < 0) {
+        emit(r.lo, r.hi, top->face);
+        continue;
+      }
+      ++splits;
+      stack.push_back(Range{split, r.hi});  // popped second: x order kept
+      stack.push_back(Range{r.lo, split});
+    }
+  }
+}
+
+}  // namespace locus

@@ -1,0 +1,540 @@
+// The job store and restarts, without a network: JobStore against the
+// Scheduler's events, band files, and whole Coordinators built on one data
+// directory, the first abandoned as a kill -9 would leave it
+// (crash_for_test), the second resuming its jobs.
+#include "server/store.h"
+
+#include <sqlite3.h>
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "common/base/image.h"
+#include "common/render.h"
+#include "common/scene/animation.h"
+#include "common/scene/scene_io.h"
+#include "server/band_files.h"
+#include "server/coordinator.h"
+#include "server/scheduler.h"
+#include "tests/scheduler_doubles.h"
+#include "worker/band_renderer.h"
+
+namespace locus::farm {
+namespace {
+namespace fs = std::filesystem;
+using test_doubles::FakeClock;
+using test_doubles::pixels;
+
+const std::string kSpheres = std::string(LOCUS_SOURCE_DIR) + "/scenes/simple/spheres.json";
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    std::string t = (fs::temp_directory_path() / "locus-store-test-XXXXXX").string();
+    EXPECT_NE(mkdtemp(t.data()), nullptr);
+    path = t;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+JobSpec spec(int w, int h, int first, int last, int bands) {
+  JobSpec s;
+  s.scene_hash = "hash";
+  s.scene_name = "test";
+  s.width = w;
+  s.height = h;
+  s.frame_first = first;
+  s.frame_last = last;
+  s.bands = bands;
+  s.output = "shot_####.exr";
+  s.render.spp = 2;
+  s.render.aa = 3;
+  s.render.tess_tol = 0.5;
+  return s;
+}
+
+Result<std::unique_ptr<JobStore>> open_store(const fs::path& dir) {
+  return JobStore::open((dir / "locus.db").string());
+}
+
+TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
+  TempDir dir;
+  FakeClock clock;
+  std::string job, w1, w2;
+  std::vector<std::string> open_leases;
+  {
+    auto store = open_store(dir.path);
+    ASSERT_TRUE(store.ok()) << store.status().message();
+    Scheduler s(SchedulerOptions{}, clock.fn());
+    JobSpec sp = spec(4, 6, 2, 3, 3);
+    sp.band_edges = {0, 1, 4, 6};  // cost-aware bands, not equal heights
+    sp.render.aa = 16;
+    job = s.add_job(sp, "request-7", "fingerprint");
+    w1 = s.add_worker("host:1", 1);
+    w2 = s.add_worker("host:2", 1);
+    std::vector<BandTask> t;
+    for (int i = 0; i < 5; ++i) t.push_back(**s.next_task(i % 2 ? w2 : w1));
+    ASSERT_TRUE(s.complete_band(pixels(w1, t[0]))->accepted);
+    ASSERT_TRUE(s.complete_band(pixels(w2, t[1]))->accepted);
+    ASSERT_TRUE(s.complete_band(pixels(w1, t[2]))->accepted);  // frame 2 complete
+    s.frame_written(job, 2, Status::Ok());
+    BandOutput failed;
+    failed.worker_id = w2;
+    failed.lease_id = t[3].lease_id;
+    failed.error = "out of memory";
+    ASSERT_TRUE(s.complete_band(failed).ok());
+    open_leases.push_back(t[4].lease_id);
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok());
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok()) << state.status().message();
+  EXPECT_EQ(state->leases_voided, 1);  // t[4], in flight when the store was left
+  EXPECT_EQ(state->next_worker, 3u);
+  ASSERT_EQ(state->jobs.size(), 1u);
+  const RecoveredJob& j = state->jobs[0];
+  EXPECT_EQ(j.record.job_id, job);
+  EXPECT_EQ(j.record.seq, 1);
+  EXPECT_EQ(j.record.request_id, "request-7");
+  EXPECT_EQ(j.record.fingerprint, "fingerprint");
+  EXPECT_EQ(j.record.spec.width, 4);
+  EXPECT_EQ(j.record.spec.frame_first, 2);
+  EXPECT_EQ(j.record.spec.bands, 3);
+  EXPECT_EQ(j.record.spec.output, "shot_####.exr");
+  EXPECT_EQ(j.record.spec.render.spp, 2);
+  EXPECT_EQ(j.record.spec.render.aa, 16);
+  EXPECT_EQ(j.record.spec.render.tess_tol, 0.5);
+  EXPECT_EQ(j.record.spec.band_edges, (std::vector<int>{0, 1, 4, 6}));
+  EXPECT_EQ(j.state, JobState::kRunning);
+  EXPECT_EQ(j.frames_written, std::vector<int>{2});
+  EXPECT_EQ(j.done_bands.size(), 3u);
+  EXPECT_EQ(j.stats.pixels_total, 3u * 8);
+  EXPECT_EQ(j.stats.geometry_triangles, 100u);  // every band's frame, not their sum
+  ASSERT_EQ(j.failures.size(), 1u);
+  EXPECT_EQ(j.failures[0].frame, 3);
+  EXPECT_EQ(j.failures[0].band, 0);
+  EXPECT_EQ(j.failures[0].worker_name, "host:2");
+  EXPECT_NE(j.failures[0].error.find("out of memory"), std::string::npos);
+  EXPECT_EQ(*(*store)->band_completions(job, 2, 1), 1);
+  EXPECT_EQ(*(*store)->band_completions(job, 3, 2), 0);
+
+  // A scheduler rebuilt from it serves exactly the bands not done, numbers
+  // the next job on, and knows the request id.
+  Scheduler again(SchedulerOptions{}, clock.fn());
+  EXPECT_TRUE(again.restore(*state).empty());
+  EXPECT_EQ(again.job(job)->bands_done, 3);
+  EXPECT_EQ(again.job_for_request("request-7")->job_id, job);
+  const std::string w = again.add_worker("host:3", 1);
+  EXPECT_EQ(w, "w0003");  // never a number of the previous run
+  std::set<int> bands;
+  const int edges[] = {0, 1, 4, 6};
+  while (auto t = *again.next_task(w)) {
+    EXPECT_EQ(t->frame, 3);
+    EXPECT_EQ(t->y0, edges[t->band]);
+    EXPECT_EQ(t->y1, edges[t->band + 1]);
+    bands.insert(t->band);
+  }
+  EXPECT_EQ(bands, (std::set<int>{0, 1, 2}));
+  EXPECT_EQ(again.add_job(spec(4, 6, 1, 1, 1)), "j0002");
+}
+
+TEST(BandFiles, EdgesAsTextRoundTripAndAreChecked) {
+  EXPECT_EQ(band_edges_text({0, 2, 7}), "0 2 7");
+  EXPECT_EQ(*band_edges_from_text("0 2 7", 7, 2), (std::vector<int>{0, 2, 7}));
+  EXPECT_TRUE(band_edges_from_text("", 7, 2)->empty());
+  for (const char* bad : {"0 2", "0 3 2 7", "0 2 8", "1 2 7", "0 x 7", "0 2 2 7"}) {
+    EXPECT_FALSE(band_edges_from_text(bad, 7, 2).ok()) << bad;
+  }
+}
+
+TEST(JobStore, RefusesAnotherSchemaAndReportsAnUnwritableDirectory) {
+  TempDir dir;
+  {
+    auto store = open_store(dir.path);
+    ASSERT_TRUE(store.ok());
+  }
+  auto bad = JobStore::open((dir.path / "no" / "such" / "dir" / "locus.db").string());
+  EXPECT_EQ(bad.status().code(), Code::kFailedPrecondition);
+  EXPECT_NE(bad.status().message().find("cannot open the job store"), std::string::npos);
+  std::ofstream((dir.path / "junk.db").string()) << "not a database at all, just text";
+  auto junk = JobStore::open((dir.path / "junk.db").string());
+  EXPECT_FALSE(junk.ok());
+}
+
+TEST(JobStore, AStoreFromBeforeTheRenderColumnsGetsThemWithTheOldDefaults) {
+  TempDir dir;
+  FakeClock clock;
+  {
+    auto store = open_store(dir.path);
+    ASSERT_TRUE(store.ok());
+    Scheduler s(SchedulerOptions{}, clock.fn());
+    s.add_job(spec(4, 6, 1, 1, 2));
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  {
+    // The jobs table as written before `aa`, `tess_tol` and `band_edges`
+    // were stored.
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir.path / "locus.db").string().c_str(), &db), SQLITE_OK);
+    EXPECT_EQ(
+        sqlite3_exec(db,
+                     "ALTER TABLE jobs DROP COLUMN aa; ALTER TABLE jobs DROP COLUMN tess_tol; "
+                     "ALTER TABLE jobs DROP COLUMN band_edges",
+                     nullptr, nullptr, nullptr),
+        SQLITE_OK)
+        << sqlite3_errmsg(db);
+    sqlite3_close(db);
+  }
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok()) << state.status().message();
+  ASSERT_EQ(state->jobs.size(), 1u);
+  EXPECT_EQ(state->jobs[0].record.spec.render.aa, -1);  // the method's default
+  EXPECT_EQ(state->jobs[0].record.spec.render.tess_tol, kDefaultTessTol);
+  EXPECT_TRUE(state->jobs[0].record.spec.band_edges.empty());  // equal heights
+  EXPECT_EQ(band_rows(state->jobs[0].record.spec, 1).y0, 3);
+}
+
+TEST(BandFiles, WriteCommitReadAndRejectTornFiles) {
+  TempDir dir;
+  const BandPixels rows{3, 2, 4};
+  std::vector<float> rgb(3 * 2 * 3);
+  for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = 0.25f * static_cast<float>(i);
+  auto temp = write_band_temp(dir.path.string(), 7, 1, rows, rgb, "lease/../x", true);
+  ASSERT_TRUE(temp.ok()) << temp.status().message();
+  EXPECT_EQ(fs::path(*temp).parent_path(), dir.path / "bands");  // the tag cannot escape
+  const std::string path = band_file_path(dir.path.string(), 7, 1);
+  ASSERT_TRUE(commit_band_file(*temp, path).ok());
+  EXPECT_FALSE(fs::exists(*temp));
+  auto back = read_band_file(path, rows);
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  EXPECT_EQ(*back, rgb);
+  EXPECT_FALSE(read_band_file(path, {3, 2, 5}).ok());  // other rows
+  // A torn file (as a power loss may leave) and a flipped bit are refused.
+  fs::resize_file(path, fs::file_size(path) - 5);
+  EXPECT_FALSE(read_band_file(path, rows).ok());
+  auto again = write_band_temp(dir.path.string(), 7, 1, rows, rgb, "l2", false);
+  ASSERT_TRUE(commit_band_file(*again, path).ok());
+  {
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(40);
+    f.put('\x7f');
+  }
+  EXPECT_FALSE(read_band_file(path, rows).ok());
+  EXPECT_EQ(read_band_file(path + ".missing", rows).status().code(), Code::kNotFound);
+}
+
+TEST(BandFiles, StitchAFrameFromItsBands) {
+  TempDir dir;
+  const FrameReady f{"j0001", 4, "f_0004.exr", 5, 7, 3, {}};
+  Image expected(5, 7);
+  for (size_t i = 0; i < expected.rgb.size(); ++i) expected.rgb[i] = static_cast<float>(i);
+  for (int b = 0; b < 3; ++b) {
+    const Band rows = band_rows(7, 3, b);
+    std::vector<float> rgb(expected.rgb.begin() + rows.y0 * 15,
+                           expected.rgb.begin() + rows.y1 * 15);
+    auto t = write_band_temp(dir.path.string(), 4, b, {5, rows.y0, rows.y1}, rgb, "t", false);
+    ASSERT_TRUE(t.ok());
+    ASSERT_TRUE(commit_band_file(*t, band_file_path(dir.path.string(), 4, b)).ok());
+  }
+  auto image = stitch_frame(dir.path.string(), f);
+  ASSERT_TRUE(image.ok()) << image.status().message();
+  EXPECT_EQ(image->rgb, expected.rgb);
+  ASSERT_TRUE(write_frame_file(dir.path.string(), f.file_name, *image, true).ok());
+  auto read = read_image((dir.path / f.file_name).string());
+  ASSERT_TRUE(read.ok());
+  EXPECT_EQ(read->rgb, expected.rgb);
+  EXPECT_FALSE(fs::exists(dir.path / (".partial-" + f.file_name)));
+  remove_band_files(dir.path.string(), 4, 3);
+  EXPECT_FALSE(fs::exists(band_file_path(dir.path.string(), 4, 0)));
+  EXPECT_EQ(stitch_frame(dir.path.string(), f).status().code(), Code::kNotFound);
+}
+
+// ---------------------------------------------------------------- restarts
+
+SubmitRequest spheres(int first, int last, int bands, const std::string& request_id = "") {
+  auto scene = load_scene(kSpheres);
+  EXPECT_TRUE(scene.ok());
+  SubmitRequest r;
+  r.scene = scene_to_proto(*scene);
+  r.scene_name = kSpheres;
+  r.width = 16;
+  r.height = 12;
+  r.frame_first = first;
+  r.frame_last = last;
+  r.bands = bands;
+  r.output = "out/f_####.exr";
+  r.orbit_degrees = 40;
+  r.request_id = request_id;
+  return r;
+}
+
+// A worker played by the test: real pixels through the worker's renderer.
+struct TestWorker {
+  Coordinator* c;
+  std::string id;
+  BandRenderer renderer{1};
+
+  TestWorker(Coordinator& coordinator, const std::string& name)
+      : c(&coordinator), id(coordinator.register_worker(name, 1).worker_id) {}
+
+  std::optional<BandTask> take() {
+    auto t = c->get_task(id, Millis(0), nullptr);
+    EXPECT_TRUE(t.ok()) << t.status().message();
+    return t.ok() ? *t : std::nullopt;
+  }
+  BandOutput render(const BandTask& t) {
+    if (!renderer.has_scene(t.scene_hash)) {
+      auto scene = c->get_scene(id, t.scene_hash);
+      EXPECT_TRUE(scene.ok());
+      EXPECT_TRUE(renderer.add_scene(t.scene_hash, **scene, "test").ok());
+    }
+    auto out = renderer.render(t);
+    EXPECT_TRUE(out.ok()) << out.status().message();
+    out->worker_id = id;
+    out->lease_id = t.lease_id;
+    return *out;
+  }
+  bool complete(const BandTask& t) {
+    auto r = c->complete_band(render(t));
+    EXPECT_TRUE(r.ok()) << r.status().message();
+    return r.ok() && r->accepted;
+  }
+};
+
+CoordinatorOptions options(const fs::path& dir) {
+  CoordinatorOptions o;
+  o.data_dir = (dir / "data").string();
+  o.tick = Millis(10);
+  o.fsync = false;  // what a kill -9 tests does not depend on it
+  return o;
+}
+
+JobInfo wait_for_end(Coordinator& c, const std::string& job) {
+  for (int i = 0; i < 1000; ++i) {
+    auto j = c.job(job);
+    if (j.ok() && is_terminal(j->state)) return *j;
+    std::this_thread::sleep_for(Millis(10));
+  }
+  ADD_FAILURE() << "job " << job << " did not end";
+  return *c.job(job);
+}
+
+// Every frame of the job equals a single-process render, to the bit.
+void expect_frames_identical(Coordinator& c, const JobInfo& job, const SubmitRequest& r) {
+  ASSERT_EQ(job.state, JobState::kSucceeded) << job.error;
+  ASSERT_EQ(job.frames_done, r.frame_last - r.frame_first + 1);
+  auto scene = load_scene(kSpheres);
+  for (int f = r.frame_first; f <= r.frame_last; ++f) {
+    const Scene s =
+        frame_scene(*scene, r.width, r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
+    auto ref = render_image(s, *to_render_params(r.render, 1));
+    ASSERT_TRUE(ref.ok());
+    auto got = read_image((fs::path(c.job_dir(job.job_id)) / frame_path("f_####.exr", f)).string());
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    EXPECT_EQ(got->rgb, ref->pixels.rgb) << "frame " << f;
+  }
+}
+
+void expect_each_band_once(const fs::path& dir, const JobInfo& job) {
+  auto store = open_store(dir / "data");
+  ASSERT_TRUE(store.ok());
+  for (int f = job.spec.frame_first; f <= job.spec.frame_last; ++f) {
+    for (int b = 0; b < job.spec.bands; ++b) {
+      EXPECT_EQ(*(*store)->band_completions(job.job_id, f, b), 1) << "frame " << f << " band " << b;
+    }
+  }
+}
+
+TEST(CoordinatorRestart, ResumesWithoutRenderingABandTwiceOrLosingOne) {
+  TempDir dir;
+  const SubmitRequest r = spheres(1, 3, 4);
+  std::string job;
+  std::set<std::pair<int, int>> done_before;
+  BandTask in_flight;
+  BandOutput late;
+  {
+    Coordinator a(options(dir.path));
+    ASSERT_TRUE(a.start().ok());
+    auto submitted = a.submit(r);
+    ASSERT_TRUE(submitted.ok()) << submitted.status().message();
+    job = submitted->job_id;
+    TestWorker w(a, "first:1");
+    for (int i = 0; i < 6; ++i) {
+      auto t = w.take();
+      ASSERT_TRUE(t);
+      ASSERT_TRUE(w.complete(*t));
+      done_before.insert({t->frame, t->band});
+    }
+    in_flight = *w.take();
+    late = w.render(in_flight);
+    a.crash_for_test();
+  }
+  Coordinator b(options(dir.path));
+  ASSERT_TRUE(b.start().ok());
+  auto resumed = b.job(job);
+  ASSERT_TRUE(resumed.ok()) << resumed.status().message();
+  EXPECT_EQ(resumed->bands_done, 6);
+  EXPECT_FALSE(is_terminal(resumed->state));
+  TestWorker w(b, "second:2");
+  // The result of a lease of the previous run is refused.
+  late.worker_id = w.id;
+  auto stale = b.complete_band(late);
+  ASSERT_TRUE(stale.ok());
+  EXPECT_FALSE(stale->accepted);
+  std::set<std::pair<int, int>> done_after;
+  while (auto t = w.take()) {
+    EXPECT_FALSE(done_before.count({t->frame, t->band}))
+        << "band " << t->band << " of frame " << t->frame << " rendered again";
+    EXPECT_TRUE(done_after.insert({t->frame, t->band}).second);
+    ASSERT_TRUE(w.complete(*t));
+  }
+  EXPECT_EQ(done_before.size() + done_after.size(), 12u);
+  const JobInfo end = wait_for_end(b, job);
+  expect_frames_identical(b, end, r);
+  b.shutdown();
+  expect_each_band_once(dir.path, end);
+}
+
+TEST(CoordinatorRestart, CrashAtRandomMomentsLosesAndDuplicatesNothing) {
+  for (int seed = 1; seed <= 12; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    TempDir dir;
+    std::mt19937 rng(seed);
+    const SubmitRequest r = spheres(2, 4, 3);
+    std::string job;
+    {
+      Coordinator a(options(dir.path));
+      ASSERT_TRUE(a.start().ok());
+      job = a.submit(r)->job_id;
+      TestWorker w1(a, "one:1"), w2(a, "two:2");
+      std::vector<std::pair<TestWorker*, BandTask>> held;
+      const int steps = static_cast<int>(rng() % 14);
+      for (int i = 0; i < steps; ++i) {
+        TestWorker* w = rng() % 2 ? &w1 : &w2;
+        if (held.empty() || rng() % 3 == 0) {
+          if (auto t = w->take()) held.push_back({w, *t});
+        } else {
+          const size_t k = rng() % held.size();
+          auto [who, t] = held[k];
+          held.erase(held.begin() + static_cast<long>(k));
+          if (rng() % 5 == 0) {
+            BandOutput err;
+            err.worker_id = who->id;
+            err.lease_id = t.lease_id;
+            err.error = "injected";
+            ASSERT_TRUE(a.complete_band(err).ok());
+          } else {
+            who->complete(t);
+          }
+        }
+      }
+      // Sometimes the writer had time for the frames, sometimes not.
+      if (rng() % 2) std::this_thread::sleep_for(Millis(30));
+      a.crash_for_test();
+    }
+    Coordinator b(options(dir.path));
+    ASSERT_TRUE(b.start().ok());
+    TestWorker w(b, "three:3");
+    while (auto t = w.take()) ASSERT_TRUE(w.complete(*t));
+    const JobInfo end = wait_for_end(b, job);
+    expect_frames_identical(b, end, r);
+    EXPECT_EQ(end.bands_done, 9);
+    b.shutdown();
+    expect_each_band_once(dir.path, end);
+    // No band file outlives its written frame.
+    std::error_code ec;
+    EXPECT_FALSE(fs::exists(dir.path / "data" / "jobs" / job / "bands" / "2-0.band", ec));
+  }
+}
+
+TEST(CoordinatorRestart, ADataDirectoryServesOneCoordinatorAtATime) {
+  TempDir dir;
+  Coordinator a(options(dir.path));
+  ASSERT_TRUE(a.start().ok());
+  Coordinator b(options(dir.path));
+  const Status busy = b.start();
+  EXPECT_EQ(busy.code(), Code::kFailedPrecondition);
+  EXPECT_NE(busy.message().find("in use by another coordinator"), std::string::npos)
+      << busy.message();
+  a.crash_for_test();  // a dead coordinator leaves no lock behind
+  Coordinator c(options(dir.path));
+  EXPECT_TRUE(c.start().ok());
+}
+
+TEST(CoordinatorRestart, ARetriedSubmissionCreatesNoSecondJobEvenAcrossARestart) {
+  TempDir dir;
+  std::string job;
+  {
+    Coordinator a(options(dir.path));
+    ASSERT_TRUE(a.start().ok());
+    auto first = a.submit(spheres(1, 2, 2, "token-1"));
+    ASSERT_TRUE(first.ok());
+    job = first->job_id;
+    auto retry = a.submit(spheres(1, 2, 2, "token-1"));
+    ASSERT_TRUE(retry.ok());
+    EXPECT_EQ(retry->job_id, job);
+    auto reused = a.submit(spheres(1, 3, 2, "token-1"));
+    EXPECT_EQ(reused.status().code(), Code::kAlreadyExists);
+    EXPECT_NE(reused.status().message().find(job), std::string::npos);
+    EXPECT_EQ(a.submit(spheres(1, 2, 2, "bad token")).status().code(), Code::kInvalidArgument);
+    EXPECT_EQ(a.jobs().size(), 1u);
+    a.crash_for_test();
+  }
+  Coordinator b(options(dir.path));
+  ASSERT_TRUE(b.start().ok());
+  auto retry = b.submit(spheres(1, 2, 2, "token-1"));
+  ASSERT_TRUE(retry.ok());
+  EXPECT_EQ(retry->job_id, job);
+  auto other = b.submit(spheres(1, 2, 2, "token-2"));
+  ASSERT_TRUE(other.ok());
+  EXPECT_EQ(other->job_id, "j0002");
+  EXPECT_EQ(b.jobs().size(), 2u);
+}
+
+TEST(CoordinatorRestart, FinishedJobsStayFetchableAndCancelledStayCancelled) {
+  TempDir dir;
+  const SubmitRequest r = spheres(1, 1, 2);
+  std::string done, cancelled;
+  {
+    Coordinator a(options(dir.path));
+    ASSERT_TRUE(a.start().ok());
+    done = a.submit(r)->job_id;
+    cancelled = a.submit(spheres(1, 5, 2))->job_id;
+    TestWorker w(a, "w:1");
+    for (int i = 0; i < 2; ++i) ASSERT_TRUE(w.complete(*w.take()));
+    wait_for_end(a, done);
+    ASSERT_TRUE(a.cancel(cancelled).ok());
+    a.shutdown();
+  }
+  Coordinator b(options(dir.path));
+  ASSERT_TRUE(b.start().ok());
+  const JobInfo j = *b.job(done);
+  EXPECT_EQ(j.state, JobState::kSucceeded);
+  EXPECT_EQ(j.frames_written, std::vector<int>{1});
+  expect_frames_identical(b, j, r);
+  size_t bytes = 0;
+  ASSERT_TRUE(b.fetch(done, {}, [&](const FileChunk& c) {
+                 bytes += c.data.size();
+                 return true;
+               }).ok());
+  EXPECT_GT(bytes, 0u);
+  EXPECT_EQ(b.job(cancelled)->state, JobState::kCancelled);
+  TestWorker w(b, "w:2");
+  EXPECT_FALSE(w.take());  // nothing to do
+}
+
+}  // namespace
+}  // namespace locus::farm
