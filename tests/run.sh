@@ -4,6 +4,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/local/build.sh
+# The dependency direction (docs/architecture.md "Rules") before the long
+# builds: a second to fail; CTest runs it again with the worker's link line.
+/usr/bin/python3 tests/layout/check_layout.py .
+/usr/bin/python3 tests/layout/check_layout.py --worker-link build
 # The container test (tests/container/run.sh: builds the images, runs a farm
 # in containers) costs 7 to 25 minutes from scratch on 2 cores, more than the
 # CI budget leaves, so it runs when LOCUS_CONTAINER_TEST=1 (docs/deploy.md);

@@ -1,6 +1,6 @@
 #include "worker/worker_metrics.h"
 
-#include "server/metrics.h"
+#include "common/farm/metrics.h"
 
 namespace locus::farm {
 namespace {

@@ -2,8 +2,9 @@
 // pass, ray tracing only where it is needed.
 #pragma once
 
+#include "common/base/image.h"
+#include "common/base/params.h"
 #include "common/prepare/prepared.h"
-#include "common/render.h"
 
 namespace locus {
 

@@ -21,8 +21,9 @@
 // interval is exact (an opaque sphere or cone between face and light).
 #pragma once
 
+#include "common/base/image.h"
+#include "common/base/params.h"
 #include "common/prepare/prepared.h"
-#include "common/render.h"
 
 namespace locus {
 

@@ -6,8 +6,9 @@
 
 #include <optional>
 
+#include "common/base/image.h"
+#include "common/base/params.h"
 #include "common/prepare/prepared.h"
-#include "common/render.h"
 
 namespace locus {
 
