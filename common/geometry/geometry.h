@@ -1,6 +1,10 @@
 // Exact ray intersection of every primitive (scene.h shapes, flattened into
 // world-space primitives) and of CSG trees. Two phases, as in pbrt: a cheap
 // crossing record per primitive, and the full surface record for the winner.
+// One header for both halves: primitives.cpp builds the set from a scene
+// (build_primitives: frames, bounds, CSG trees as node arrays);
+// intersect.cpp intersects a ray with them (intersect_all / _any / _nearest,
+// CSG evaluation, shading_normal).
 #pragma once
 
 #include <cstdint>

@@ -17,6 +17,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "common/base/labels.h"
 #include "common/scene/scene_io.h"
 #include "common/scene/validate.h"
 
@@ -95,24 +96,57 @@ std::string quote(std::string_view s) {
   return out + (s.size() > 40 ? "...'" : "'");
 }
 
+// The keyword that starts each entity: what the parser looks for and what
+// its messages list.
+enum class Keyword { kViewpoint, kBackground, kLight, kFill, kCone, kSphere, kPolygon, kPatch };
+constexpr Labels<Keyword, 8> kKeywords = {{{Keyword::kViewpoint, "v"},
+                                           {Keyword::kBackground, "b"},
+                                           {Keyword::kLight, "l"},
+                                           {Keyword::kFill, "f"},
+                                           {Keyword::kCone, "c"},
+                                           {Keyword::kSphere, "s"},
+                                           {Keyword::kPolygon, "p"},
+                                           {Keyword::kPatch, "pp"}}};
+
 struct Entity {
+  Keyword keyword;
   const char* name;  // in messages: "sphere radius must be positive"
-  const char* form;  // in messages: "(expected: s x y z radius)"
+  const char* args;  // what follows the keyword in its form (form())
 };
 
-constexpr Entity kViewpoint{"viewpoint",
-                            "v, then from x y z, at x y z, up x y z, angle degrees, hither "
+constexpr Entity kViewpoint{Keyword::kViewpoint, "viewpoint",
+                            ", then from x y z, at x y z, up x y z, angle degrees, hither "
                             "distance, resolution width height"};
-constexpr Entity kBackground{"background", "b r g b"};
-constexpr Entity kLight{"light", "l x y z [r g b], the colour on the same line"};
-constexpr Entity kFill{"material", "f r g b Kd Ks Shine T index_of_refraction"};
-constexpr Entity kCone{"cone",
-                       "c base.x base.y base.z base_radius apex.x apex.y apex.z apex_radius"};
-constexpr Entity kSphere{"sphere", "s x y z radius"};
-constexpr Entity kPolygon{"polygon", "p count, then count vertices x y z"};
-constexpr Entity kPatch{"patch", "pp count, then count vertices x y z nx ny nz"};
+constexpr Entity kBackground{Keyword::kBackground, "background", " r g b"};
+constexpr Entity kLight{Keyword::kLight, "light", " x y z [r g b], the colour on the same line"};
+constexpr Entity kFill{Keyword::kFill, "material", " r g b Kd Ks Shine T index_of_refraction"};
+constexpr Entity kCone{Keyword::kCone, "cone",
+                       " base.x base.y base.z base_radius apex.x apex.y apex.z apex_radius"};
+constexpr Entity kSphere{Keyword::kSphere, "sphere", " x y z radius"};
+constexpr Entity kPolygon{Keyword::kPolygon, "polygon", " count, then count vertices x y z"};
+constexpr Entity kPatch{Keyword::kPatch, "patch", " count, then count vertices x y z nx ny nz"};
 
-constexpr const char* kEntities = "v, b, l, f, c, s, p, pp, or # for a comment";
+std::string_view keyword(const Entity& e) { return label_name(kKeywords, e.keyword); }
+
+// In messages: "(expected: s x y z radius)".
+std::string form(const Entity& e) { return std::string(keyword(e)) + e.args; }
+
+// "v, b, l, f, c, s, p, pp, or # for a comment".
+std::string entity_choices() {
+  std::string out;
+  for (const auto& k : kKeywords) out += std::string(k.name) + ", ";
+  return out + "or # for a comment";
+}
+
+// The lines of a viewpoint, each starting with its keyword (hither may be
+// absent, as in NFF before 2.7).
+enum class ViewField { kFrom, kAt, kUp, kAngle, kHither, kResolution };
+constexpr Labels<ViewField, 6> kViewFields = {{{ViewField::kFrom, "from"},
+                                               {ViewField::kAt, "at"},
+                                               {ViewField::kUp, "up"},
+                                               {ViewField::kAngle, "angle"},
+                                               {ViewField::kHither, "hither"},
+                                               {ViewField::kResolution, "resolution"}}};
 
 class NffParser {
  public:
@@ -130,7 +164,8 @@ class NffParser {
       }
     }
     if (!scene_.has_camera) {
-      problems_.push_back(name_ + ": no viewpoint (expected: a v entity: " + kViewpoint.form + ")");
+      problems_.push_back(fmt::format("{}: no viewpoint (expected: a {} entity: {})", name_,
+                                      keyword(kViewpoint), form(kViewpoint)));
     }
     if (!problems_.empty()) return problems_status(problems_);
     if (dropped_ > 0) {
@@ -147,27 +182,39 @@ class NffParser {
  private:
   bool entity(const Token& t) {
     const std::string_view k = t.text;
-    if (k == "v") return viewpoint();
-    if (k == "b") return background();
-    if (k == "l") return light();
-    if (k == "f") return fill();
-    if (k == "c") return cone();
-    if (k == "s") return sphere();
-    if (k == "p") return polygon(false);
-    if (k == "pp") return polygon(true);
+    if (const std::optional<Keyword> kind = label_value(kKeywords, k)) {
+      switch (*kind) {
+        case Keyword::kViewpoint:
+          return viewpoint();
+        case Keyword::kBackground:
+          return background();
+        case Keyword::kLight:
+          return light();
+        case Keyword::kFill:
+          return fill();
+        case Keyword::kCone:
+          return cone();
+        case Keyword::kSphere:
+          return sphere();
+        case Keyword::kPolygon:
+          return polygon(false);
+        case Keyword::kPatch:
+          return polygon(true);
+      }
+    }
     if (to_double(k)) {
       if (entity_line_ == 0) {
         return fail(
             fmt::format("unexpected number {} at the start of the file (expected one of "
                         "{})",
-                        quote(k), kEntities));
+                        quote(k), entity_choices()));
       }
       return fail(
           fmt::format("unexpected number {} where an entity keyword was expected ({}); "
                       "the entity before it (line {}) has too many values",
-                      quote(k), kEntities, entity_line_));
+                      quote(k), entity_choices(), entity_line_));
     }
-    return fail(fmt::format("unknown entity {} (expected one of {})", quote(k), kEntities));
+    return fail(fmt::format("unknown entity {} (expected one of {})", quote(k), entity_choices()));
   }
 
   // ---- Errors ----
@@ -178,7 +225,7 @@ class NffParser {
     return false;
   }
   bool fail(const Entity& e, const std::string& what) {
-    return fail(fmt::format("{} {} (expected: {})", e.name, what, e.form));
+    return fail(fmt::format("{} {} (expected: {})", e.name, what, form(e)));
   }
 
   // Semantic problems of a parsed entity: collected, the parse goes on.
@@ -187,7 +234,7 @@ class NffParser {
       std::string field = p.field;
       std::replace(field.begin(), field.end(), '_', ' ');
       problems_.push_back(fmt::format("{}:{}: {}{}{} (expected: {})", name_, entity_line_, e.name,
-                                      field.empty() ? ": " : " " + field + " ", p.what, e.form));
+                                      field.empty() ? ": " : " " + field + " ", p.what, form(e)));
     }
   }
 
@@ -284,63 +331,66 @@ class NffParser {
       return fail(kViewpoint, fmt::format("is given twice (first at line {})", camera_line_));
     }
     Camera c;
-    // Fields in any order, each once; hither may be absent (NFF before 2.7).
-    static constexpr std::string_view kFields[] = {"from",  "at",     "up",
-                                                   "angle", "hither", "resolution"};
-    bool seen[6] = {};
+    // Fields in any order, each once.
+    bool seen[kViewFields.size()] = {};
     while (std::optional<Token> t = lex_.peek()) {
-      const auto* it = std::find(std::begin(kFields), std::end(kFields), t->text);
-      if (it == std::end(kFields)) break;
-      const size_t field = it - std::begin(kFields);
+      const std::optional<ViewField> field = label_value(kViewFields, t->text);
+      if (!field) break;
       lex_.next();
       line_ = t->line;
-      if (seen[field]) {
-        return fail(kViewpoint, fmt::format("gives {} twice", quote(t->text)));
-      }
-      seen[field] = true;
-      std::optional<Vec3> v;
-      std::optional<double> x;
-      std::optional<long long> w, h;
-      switch (field) {
-        case 0:
-          if (!(v = vec3(kViewpoint, "from"))) return false;
-          c.from = *v;
-          break;
-        case 1:
-          if (!(v = vec3(kViewpoint, "at"))) return false;
-          c.at = *v;
-          break;
-        case 2:
-          if (!(v = vec3(kViewpoint, "up"))) return false;
-          c.up = *v;
-          break;
-        case 3:
-          if (!(x = number(kViewpoint, "angle"))) return false;
-          c.angle = *x;
-          break;
-        case 4:
-          if (!(x = number(kViewpoint, "hither"))) return false;
-          c.hither = *x;
-          break;
-        default:
-          if (!(w = integer(kViewpoint, "resolution width"))) return false;
-          if (!(h = integer(kViewpoint, "resolution height"))) return false;
-          // Clamped into int; check_camera rejects anything that far out.
-          c.width = static_cast<int>(std::clamp<long long>(*w, INT_MIN, INT_MAX));
-          c.height = static_cast<int>(std::clamp<long long>(*h, INT_MIN, INT_MAX));
-          break;
-      }
+      bool& given = seen[static_cast<size_t>(*field)];
+      if (given) return fail(kViewpoint, fmt::format("gives {} twice", quote(t->text)));
+      given = true;
+      if (!view_field(*field, c)) return false;
     }
-    for (size_t field = 0; field < 6; ++field) {
-      if (!seen[field] && field != 4) {
+    for (const auto& field : kViewFields) {
+      if (!seen[static_cast<size_t>(field.value)] && field.value != ViewField::kHither) {
         line_ = entity_line_;
-        return fail(kViewpoint, fmt::format("lacks its {} line", kFields[field]));
+        return fail(kViewpoint, fmt::format("lacks its {} line", field.name));
       }
     }
     scene_.camera = c;
     scene_.has_camera = true;
     camera_line_ = entity_line_;
     report(kViewpoint, check_camera(c));
+    return true;
+  }
+
+  // The values after a viewpoint line's keyword.
+  bool view_field(ViewField field, Camera& c) {
+    const std::string name(label_name(kViewFields, field));
+    std::optional<Vec3> v;
+    std::optional<double> x;
+    std::optional<long long> w, h;
+    switch (field) {
+      case ViewField::kFrom:
+        if (!(v = vec3(kViewpoint, name))) return false;
+        c.from = *v;
+        break;
+      case ViewField::kAt:
+        if (!(v = vec3(kViewpoint, name))) return false;
+        c.at = *v;
+        break;
+      case ViewField::kUp:
+        if (!(v = vec3(kViewpoint, name))) return false;
+        c.up = *v;
+        break;
+      case ViewField::kAngle:
+        if (!(x = number(kViewpoint, name))) return false;
+        c.angle = *x;
+        break;
+      case ViewField::kHither:
+        if (!(x = number(kViewpoint, name))) return false;
+        c.hither = *x;
+        break;
+      case ViewField::kResolution:
+        if (!(w = integer(kViewpoint, name + " width"))) return false;
+        if (!(h = integer(kViewpoint, name + " height"))) return false;
+        // Clamped into int; check_camera rejects anything that far out.
+        c.width = static_cast<int>(std::clamp<long long>(*w, INT_MIN, INT_MAX));
+        c.height = static_cast<int>(std::clamp<long long>(*h, INT_MIN, INT_MAX));
+        break;
+    }
     return true;
   }
 

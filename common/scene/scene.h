@@ -7,9 +7,12 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
+#include "common/base/labels.h"
 #include "common/base/math.h"
 #include "common/scene/animation.h"
 
@@ -110,6 +113,11 @@ struct BezierSurface {
 };
 
 enum class CsgOp { kUnion, kIntersection, kDifference };
+// The names of the operations as a scene file writes them (scene.proto's
+// Csg.Op) and messages list them.
+inline constexpr Labels<CsgOp, 3> kCsgOpLabels = {{{CsgOp::kUnion, "UNION"},
+                                                   {CsgOp::kIntersection, "INTERSECTION"},
+                                                   {CsgOp::kDifference, "DIFFERENCE"}}};
 
 // A set operation of two solids, given as indices into Scene::objects. The
 // operands are not rendered on their own.
@@ -120,6 +128,39 @@ struct Csg {
 };
 
 using Shape = std::variant<Sphere, Cone, Polyhedron, Polygon, Mesh, Patch, Csg, BezierSurface>;
+
+// The alternatives of Shape, in its order, and their names in messages and
+// JSON paths ("objects[3].sphere.radius"): the JSON format's shape fields of
+// the same names (scene_proto.cpp) give exactly these shapes.
+enum class ShapeKind { kSphere, kCone, kPolyhedron, kPolygon, kMesh, kPatch, kCsg, kBezier };
+inline constexpr Labels<ShapeKind, 8> kShapeLabels = {{{ShapeKind::kSphere, "sphere"},
+                                                       {ShapeKind::kCone, "cone"},
+                                                       {ShapeKind::kPolyhedron, "polyhedron"},
+                                                       {ShapeKind::kPolygon, "polygon"},
+                                                       {ShapeKind::kMesh, "mesh"},
+                                                       {ShapeKind::kPatch, "patch"},
+                                                       {ShapeKind::kCsg, "csg"},
+                                                       {ShapeKind::kBezier, "bezier"}}};
+inline ShapeKind shape_kind(const Shape& shape) { return static_cast<ShapeKind>(shape.index()); }
+inline std::string_view shape_name(const Shape& shape) {
+  return label_name(kShapeLabels, shape_kind(shape));
+}
+
+namespace detail {
+template <ShapeKind K, class T>
+inline constexpr bool kShapeKindIs =
+    std::is_same_v<std::variant_alternative_t<static_cast<size_t>(K), Shape>, T>;
+}  // namespace detail
+static_assert(std::variant_size_v<Shape> == kShapeLabels.size());
+static_assert(detail::kShapeKindIs<ShapeKind::kSphere, Sphere> &&
+                  detail::kShapeKindIs<ShapeKind::kCone, Cone> &&
+                  detail::kShapeKindIs<ShapeKind::kPolyhedron, Polyhedron> &&
+                  detail::kShapeKindIs<ShapeKind::kPolygon, Polygon> &&
+                  detail::kShapeKindIs<ShapeKind::kMesh, Mesh> &&
+                  detail::kShapeKindIs<ShapeKind::kPatch, Patch> &&
+                  detail::kShapeKindIs<ShapeKind::kCsg, Csg> &&
+                  detail::kShapeKindIs<ShapeKind::kBezier, BezierSurface>,
+              "ShapeKind follows the order of Shape's alternatives");
 
 struct Object {
   Shape shape;

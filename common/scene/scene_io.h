@@ -2,6 +2,11 @@
 // on the wire, and semantic validation. Every error names the input: the
 // file, then the line (NFF) or the JSON path, what is wrong and the expected
 // form. A Status carrying several problems has one per line.
+//
+// Where they live: load_scene in scene_io.cpp; NFF in nff.cpp; the JSON
+// entry points in scene_json.cpp, which run json_syntax.cpp's check, then
+// protobuf's parser, then scene_proto.cpp's conversion (OBJ meshes through
+// obj.cpp); validate_scene in validate.cpp.
 #pragma once
 
 #include <string>

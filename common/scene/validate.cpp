@@ -238,9 +238,8 @@ Problems check(const Mesh& m) {
 
 Problems check(const Csg& c) {
   Problems out;
-  const int op = static_cast<int>(c.op);
-  if (op < static_cast<int>(CsgOp::kUnion) || op > static_cast<int>(CsgOp::kDifference)) {
-    out.push_back({"op", fmt::format("unknown operation {}", op)});
+  if (label_name(kCsgOpLabels, c.op, "").empty()) {
+    out.push_back({"op", fmt::format("unknown operation {}", static_cast<int>(c.op))});
   }
   return out;
 }
@@ -285,13 +284,6 @@ void add_all(std::vector<std::string>& out, const std::string& source, const std
 }
 
 }  // namespace
-
-const char* shape_name(const Shape& shape) {
-  static constexpr const char* kNames[] = {"sphere", "cone",  "polyhedron", "polygon",
-                                           "mesh",   "patch", "csg",        "bezier"};
-  static_assert(std::size(kNames) == std::variant_size_v<Shape>);
-  return kNames[shape.index()];
-}
 
 Problems check_shape(const Shape& shape) {
   return std::visit([](const auto& s) { return check(s); }, shape);
@@ -442,7 +434,7 @@ std::vector<std::string> validate_scene(const Scene& scene) {
   for (int i = 0; i < n; ++i) {
     const Object& o = scene.objects[i];
     const std::string part = o.origin.empty() ? indexed("objects", i) : o.origin;
-    const std::string shape = shape_name(o.shape);
+    const std::string shape(shape_name(o.shape));
     add_all(out, src, part, shape, check_shape(o.shape));
     if (o.material < 0 || o.material >= materials) {
       out.push_back(locate(src, part, "material") +

@@ -28,9 +28,6 @@ using Problems = std::vector<Problem>;
 inline constexpr double kPlanarityTolerance = 1e-4;
 inline constexpr double kAreaTolerance = 1e-12;
 
-// The name used for a shape in messages and JSON paths: "sphere", "cone",...
-const char* shape_name(const Shape& shape);
-
 // A shape's own geometry, in object space. CSG operand indices need the whole
 // scene and are checked by validate_scene.
 Problems check_shape(const Shape& shape);

@@ -1,6 +1,6 @@
-// The native JSON loader and the proto conversion (common/scene/scene_json.cpp):
-// defaults, every semantic error named by its JSON path, OBJ meshes, and the
-// wire round trip.
+// The native JSON loader and the proto conversion (common/scene/scene_json.cpp,
+// json_syntax.cpp, scene_proto.cpp, obj.cpp): defaults, every semantic error named by its
+// JSON path, OBJ meshes, and the wire round trip.
 #include <google/protobuf/util/message_differencer.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
