@@ -7,7 +7,11 @@ namespace locus {
 namespace {
 
 constexpr int kBins = 16;
-constexpr int kMaxDepth = 100;  // traverse_bvh's stack holds 128 entries
+// Deeper nodes become leaves. A walk's stack then holds at most
+// kMaxDepth + 1 entries (one pending sibling per level, and the two children
+// of a node at depth kMaxDepth - 1): within walk_bvh's checked bound.
+constexpr int kMaxDepth = 100;
+static_assert(kMaxDepth + 1 <= kBvhWalkStack, "walk_bvh's stack must hold the deepest path");
 constexpr int kLeafMax = 4;
 
 struct BuildCtx {

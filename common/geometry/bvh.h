@@ -13,6 +13,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "common/base/check.h"
 #include "common/geometry/geometry.h"
 
 namespace locus {
@@ -93,43 +94,79 @@ inline double box_entry(const Aabb& b, const RayInv& r, double tmin) {
   return t;
 }
 
-// Visits the primitives whose leaf boxes the ray meets in (tmin, tmax).
-// `visit(prim)` returns the possibly shortened tmax, or a negative value to
-// stop the traversal.
-template <typename F>
-void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& visit) {
-  if (bvh.nodes.empty()) return;
-  const RayInv ri(ray);
-  int stack[128];
+// The walk's stack. A walk holds at most one pending sibling per level
+// below the root, so it holds every hierarchy build_bvh makes (its depth is
+// at most kMaxDepth, bvh.cpp); a deeper one, built by hand, trips the
+// LOCUS_CHECK in walk_bvh instead of writing past the array.
+inline constexpr int kBvhWalkStack = 128;
+
+// The one walk over the hierarchy, depth first from the root; the ray
+// tracer's (traverse_bvh), the shadow search's, the front/back relations'
+// and the span shadows' walks (a box's shadow volume against a span, with
+// candidate narrowing) are this one with their own callables, inlined.
+// `enter(ni)` says whether node ni's subtree is walked. At an entered leaf,
+// `visit(prim)` is called for its primitives in order, and ends the walk by
+// returning false. An entered inner node's children come next: the right one
+// (nodes[ni].first) before the left one (ni + 1) if `right_first(ni)`.
+// Returns false if `visit` ended the walk.
+template <typename Enter, typename Visit, typename RightFirst>
+bool walk_bvh(const Bvh& bvh, Enter&& enter, Visit&& visit, RightFirst&& right_first) {
+  if (bvh.nodes.empty()) return true;
+  int stack[kBvhWalkStack];
   int sp = 0;
   stack[sp++] = 0;
-  const bool neg[3] = {ray.dir.x < 0, ray.dir.y < 0, ray.dir.z < 0};
-  while (sp) {
+  while (sp > 0) {
     const int ni = stack[--sp];
+    if (!enter(ni)) continue;
     const BvhNode& n = bvh.nodes[ni];
-    if (!hit_box(n.box, ri, tmin, tmax)) continue;
     if (n.count > 0) {
       for (int i = n.first; i < n.first + n.count; ++i) {
-        const double t = visit(bvh.order[i]);
-        if (t < 0) return;
-        tmax = t;
+        if (!visit(bvh.order[i])) return false;
       }
+      continue;
+    }
+    LOCUS_CHECK(sp + 2 <= kBvhWalkStack);
+    const int left = ni + 1, right = n.first;
+    if (right_first(ni)) {
+      stack[sp++] = left;
+      stack[sp++] = right;
     } else {
-      // Push the far child first so the near one is visited first.
-      const int left = ni + 1, right = n.first;
-      const Vec3 d = bvh.nodes[right].box.centre() - bvh.nodes[left].box.centre();
-      const int major = std::abs(d.x) > std::abs(d.y) ? (std::abs(d.x) > std::abs(d.z) ? 0 : 2)
-                                                       : (std::abs(d.y) > std::abs(d.z) ? 1 : 2);
-      const bool right_first = (d[major] < 0) != neg[major];
-      if (right_first) {
-        stack[sp++] = left;
-        stack[sp++] = right;
-      } else {
-        stack[sp++] = right;
-        stack[sp++] = left;
-      }
+      stack[sp++] = right;
+      stack[sp++] = left;
     }
   }
+  return true;
+}
+
+// walk_bvh with the left child always first.
+template <typename Enter, typename Visit>
+bool walk_bvh(const Bvh& bvh, Enter&& enter, Visit&& visit) {
+  return walk_bvh(bvh, enter, visit, [](int) { return false; });
+}
+
+// Visits the primitives whose leaf boxes the ray meets in (tmin, tmax), the
+// near child first. `visit(prim)` returns the possibly shortened tmax, or a
+// negative value to stop the traversal.
+template <typename F>
+void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& visit) {
+  const RayInv ri(ray);
+  const bool neg[3] = {ray.dir.x < 0, ray.dir.y < 0, ray.dir.z < 0};
+  walk_bvh(
+      bvh, [&](int ni) { return hit_box(bvh.nodes[ni].box, ri, tmin, tmax); },
+      [&](int prim) {
+        const double t = visit(prim);
+        if (t < 0) return false;
+        tmax = t;
+        return true;
+      },
+      [&](int ni) {
+        // The child whose centre lies first along the ray's direction, on
+        // the axis that separates the two centres most.
+        const Vec3 d = bvh.nodes[bvh.nodes[ni].first].box.centre() - bvh.nodes[ni + 1].box.centre();
+        const int major = std::abs(d.x) > std::abs(d.y) ? (std::abs(d.x) > std::abs(d.z) ? 0 : 2)
+                                                        : (std::abs(d.y) > std::abs(d.z) ? 1 : 2);
+        return (d[major] < 0) != neg[major];
+      });
 }
 
 }  // namespace locus

@@ -3,7 +3,7 @@
 // real parameter a (an image coordinate). Along a pencil, whether a line
 // meets a sphere or cone changes only where the line touches the body's
 // quadric or passes through a point of one of its rim circles; these
-// events bound exact shadow intervals on a scanline (span_shadows.cpp) and
+// events bound exact shadow intervals on a scanline (span_intervals.cpp) and
 // exact silhouettes on a sub-scanline (multiscan.cpp; docs/shadow-volumes.md
 // "Exact intervals of curved occluders").
 #pragma once

@@ -1,6 +1,9 @@
-// Building the shadow volumes, the boxes' volumes and the candidate lists
-// (paper §4.1; docs/shadow-volumes.md). Their search at single points is in
-// shadow_search.cpp, on scanline spans in span_shadows.cpp.
+// Building the occluders' shadow volumes (paper §4.1, Fig. 6;
+// docs/shadow-volumes.md): polygons cut into convex pieces, polyhedra, the
+// bounding polyhedra of curved bodies; and build_shadow_volumes, which adds
+// the boxes' volumes and the candidate lists of shadow_candidates.cpp. Their
+// search at single points is in common/trace/shadow_search.cpp, on scanline
+// spans in common/scan/span_shadows.cpp.
 #include "common/prepare/shadow_volume.h"
 
 #include <algorithm>
@@ -13,6 +16,7 @@
 
 #include "common/prepare/bounding.h"
 #include "common/prepare/prepared.h"
+#include "common/prepare/shadow_candidates.h"
 #include "common/scene/polyhedron.h"
 
 namespace locus {
@@ -206,38 +210,6 @@ void add_piece(VolumeSet& out, const std::vector<Vec3>& pts, const HalfSpace& ca
   }
   v.count = static_cast<int>(out.planes.size()) - v.first;
   out.volumes.push_back(v);
-}
-
-// The (conservative) test of a volume against a point set: true when no
-// point of `pts` can be in volume `v` even with `slack`.
-bool separated(const VolumeSet& set, int v, const std::vector<Vec3>& pts, double slack) {
-  const ShadowVolume& vol = set.volumes[v];
-  switch (vol.kind) {
-    case VolumeKind::kEverywhere:
-      return false;
-    case VolumeKind::kConvex:
-      for (int i = vol.first; i < vol.first + vol.count; ++i) {
-        const HalfSpace& p = set.planes[i];
-        bool all_out = true;
-        for (const Vec3& x : pts) {
-          if (!(glm::dot(p.m, x) - p.h > slack)) {
-            all_out = false;
-            break;
-          }
-        }
-        if (all_out) return true;
-      }
-      return false;
-    case VolumeKind::kOutside:
-      // Every point strictly inside the occluder: none is shadowed by it.
-      for (const Vec3& x : pts) {
-        for (int i = vol.first; i < vol.first + vol.count; ++i) {
-          if (!(glm::dot(set.planes[i].m, x) - set.planes[i].h < -slack)) return false;
-        }
-      }
-      return true;
-  }
-  return false;
 }
 
 // The outline of a flat primitive (polygon, triangle) as the ray tracer
@@ -544,219 +516,90 @@ int add_pieces_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Con
   return static_cast<int>(pieces.size());
 }
 
+namespace {
+
+// What the occluders' volumes are made of, the same for every light: the
+// bounding polyhedra of curved bodies (one per CSG leaf) and the convex
+// pieces of polygons (triangles are one), per primitive.
+struct OccluderShapes {
+  std::vector<std::vector<Outlines>> leaves;
+  std::vector<std::optional<ConvexPieces>> pieces;
+};
+
+OccluderShapes occluder_shapes(const PreparedScene& ps) {
+  const PrimitiveSet& set = ps.prims;
+  const int n = static_cast<int>(set.prims.size());
+  OccluderShapes s;
+  s.leaves.resize(n);
+  s.pieces.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const PrimRef& ref = set.prims[i];
+    if (ref.kind == PrimKind::kSphere || ref.kind == PrimKind::kCone ||
+        ref.kind == PrimKind::kCsg) {
+      for (const Polyhedron& p : bounding_polyhedra(ps.scene, ref.object)) {
+        s.leaves[i].push_back(outlines_of(p));
+      }
+    } else if (ref.kind == PrimKind::kPolygon) {
+      s.pieces[i] = convex_pieces(flat_outline(ps, i), set.polygons[ref.index].normal);
+    } else if (ref.kind == PrimKind::kTriangle) {
+      s.pieces[i] = ConvexPieces{{0, 1, 2}};
+    }
+  }
+  return s;
+}
+
+// Per primitive, what the front/back relations use of it (ReceiverHull).
+std::vector<ReceiverHull> receiver_hulls(const PreparedScene& ps, const OccluderShapes& shapes) {
+  const int n = static_cast<int>(ps.prims.prims.size());
+  std::vector<ReceiverHull> hulls(n);
+  for (int i = 0; i < n; ++i) {
+    hulls[i].points = hull_points(ps, i, shapes.leaves[i]);
+    hulls[i].flat = flat_plane(ps, i, &hulls[i].plane);
+  }
+  return hulls;
+}
+
+// The largest coordinate of the scene's bounds (at least 1e-3), the scale
+// of rounding in the volumes' planes.
+double world_scale(const PrimitiveSet& set) {
+  Aabb world;
+  for (const Aabb& b : set.bounds) world.extend(b);
+  if (world.empty()) return 1.0;
+  return std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+}
+
+// The planes' products with the camera frame (VolumeSet::cam), for the
+// scanline intervals.
+void add_camera_dots(const CameraFrame& cam, VolumeSet& set) {
+  set.cam.clear();
+  for (const HalfSpace& p : set.planes) {
+    set.cam.push_back({glm::dot(p.m, cam.u), glm::dot(p.m, cam.v), glm::dot(p.m, cam.w),
+                       glm::dot(p.m, cam.from) - p.h});
+  }
+}
+
+}  // namespace
+
 ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
   ShadowVolumes sv;
   sv.search = search;
-  const PrimitiveSet& set = ps.prims;
-  const int n = static_cast<int>(set.prims.size());
-  // Bounding polyhedra of curved bodies, one per CSG leaf.
-  std::vector<std::vector<Outlines>> leaves(n);
-  for (int i = 0; i < n; ++i) {
-    const PrimKind k = set.prims[i].kind;
-    if (k != PrimKind::kSphere && k != PrimKind::kCone && k != PrimKind::kCsg) continue;
-    for (const Polyhedron& p : bounding_polyhedra(ps.scene, set.prims[i].object)) {
-      leaves[i].push_back(outlines_of(p));
-    }
-  }
-  std::vector<std::vector<Vec3>> hulls(n);
-  for (int i = 0; i < n; ++i) hulls[i] = hull_points(ps, i, leaves[i]);
-  // Convex pieces of polygons (triangles are one).
-  std::vector<std::optional<ConvexPieces>> pieces(n);
-  for (int i = 0; i < n; ++i) {
-    const PrimRef& ref = set.prims[i];
-    if (ref.kind == PrimKind::kPolygon) {
-      pieces[i] = convex_pieces(flat_outline(ps, i), set.polygons[ref.index].normal);
-    } else if (ref.kind == PrimKind::kTriangle) {
-      pieces[i] = ConvexPieces{{0, 1, 2}};
-    }
-  }
-
-  Aabb world;
-  for (const Aabb& b : set.bounds) world.extend(b);
-  double scale = 1.0;
-  if (!world.empty())
-    scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
-
-  // The boxes of the shadow search: the hierarchy's, widened to the hulls
-  // (children follow their parent in ps.bvh.nodes).
-  std::vector<Aabb> node_boxes(ps.bvh.nodes.size());
-  for (int ni = static_cast<int>(ps.bvh.nodes.size()) - 1; ni >= 0; --ni) {
-    const BvhNode& node = ps.bvh.nodes[ni];
-    Aabb b = node.box;
-    if (node.count > 0) {
-      for (int k = node.first; k < node.first + node.count; ++k) {
-        for (const Vec3& x : hulls[ps.bvh.order[k]]) b.extend(x);
-      }
-    } else {
-      b.extend(node_boxes[ni + 1]);
-      b.extend(node_boxes[node.first]);
-    }
-    node_boxes[ni] = b;
-  }
-  // Receivers cut into slices (ReceiverParts): untransformed cones at
-  // least two diameters long, one slice per diameter, at most kMaxParts.
-  // Each slice's hull: squares circumscribing the larger end circle, at the
-  // slice's ends moved out by more than the shadow-ray offset (an origin
-  // eps off the surface may lie just past a slice boundary).
-  constexpr int kMaxParts = 8;
-  std::vector<std::vector<std::vector<Vec3>>> part_hulls(n);
-  if (search) {
-    sv.parts.resize(n);
-    int slots = 0;
-    for (int i = 0; i < n; ++i) {
-      const PrimRef& ref = set.prims[i];
-      if (ref.kind != PrimKind::kCone || !set.cones[ref.index].frame.identity) continue;
-      const Cone& c = set.cones[ref.index].c;
-      const Vec3 d = c.apex - c.base;
-      const double len = glm::length(d);
-      const double rmax = std::max(std::abs(c.base_radius), std::abs(c.apex_radius));
-      if (!(len > 0) || !(rmax > 0) || !std::isfinite(len)) continue;
-      const int k = std::min(kMaxParts, static_cast<int>(len / (2.0 * rmax)));
-      if (k < 2) continue;
-      ReceiverParts& rp = sv.parts[i];
-      rp.base = c.base;
-      rp.scaled_axis = d / (len * len);
-      rp.count = k;
-      rp.slot = slots;
-      slots += k;
-      const Vec3 a = d / len;
-      const Vec3 u = any_perpendicular(a), v = glm::cross(a, u);
-      const double margin = (8.0 * ps.eps + 1e-9 * (len + max_component(glm::abs(c.base)))) / len;
-      const double rho = rmax * (1.0 + 1e-9);  // the larger end's square all along
-      for (int q = 0; q < k; ++q) {
-        std::vector<Vec3> pts;
-        for (const double t : {static_cast<double>(q) / k - margin, static_cast<double>(q + 1) / k + margin}) {
-          const Vec3 centre = c.base + t * d;
-          for (const double su : {-1.0, 1.0}) {
-            for (const double sw : {-1.0, 1.0}) pts.push_back(centre + rho * (su * u + sw * v));
-          }
-        }
-        part_hulls[i].push_back(std::move(pts));
-      }
-    }
-  }
+  const OccluderShapes shapes = occluder_shapes(ps);
+  const double scale = world_scale(ps.prims);
+  SearchShapes search_with;
+  if (search) search_with = search_shapes(ps, receiver_hulls(ps, shapes), sv.parts);
   for (const Light& light : ps.scene.lights) {
     LightVolumes lv;
     lv.position = light.position;
     // Shadow-ray origins lie ps.eps off the surface: conservative tests must
     // reach that far, and beyond rounding.
     lv.slack = 4.0 * ps.eps + 1e-12 * (scale + glm::length(light.position));
-    const double slack = lv.slack;
-    for (int i = 0; i < n; ++i) add_occluder(ps, i, leaves[i], pieces[i], lv);
-    if (!search) {
-      sv.lights.push_back(std::move(lv));
-      continue;
+    for (int i = 0; i < static_cast<int>(ps.prims.prims.size()); ++i) {
+      add_occluder(ps, i, shapes.leaves[i], shapes.pieces[i], lv);
     }
-    // The hierarchy's boxes (paper §4.1): a point outside a box's volume is
-    // shadowed by nothing in the box. Each box is widened to hold its
-    // occluders' own volumes' outlines (a curved body's bounding polyhedron
-    // reaches beyond the body's box), so a box's volume holds every volume
-    // below it and pruning by boxes never drops an interval.
-    for (const Aabb& vb : node_boxes) {
-      const Polyhedron box = make_box(vb.lo, vb.hi);
-      Outlines o;
-      for (const auto& face : box.faces) {
-        std::vector<Vec3> pts;
-        for (int v : face) pts.push_back(box.vertices[v]);
-        o.faces.push_back(std::move(pts));
-      }
-      const Vec3 lo = vb.lo, hi = vb.hi;
-      o.planes = {{Vec3(-1, 0, 0), -lo.x}, {Vec3(1, 0, 0), hi.x},   {Vec3(0, -1, 0), -lo.y},
-                  {Vec3(0, 1, 0), hi.y},   {Vec3(0, 0, -1), -lo.z}, {Vec3(0, 0, 1), hi.z}};
-      lv.node_volume.push_back(
-          add_polyhedron_volume(lv.set, o.faces, o.planes, lv.position, false));
-    }
-    // Front/back relations (paper §4.1): the occluders that can shadow each
-    // primitive. An occluder is dropped when its volume misses the
-    // primitive's hull, or when it lies wholly behind the plane of a flat
-    // primitive as seen from the light (a face cannot shadow itself).
-    // Can occluder a's volumes (its bound first) reach the hull `pts`?
-    auto reaches = [&](int a, const std::vector<Vec3>& pts) {
-      const LightVolumes::Occluder& oc = lv.occluders[a];
-      if (oc.bound >= 0 && separated(lv.set, oc.bound, pts, slack)) return false;
-      for (int v = oc.first; v < oc.first + oc.count; ++v) {
-        if (!separated(lv.set, v, pts, slack)) return true;
-      }
-      return false;
-    };
-    lv.candidate_first.assign(n + 1, 0);
-    std::vector<int> stack;
-    std::vector<int> found;
-    for (int r = 0; r < n; ++r) {
-      found.clear();
-      HalfSpace rplane;
-      const bool flat = flat_plane(ps, r, &rplane);
-      const double lside = flat ? glm::dot(rplane.m, lv.position) - rplane.h : 0.0;
-      const std::vector<Vec3>& hr = hulls[r];
-      stack.assign(1, 0);
-      while (!stack.empty() && !ps.bvh.nodes.empty()) {
-        const int ni = stack.back();
-        stack.pop_back();
-        if (separated(lv.set, lv.node_volume[ni], hr, slack)) continue;
-        const BvhNode& node = ps.bvh.nodes[ni];
-        if (node.count == 0) {
-          stack.push_back(ni + 1);
-          stack.push_back(node.first);
-          continue;
-        }
-        for (int k = node.first; k < node.first + node.count; ++k) {
-          const int a = ps.bvh.order[k];
-          if (flat && a == r) continue;
-          if (!reaches(a, hr)) continue;
-          if (flat && lside != 0) {
-            // Shadow-ray origins lie eps on the light's side of the face:
-            // an occluder nowhere more than eps / 2 in front of the plane
-            // cannot meet their segments.
-            const double sgn = lside > 0 ? 1.0 : -1.0;
-            bool in_front = false;
-            for (const Vec3& x : hulls[a]) {
-              if (sgn * (glm::dot(rplane.m, x) - rplane.h) > 0.5 * ps.eps) {
-                in_front = true;
-                break;
-              }
-            }
-            if (!in_front) continue;
-          }
-          found.push_back(a);
-        }
-      }
-      std::sort(found.begin(), found.end());
-      lv.candidates.insert(lv.candidates.end(), found.begin(), found.end());
-      lv.candidate_first[r + 1] = static_cast<int>(lv.candidates.size());
-    }
-    auto direct_of = [&](int a) {
-      LightVolumes::Direct d;
-      const LightVolumes::Occluder& oc = lv.occluders[a];
-      if (oc.bound >= 0 || oc.count != 1) return d;
-      const ShadowVolume& vol = lv.set.volumes[oc.first];
-      if (vol.kind != VolumeKind::kConvex) return d;
-      return LightVolumes::Direct{vol.first, vol.count, oc.decides};
-    };
-    lv.candidate_direct.resize(lv.candidates.size());
-    for (size_t k = 0; k < lv.candidates.size(); ++k) lv.candidate_direct[k] = direct_of(lv.candidates[k]);
-    // The slices' lists: the receiver's candidates whose volumes reach the
-    // slice's hull (the tests above, on fewer points).
-    lv.part_first.assign(1, 0);
-    for (int r = 0; r < n; ++r) {
-      for (const std::vector<Vec3>& hull : part_hulls[r]) {
-        for (int k = lv.candidate_first[r]; k < lv.candidate_first[r + 1]; ++k) {
-          const int a = lv.candidates[k];
-          if (!reaches(a, hull)) continue;
-          lv.part_candidates.push_back(a);
-          lv.part_direct.push_back(lv.candidate_direct[k]);
-        }
-        lv.part_first.push_back(static_cast<int>(lv.part_candidates.size()));
-      }
-    }
+    if (search) add_search(ps, search_with, lv);
     sv.lights.push_back(std::move(lv));
   }
-  for (LightVolumes& lv : sv.lights) {
-    lv.set.cam.clear();
-    for (const HalfSpace& p : lv.set.planes) {
-      lv.set.cam.push_back({glm::dot(p.m, ps.camera.u), glm::dot(p.m, ps.camera.v),
-                            glm::dot(p.m, ps.camera.w), glm::dot(p.m, ps.camera.from) - p.h});
-    }
-  }
+  for (LightVolumes& lv : sv.lights) add_camera_dots(ps.camera, lv.set);
   return sv;
 }
 

@@ -16,10 +16,12 @@
 // - every primitive gets the list of occluders that can shadow it (the
 //   front/back relations of §4.1).
 //
-// This file builds them. Rows then find the shadows of their spans
-// (SpanShadows in common/scan/span_shadows.h, paper §3.2 step 2), and
-// points reached by secondary rays search the hierarchy
-// (volume_transmittance, common/trace/shadow_search.h). Both give exactly what a shadow ray gives
+// This file's functions build them: shadow_volume.cpp the occluders'
+// volumes, shadow_candidates.cpp the boxes' volumes and the lists. Rows then
+// find the shadows of their spans (SpanShadows in
+// common/scan/span_shadows.h, paper §3.2 step 2), and points reached by
+// secondary rays search the hierarchy (volume_transmittance,
+// common/trace/shadow_search.h). Both give exactly what a shadow ray gives
 // (Tracer::transmittance), but at points within rounding of a shadow
 // boundary.
 #pragma once

@@ -1,12 +1,14 @@
 // SpanShadows: the shadows of scanline spans (paper §3.2 step 2), for point
-// sampling and multi-scanning. The volumes come from shadow_volume.cpp.
+// sampling and multi-scanning: the intervals kept per line, face and light,
+// their candidates, and the lookups of the samples. The volumes come from
+// shadow_volume.cpp; where a span meets one volume is in span_intervals.h.
 #include "common/scan/span_shadows.h"
 
 #include <algorithm>
 #include <cmath>
 #include <optional>
 
-#include "common/geometry/pencil.h"
+#include "common/geometry/bvh.h"
 #include "common/prepare/prepared.h"
 #include "common/scan/scanline.h"
 
@@ -227,210 +229,60 @@ LightStates SpanShadows::states(double x) {
 
 namespace {
 
-// A span's line on the face, for intervals: the shadow-ray origins of the
-// face's points on the scan plane are O(a) = E + delta + s(a) D(a), with
-// D(a) = w + a u + b v and s(a) = num / (nw + a nu) > 0 (docs/local.md).
-struct SpanLine {
-  Vec3 delta;      // the shadow-ray origins' offset from the face
-  double b;        // the scan plane's image coordinate
-  Vec3 eye_delta;  // E + delta
-  Vec3 w_bv;       // w + b v
-  Vec3 u;
-  double num, nw, nu, sigma;
-  double a_first, a_last;  // the span's first and last pixel
-};
-
-// Exact shadow intervals of opaque spheres and cones (docs/shadow-volumes.md
-// "Exact intervals of curved occluders"). The lines through the light L
-// and the span's shadow-ray origins O(a) form a pencil (common/geometry/pencil.h),
-// with directions (nw + a nu) (O(a) - L) = p0 + a p1, linear in a. The
-// line at a meets the body's quadric where e(a) >= 0: for a sphere that is
-// the shadow. For a cone or cylinder, whether the line meets the body
-// between its rims changes only at those ends or where it passes through a
-// point of a rim circle; between two such events, one line test decides.
-// Either way the result is the shadow ray's (eqs. (2), (3)) when the body
-// lies strictly between the origins and the light: a line that meets it
-// then does so inside the segment from O(a) to L
-// (SpanShadows::compute_light's exact_intervals).
-//
-// Whether prim is a plain quadric (common/geometry/pencil.h) lying strictly between
-// the heights h0 (the shadow-ray origins) and hl (the light), by `margin`;
-// heights are sigma (n . x - offset).
-bool between_origins_and_light(const PrimitiveSet& prims, int prim, const Vec3& n, double offset,
-                               double sigma, double h0, double hl, double margin) {
-  if (!plain_quadric(prims, prim)) return false;
-  const PrimRef& ref = prims.prims[prim];
-  double lo, hi;
-  if (ref.kind == PrimKind::kSphere) {
-    const SpherePrim& s = prims.spheres[ref.index];
-    const double h = sigma * (glm::dot(n, s.s.center) - offset);
-    lo = h - s.s.radius;
-    hi = h + s.s.radius;
-  } else {
-    const ConePrim& c = prims.cones[ref.index];
-    // A rim circle of radius r reaches r sqrt(1 - (n . axis)^2) off its centre's height.
-    const double na = glm::dot(n, c.axis.a);
-    const double spread = std::sqrt(std::max(0.0, 1.0 - na * na));
-    const double hb = sigma * (glm::dot(n, c.c.base) - offset);
-    const double ha = hb + sigma * na * c.axis.h;
-    const double eb = c.c.base_radius * spread, ea = c.c.apex_radius * spread;
-    lo = std::min(hb - eb, ha - ea);
-    hi = std::max(hb + eb, ha + ea);
+// The candidate occluders that may shadow receiving primitive `prim` from
+// light lv, to `occluder(c)`: without the search (configurations II and
+// III: no boxes and no front/back relations) every occluder; else those of
+// the receiver's list (paper §4.1, increasing), and a long list (a floor
+// under many objects) narrowed by a walk of the hierarchy, which enters a
+// box only where `box_meets(volume)` says the box's volume may meet the
+// span or group of lines.
+template <class BoxMeets, class Occluder>
+void for_each_candidate(const PreparedScene& ps, const LightVolumes& lv, int prim, Stats& stats,
+                        BoxMeets&& box_meets, Occluder&& occluder) {
+  if (!ps.volumes->search) {
+    for (int c = 0; c < static_cast<int>(lv.occluders.size()); ++c) occluder(c);
+    return;
   }
-  return lo > h0 + margin && hi < hl - margin;
-}
-
-// The range [lo, hi] of a where O(a) lies inside every plane of volume v
-// (each moved out by `slack`). A plane m . x <= h at O(a), multiplied by
-// the denominator nw + a nu (of sign sigma), reads alpha + beta a <= 0:
-// linear in a. Stops early once the range misses the span if `clip`.
-void inside_range(const VolumeSet& set, const ShadowVolume& vol, const SpanLine& l, double slack,
-                  bool clip, double* lo_out, double* hi_out) {
-  double lo = -kInf, hi = kInf;
-  for (int i = vol.first; i < vol.first + vol.count; ++i) {
-    const HalfSpace& p = set.planes[i];
-    // m . (E + delta) - h, m . (w + b v) and m . u, from the plane's
-    // products with the camera frame (VolumeSet::cam).
-    const VolumeSet::CameraDots& k = set.cam[i];
-    const double c0 = k.me + glm::dot(p.m, l.delta) - slack;
-    const double c1 = k.mw + l.b * k.mv;
-    const double c2 = k.mu;
-    const double alpha = l.sigma * (c0 * l.nw + l.num * c1);
-    const double beta = l.sigma * (c0 * l.nu + l.num * c2);
-    if (beta > 0) {
-      hi = std::min(hi, -alpha / beta);
-    } else if (beta < 0) {
-      lo = std::max(lo, -alpha / beta);
-    } else if (alpha > 0) {
-      lo = kInf;
-    }
-    if (clip && (lo > hi || lo > l.a_last || hi < l.a_first)) break;
+  const int* cb = lv.candidates.data() + lv.candidate_first[prim];
+  const int* ce = lv.candidates.data() + lv.candidate_first[prim + 1];
+  if (ce - cb <= kWalkAbove) {
+    for (const int* c = cb; c != ce; ++c) occluder(*c);
+    return;
   }
-  *lo_out = lo;
-  *hi_out = hi;
-}
-
-bool meets_span(const VolumeSet& set, int v, const SpanLine& l, double slack) {
-  const ShadowVolume& vol = set.volumes[v];
-  if (vol.kind != VolumeKind::kConvex) return true;
-  double lo, hi;
-  inside_range(set, vol, l, slack, true, &lo, &hi);
-  return !(lo > hi || lo > l.a_last || hi < l.a_first);
-}
-
-// A group of lines (multi-scanning): the face's points seen through the
-// image rectangle [a0, a1] x [b0, b1], with shadow-ray origins
-// O(a, b) = E + delta + s D(a, b), D = w + a u + b v, s = num / (n . D).
-struct GroupRect {
-  Vec3 delta;
-  double num, sigma, nu, nv, nw;
-  double a0, a1, b0, b1;
-};
-
-// Whether volume v may hold some O(a, b) of the rectangle. A plane
-// m . x <= h + slack at O, multiplied by n . D (of sign sigma wherever the
-// face is in front of the eye), reads K0 + Ka a + Kb b <= 0: a half-plane
-// of the image. The rectangle is clipped by each (Sutherland-Hodgman); the
-// volume misses it when nothing is left. Conservative: a vertex beyond a
-// plane by no more than rounding is kept, so no line of the group loses an
-// interval its own walk would find.
-bool meets_rect(const VolumeSet& set, int v, const GroupRect& r, double slack) {
-  const ShadowVolume& vol = set.volumes[v];
-  if (vol.kind != VolumeKind::kConvex) return true;
-  constexpr int kMax = 40;
-  double pa[2][kMax], pb[2][kMax];
-  int n = 4;
-  pa[0][0] = r.a0, pb[0][0] = r.b0;
-  pa[0][1] = r.a1, pb[0][1] = r.b0;
-  pa[0][2] = r.a1, pb[0][2] = r.b1;
-  pa[0][3] = r.a0, pb[0][3] = r.b1;
-  const double amax = std::max(std::abs(r.a0), std::abs(r.a1));
-  const double bmax = std::max(std::abs(r.b0), std::abs(r.b1));
-  // Plane i as K0 + Ka a + Kb b <= tol over the rectangle.
-  struct Line {
-    double k0, ka, kb, tol;
-  };
-  auto line_of = [&](int i) {
-    const VolumeSet::CameraDots& k = set.cam[i];
-    const double c0 = k.me + glm::dot(set.planes[i].m, r.delta) - slack;
-    Line q;
-    q.k0 = r.sigma * (c0 * r.nw + r.num * k.mw);
-    q.ka = r.sigma * (c0 * r.nu + r.num * k.mu);
-    q.kb = r.sigma * (c0 * r.nv + r.num * k.mv);
-    q.tol = 1e-9 * (std::abs(q.k0) + std::abs(q.ka) * amax + std::abs(q.kb) * bmax);
-    return q;
-  };
-  // Most volumes that miss lie wholly beyond one of their planes: the four
-  // corners tell, with no clipping (a linear function's least value on a
-  // rectangle is at a corner).
-  for (int i = vol.first; i < vol.first + vol.count; ++i) {
-    const Line q = line_of(i);
-    if (q.k0 + std::min(q.ka * r.a0, q.ka * r.a1) + std::min(q.kb * r.b0, q.kb * r.b1) - q.tol > 0) {
-      return false;
-    }
-  }
-  int cur = 0;
-  for (int i = vol.first; i < vol.first + vol.count; ++i) {
-    if (n + 1 > kMax) return true;
-    const Line q = line_of(i);
-    const double k0 = q.k0, ka = q.ka, kb = q.kb, tol = q.tol;
-    const double* xa = pa[cur];
-    const double* xb = pb[cur];
-    double* ya = pa[1 - cur];
-    double* yb = pb[1 - cur];
-    int m = 0;
-    double vp = k0 + ka * xa[n - 1] + kb * xb[n - 1] - tol;
-    for (int q = 0, p = n - 1; q < n; p = q++) {
-      const double vq = k0 + ka * xa[q] + kb * xb[q] - tol;
-      if ((vp <= 0) != (vq <= 0)) {
-        const double t = vp / (vp - vq);
-        ya[m] = xa[p] + t * (xa[q] - xa[p]);
-        yb[m] = xb[p] + t * (xb[q] - xb[p]);
-        ++m;
-      }
-      if (vq <= 0) {
-        ya[m] = xa[q];
-        yb[m] = xb[q];
-        ++m;
-      }
-      vp = vq;
-    }
-    if (m == 0) return false;
-    n = m;
-    cur = 1 - cur;
-  }
-  return true;
+  walk_bvh(
+      ps.bvh,
+      [&](int ni) {
+        ++stats.tests_shadow_volume;
+        return box_meets(lv.node_volume[ni]);
+      },
+      [&](int a) {
+        if (std::binary_search(cb, ce, a)) occluder(a);
+        return true;
+      });
 }
 
 }  // namespace
 
-const SpanShadows::GroupSlot& SpanShadows::group_candidates(int j) {
+SpanShadows::GroupSlot& SpanShadows::group_slot() {
   int gi = group_slot_of_face_[face_];
-  if (gi < 0) {
-    if (group_used_ == static_cast<int>(group_slots_.size())) group_slots_.emplace_back();
-    gi = group_used_++;
-    group_slot_of_face_[face_] = gi;
-    GroupSlot& g = group_slots_[gi];
-    g.face = face_;
-    g.done.assign(lights_, 0);
-    g.candidates.resize(lights_);
-    g.vol_first.resize(lights_);
-    g.volumes.resize(lights_);
-  }
+  if (gi >= 0) return group_slots_[gi];
+  if (group_used_ == static_cast<int>(group_slots_.size())) group_slots_.emplace_back();
+  gi = group_used_++;
+  group_slot_of_face_[face_] = gi;
   GroupSlot& g = group_slots_[gi];
-  std::vector<int>& out = g.candidates[j];
-  if (g.done[j]) return g;
-  g.done[j] = 1;
-  out.clear();
-  std::vector<int>& vol_first = g.vol_first[j];
-  std::vector<int>& vols = g.volumes[j];
-  vol_first.assign(1, 0);
-  vols.clear();
+  g.face = face_;
+  g.done.assign(lights_, 0);
+  g.candidates.resize(lights_);
+  g.vol_first.resize(lights_);
+  g.volumes.resize(lights_);
+  return g;
+}
+
+GroupRect SpanShadows::group_rect(int j) const {
   const ScanFace& f = ps_.scan->faces[face_];
   const CameraFrame& cam = ps_.camera;
-  const LightVolumes& lv = ps_.volumes->lights[j];
   const Vec3& n = f.normal;
-  const bool side = glm::dot(n, lv.position) - f.offset >= 0;  // as compute_light
+  const bool side = glm::dot(n, ps_.volumes->lights[j].position) - f.offset >= 0;  // as line_light
   GroupRect r;
   r.delta = (side ? ps_.eps : -ps_.eps) * n;
   r.num = f.offset - glm::dot(n, cam.from);
@@ -458,68 +310,56 @@ const SpanShadows::GroupSlot& SpanShadows::group_candidates(int j) {
   r.a1 = image_a(x1);
   r.b0 = (1.0 - 2.0 * y1 / cam.height) * cam.tan_half;
   r.b1 = (1.0 - 2.0 * y0 / cam.height) * cam.tan_half;
+  return r;
+}
+
+const SpanShadows::GroupSlot& SpanShadows::group_candidates(int j) {
+  GroupSlot& g = group_slot();
+  if (g.done[j]) return g;
+  g.done[j] = 1;
+  std::vector<int>& out = g.candidates[j];
+  std::vector<int>& vol_first = g.vol_first[j];
+  std::vector<int>& vols = g.volumes[j];
+  out.clear();
+  vol_first.assign(1, 0);
+  vols.clear();
+  const LightVolumes& lv = ps_.volumes->lights[j];
+  const GroupRect r = group_rect(j);
   // An occluder stays a candidate if its bound and one of its volumes may
   // meet the rectangle (the tests compute_light's lines make, with slack
   // at least theirs). Its volumes that miss the rectangle give no interval
   // on any line of the group inside the face, so the lines skip them (a
-  // concave polygon cut into many convex pieces: SPD gears).
-  auto occluder = [&](int c) {
-    const LightVolumes::Occluder& oc = lv.occluders[c];
-    ++stats_.tests_shadow_volume;
-    if (oc.bound >= 0 && !meets_rect(lv.set, oc.bound, r, lv.slack)) return;
-    const size_t before = vols.size();
-    for (int v = oc.first; v < oc.first + oc.count; ++v) {
-      if (meets_rect(lv.set, v, r, lv.slack)) vols.push_back(v);
-    }
-    if (vols.size() == before) return;
-    out.push_back(c);
-    vol_first.push_back(static_cast<int>(vols.size()));
-  };
-  if (!ps_.volumes->search) {
-    for (int c = 0; c < static_cast<int>(lv.occluders.size()); ++c) occluder(c);
-    return g;
-  }
-  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
-  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
-  if (ce - cb <= kWalkAbove) {
-    for (const int* c = cb; c != ce; ++c) occluder(*c);
-    return g;
-  }
-  // The walk of compute_light, with the rectangle: its order is kept.
-  int stack[128];
-  int sp = 0;
-  stack[sp++] = 0;
-  while (sp) {
-    const int ni = stack[--sp];
-    ++stats_.tests_shadow_volume;
-    if (!meets_rect(lv.set, lv.node_volume[ni], r, kNodeSlack * lv.slack)) continue;
-    const BvhNode& node = ps_.bvh.nodes[ni];
-    if (node.count == 0) {
-      stack[sp++] = node.first;
-      stack[sp++] = ni + 1;
-      continue;
-    }
-    for (int k = node.first; k < node.first + node.count; ++k) {
-      const int a = ps_.bvh.order[k];
-      if (std::binary_search(cb, ce, a)) occluder(a);
-    }
-  }
+  // concave polygon cut into many convex pieces: SPD gears). The walk is
+  // the lines' own, with the rectangle: its order is kept.
+  for_each_candidate(
+      ps_, lv, ps_.scan->faces[face_].prim, stats_,
+      [&](int v) { return meets_rect(lv.set, v, r, kNodeSlack * lv.slack); },
+      [&](int c) {
+        const LightVolumes::Occluder& oc = lv.occluders[c];
+        ++stats_.tests_shadow_volume;
+        if (oc.bound >= 0 && !meets_rect(lv.set, oc.bound, r, lv.slack)) return;
+        const size_t before = vols.size();
+        for (int v = oc.first; v < oc.first + oc.count; ++v) {
+          if (meets_rect(lv.set, v, r, lv.slack)) vols.push_back(v);
+        }
+        if (vols.size() == before) return;
+        out.push_back(c);
+        vol_first.push_back(static_cast<int>(vols.size()));
+      });
   return g;
 }
 
-void SpanShadows::compute_light(int j) {
-  s_->done[j] = 1;
-  std::vector<Interval>& out = s_->iv[j];
-  out.clear();
+SpanShadows::LineLight SpanShadows::line_light(int j) {
   const ScanFace& f = ps_.scan->faces[face_];
   const CameraFrame& cam = ps_.camera;
   const LightVolumes& lv = ps_.volumes->lights[j];
   const Vec3& n = f.normal;
+  LineLight ll;
   // The shadow-ray origin of a point P of the face is P + delta, offset to
   // the light's side (Tracer::offset).
   s_->side[j] = glm::dot(n, lv.position) - f.offset >= 0;
   const Vec3 delta = (s_->side[j] ? ps_.eps : -ps_.eps) * n;
-  SpanLine l;
+  SpanLine& l = ll.line;
   l.delta = delta;
   l.b = b_;
   l.eye_delta = cam.from + delta;
@@ -532,166 +372,114 @@ void SpanShadows::compute_light(int j) {
   l.a_first = a_line_lo_;
   l.a_last = a_line_hi_;
   // Opaque spheres and cones between the face and the light get exact
-  // intervals (the pencil from the light through the line's origins, see
-  // above); heights are above the face, on the light's side.
-  const double sigma = s_->side[j] ? 1.0 : -1.0;
-  const double h_light = sigma * (glm::dot(n, lv.position) - f.offset);
+  // intervals (the pencil from the light through the line's origins,
+  // span_intervals.h); heights are above the face, on the light's side.
+  ll.sigma = s_->side[j] ? 1.0 : -1.0;
+  ll.h_light = ll.sigma * (glm::dot(n, lv.position) - f.offset);
   const Vec3 g = l.eye_delta - lv.position;
-  const Pencil pen{lv.position, l.nw * g + l.num * l.w_bv, l.nu * g + l.num * l.u};
-  // The exact intervals of occluder c on the line, appended to `out`;
-  // false if they cannot be found.
-  auto exact_intervals = [&](int c) {
-    std::vector<double>& ev = events_;
-    ev.clear();
-    double e[3];
-    if (!pencil_events(ps_.prims, c, pen, e, ev)) return false;
-    // The line cut at the events inside it; each part decided at its
-    // middle: the pencil's line there meets the quadric (e >= 0) and, for
-    // a cone, the surface between its rims. The line meets the body only
-    // between the origin and the light (between_origins_and_light).
-    ev.erase(std::remove_if(ev.begin(), ev.end(),
-                            [&](double a) { return !(a > l.a_first && a < l.a_last); }),
-             ev.end());
-    std::sort(ev.begin(), ev.end());
-    ev.push_back(l.a_last);
-    const PrimRef& ref = ps_.prims.prims[c];
-    bool open = false;
-    double start = 0, x = l.a_first;
-    for (const double y : ev) {
-      if (!(y > x)) continue;
-      const double a = 0.5 * (x + y);
-      bool in = (e[0] * a + e[1]) * a + e[2] >= 0;
-      if (in && ref.kind == PrimKind::kCone) {
-        const ConePrim& cone = ps_.prims.cones[ref.index];
-        ++stats_.tests_ray_object;
-        in = intersect_cone(cone.c, cone.axis, Ray{pen.point, pen.p0 + a * pen.p1}, -kInf, kInf,
-                            nullptr) > 0;
-      }
-      // Shadowed parts are merged into intervals.
-      if (in && !open) start = x;
-      if (!in && open) out.push_back(Interval{c, true, start, x, false});
-      open = in;
-      x = y;
-    }
-    if (open) out.push_back(Interval{c, true, start, l.a_last, false});
-    return true;
-  };
-  // One candidate occluder c: the interval of each of its volumes that
-  // `each_volume(fn)` hands to fn (all of them, or a group's list).
-  auto occluder_volumes = [&](int c, auto&& each_volume) {
-    const LightVolumes::Occluder& oc = lv.occluders[c];
-    if (oc.bound >= 0) {
-      ++stats_.tests_shadow_volume;
-      if (!meets_span(lv.set, oc.bound, l, lv.slack)) return;
-    }
-    if (!oc.decides && is_opaque(ps_, c) &&
-        between_origins_and_light(ps_.prims, c, n, f.offset, sigma, ps_.eps, h_light, lv.slack) &&
-        exact_intervals(c)) {
+  ll.pen = Pencil{lv.position, l.nw * g + l.num * l.w_bv, l.nu * g + l.num * l.u};
+  return ll;
+}
+
+template <class EachVolume>
+void SpanShadows::occluder_intervals(int j, const LineLight& ll, int c, EachVolume&& each_volume) {
+  const LightVolumes& lv = ps_.volumes->lights[j];
+  const LightVolumes::Occluder& oc = lv.occluders[c];
+  const SpanLine& l = ll.line;
+  std::vector<Interval>& out = s_->iv[j];
+  if (oc.bound >= 0) {
+    ++stats_.tests_shadow_volume;
+    if (!meets_span(lv.set, oc.bound, l, lv.slack)) return;
+  }
+  const ScanFace& f = ps_.scan->faces[face_];
+  if (!oc.decides && is_opaque(ps_, c) &&
+      between_origins_and_light(ps_.prims, c, f.normal, f.offset, ll.sigma, ps_.eps, ll.h_light,
+                                lv.slack) &&
+      exact_intervals(ps_.prims, c, ll.pen, l.a_first, l.a_last, events_, stats_, out)) {
+    return;
+  }
+  const double slack = oc.decides ? 0.0 : lv.slack;
+  each_volume([&](int v) {
+    ++stats_.tests_shadow_volume;
+    const ShadowVolume& vol = lv.set.volumes[v];
+    if (vol.kind == VolumeKind::kEverywhere) {
+      out.push_back(Interval{c, oc.decides, l.a_first, l.a_last, false});
       return;
     }
-    const double slack = oc.decides ? 0.0 : lv.slack;
-    each_volume([&](int v) {
-      ++stats_.tests_shadow_volume;
-      const ShadowVolume& vol = lv.set.volumes[v];
-      if (vol.kind == VolumeKind::kEverywhere) {
-        out.push_back(Interval{c, oc.decides, l.a_first, l.a_last, false});
-        return;
-      }
-      double lo, hi;
-      inside_range(lv.set, vol, l, slack, vol.kind == VolumeKind::kConvex, &lo, &hi);
-      if (vol.kind == VolumeKind::kConvex) {
-        if (lo > hi || lo > l.a_last || hi < l.a_first) return;
-        out.push_back(Interval{c, oc.decides, lo, hi, false});
-      } else {
-        // kOutside: shadow outside [lo, hi].
-        if (lo <= l.a_first && hi >= l.a_last) return;
-        out.push_back(Interval{c, oc.decides, lo, hi, true});
-      }
-    });
-  };
-  auto occluder = [&](int c) {
-    const LightVolumes::Occluder& oc = lv.occluders[c];
-    occluder_volumes(c, [&](auto&& fn) {
-      for (int v = oc.first; v < oc.first + oc.count; ++v) fn(v);
-    });
-  };
-  // Opaque intervals first: a pixel in one needs no exact test.
-  auto opaque_first = [&] {
-    std::stable_partition(out.begin(), out.end(), [](const Interval& i) { return i.decides; });
-    // The opaque union and the rest (states(), uncertain()): on a floor
-    // under many polygons a point is looked up among hundreds of
-    // intervals; in the union that takes a binary search.
-    std::vector<std::pair<double, double>>& un = s_->opaque[j];
-    std::vector<Interval>& rest = s_->rest[j];
-    un.clear();
-    rest.clear();
-    for (const Interval& iv : out) {
-      if (iv.decides && !iv.outside) {
-        un.emplace_back(iv.lo, iv.hi);
-      } else {
-        rest.push_back(iv);
-      }
+    double lo, hi;
+    inside_range(lv.set, vol, l, slack, vol.kind == VolumeKind::kConvex, &lo, &hi);
+    if (vol.kind == VolumeKind::kConvex) {
+      if (lo > hi || lo > l.a_last || hi < l.a_first) return;
+      out.push_back(Interval{c, oc.decides, lo, hi, false});
+    } else {
+      // kOutside: shadow outside [lo, hi].
+      if (lo <= l.a_first && hi >= l.a_last) return;
+      out.push_back(Interval{c, oc.decides, lo, hi, true});
     }
-    std::sort(un.begin(), un.end());
-    size_t m = 0;
-    for (size_t k = 0; k < un.size(); ++k) {
-      if (m > 0 && un[k].first <= un[m - 1].second) {
-        un[m - 1].second = std::max(un[m - 1].second, un[k].second);
-      } else {
-        un[m++] = un[k];
-      }
+  });
+}
+
+void SpanShadows::opaque_first(int j) {
+  std::vector<Interval>& out = s_->iv[j];
+  std::stable_partition(out.begin(), out.end(), [](const Interval& i) { return i.decides; });
+  // The opaque union and the rest (states(), uncertain()): on a floor
+  // under many polygons a point is looked up among hundreds of
+  // intervals; in the union that takes a binary search.
+  std::vector<std::pair<double, double>>& un = s_->opaque[j];
+  std::vector<Interval>& rest = s_->rest[j];
+  un.clear();
+  rest.clear();
+  for (const Interval& iv : out) {
+    if (iv.decides && !iv.outside) {
+      un.emplace_back(iv.lo, iv.hi);
+    } else {
+      rest.push_back(iv);
     }
-    un.resize(m);
-    bucket_rest(j);
-  };
+  }
+  std::sort(un.begin(), un.end());
+  size_t m = 0;
+  for (size_t k = 0; k < un.size(); ++k) {
+    if (m > 0 && un[k].first <= un[m - 1].second) {
+      un[m - 1].second = std::max(un[m - 1].second, un[k].second);
+    } else {
+      un[m++] = un[k];
+    }
+  }
+  un.resize(m);
+  bucket_rest(j);
+}
+
+void SpanShadows::compute_light(int j) {
+  s_->done[j] = 1;
+  s_->iv[j].clear();
+  const LineLight ll = line_light(j);
+  const LightVolumes& lv = ps_.volumes->lights[j];
   if (group_rows_ > 0) {
+    // The group's candidates, each with its volumes that may meet the group.
     const GroupSlot& g = group_candidates(j);
     const std::vector<int>& cands = g.candidates[j];
     const std::vector<int>& vf = g.vol_first[j];
     const int* vols = g.volumes[j].data();
     for (size_t k = 0; k < cands.size(); ++k) {
-      occluder_volumes(cands[k], [&](auto&& fn) {
+      occluder_intervals(j, ll, cands[k], [&](auto&& fn) {
         for (int q = vf[k]; q < vf[k + 1]; ++q) fn(vols[q]);
       });
     }
-    opaque_first();
-    return;
+  } else {
+    // The line's own candidates, each with all its volumes; the hierarchy's
+    // boxes tested by their volumes against the span.
+    for_each_candidate(
+        ps_, lv, ps_.scan->faces[face_].prim, stats_,
+        [&](int v) { return meets_span(lv.set, v, ll.line, kNodeSlack * lv.slack); },
+        [&](int c) {
+          const LightVolumes::Occluder& oc = lv.occluders[c];
+          occluder_intervals(j, ll, c, [&](auto&& fn) {
+            for (int v = oc.first; v < oc.first + oc.count; ++v) fn(v);
+          });
+        });
   }
-  if (!ps_.volumes->search) {
-    // Configurations II and III: no boxes and no front/back relations, so
-    // the span meets every occluder's volume.
-    for (int c = 0; c < static_cast<int>(lv.occluders.size()); ++c) occluder(c);
-    opaque_first();
-    return;
-  }
-  const int* cb = lv.candidates.data() + lv.candidate_first[f.prim];
-  const int* ce = lv.candidates.data() + lv.candidate_first[f.prim + 1];
-  if (ce - cb <= kWalkAbove) {
-    for (const int* c = cb; c != ce; ++c) occluder(*c);
-    opaque_first();
-    return;
-  }
-  // A long list (a floor under many objects): walk the hierarchy with the
-  // boxes' volumes against the span, then narrow by the list (paper §4.1).
-  int stack[128];
-  int sp = 0;
-  stack[sp++] = 0;
-  while (sp) {
-    const int ni = stack[--sp];
-    ++stats_.tests_shadow_volume;
-    if (!meets_span(lv.set, lv.node_volume[ni], l, kNodeSlack * lv.slack)) continue;
-    const BvhNode& node = ps_.bvh.nodes[ni];
-    if (node.count == 0) {
-      stack[sp++] = node.first;
-      stack[sp++] = ni + 1;
-      continue;
-    }
-    for (int k = node.first; k < node.first + node.count; ++k) {
-      const int a = ps_.bvh.order[k];
-      if (std::binary_search(cb, ce, a)) occluder(a);
-    }
-  }
-  opaque_first();
+  // Opaque intervals first: a pixel in one needs no exact test.
+  opaque_first(j);
 }
 
 std::optional<Color> SpanShadows::transmittance(const Vec3& p, const Vec3& origin, int light) {

@@ -1,14 +1,17 @@
 // The shadows of the spans of a scanline (paper §3.2 step 2), from the
 // shadow volumes of common/prepare/shadow_volume.h (docs/shadow-volumes.md,
-// docs/multiscan.md).
+// docs/multiscan.md); where one span meets one occluder is in
+// span_intervals.h.
 #pragma once
 
 #include <cstdint>
 #include <optional>
 #include <vector>
 
+#include "common/geometry/pencil.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/scan/pixel_buckets.h"
+#include "common/scan/span_intervals.h"
 #include "common/trace/raytrace.h"
 #include "common/trace/shadow_search.h"
 
@@ -68,16 +71,29 @@ class SpanShadows : public KnownShadows {
   LightStates states(double x);
 
  private:
-  // Where the span meets one volume: lo <= a <= hi in the image-plane
-  // coordinate a of the sample direction (outside that range for a
-  // kOutside volume).
-  struct Interval {
-    int prim;
-    bool decides;
-    double lo, hi;
-    bool outside;
-  };
+  using Interval = SpanInterval;
+  // The intervals of `light` on the current face and line (paper §3.2 step
+  // 2), in steps: the line of origins (line_light), each candidate
+  // occluder's intervals (occluder_intervals), then opaque_first.
   void compute_light(int light);
+  // The span's line of shadow-ray origins for one light, and what the exact
+  // intervals of curved occluders need: the pencil from the light through
+  // those origins, and the light's height above the face on its side.
+  struct LineLight {
+    SpanLine line;
+    Pencil pen;
+    double sigma, h_light;
+  };
+  LineLight line_light(int light);
+  // Appends to iv[light] occluder c's intervals: exact ones for an opaque
+  // sphere or cone between the face and the light, else those of each of
+  // its volumes that `each_volume(fn)` hands to fn (all of them, or a
+  // group's list).
+  template <class EachVolume>
+  void occluder_intervals(int light, const LineLight& ll, int c, EachVolume&& each_volume);
+  // Orders iv[light] opaque first and derives opaque[light], rest[light]
+  // and its buckets from it.
+  void opaque_first(int light);
   double image_a(double x) const;
   double image_x(double a) const;
 
@@ -129,6 +145,11 @@ class SpanShadows : public KnownShadows {
     std::vector<std::vector<int>> vol_first, volumes;
   };
   std::vector<GroupSlot> group_slots_;
+  // face_'s slot of the current group, made on first use.
+  GroupSlot& group_slot();
+  // The image rectangle of face_ on the current group of lines, with the
+  // offset of `light`'s shadow-ray origins.
+  GroupRect group_rect(int light) const;
   // The candidate occluders of face_ and light j on the current group of
   // lines, in the order of the per-line walk, with the volumes of each that
   // may meet the group (GroupSlot).
