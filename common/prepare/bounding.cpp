@@ -89,7 +89,7 @@ Polyhedron cone_polyhedron(const Cone& c) {
 }
 
 // Appends the world-space polyhedra of the CSG subtree at `obj`, composing
-// transforms the way geometry.cpp's Builder::add_csg_node does.
+// transforms the way primitives.cpp's Builder::add_csg_node does.
 void add_csg_leaves(const Scene& scene, int obj, const Mat4& parent_xf,
                     std::vector<Polyhedron>& out) {
   const Object& o = scene.objects.at(obj);

@@ -34,7 +34,7 @@ Polyhedron bounding_polyhedron(const Cone& c, const Mat4& world_from_object);
 
 // The polyhedra, in world space, that bound scene object `object`: one for a
 // sphere or cone; for a CSG node, one per leaf, with the node transforms
-// composed down the tree as geometry.cpp does (world_from_leaf =
+// composed down the tree as primitives.cpp does (world_from_leaf =
 // world_from_root * ... * leaf.world_from_object), polyhedron leaves
 // transformed as they are; for a polyhedron object, itself; none for
 // polygons, meshes and patches (the scanline pass takes their faces as

@@ -343,7 +343,7 @@ TEST(Bounding, CircumscribedPolyhedronNeedsNormalsAllAround) {
 
 // The scene-level call: object transforms applied, CSG transforms composed
 // down the tree. Every point where a ray crosses the CSG surface, as the
-// renderer's own intersection finds it (geometry.cpp), lies in one of the
+// renderer's own intersection finds it (common/geometry/intersect.cpp), lies in one of the
 // leaves' polyhedra.
 TEST(Bounding, SceneObjectsAndCsgLeaves) {
   Scene scene;
