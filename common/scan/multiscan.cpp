@@ -739,10 +739,7 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
         acc += f.area * c;
       }
       if (traced) ++stats.pixels_ray_traced;
-      float* px = out.pixel(i, row - band.y0);
-      px[0] = static_cast<float>(acc.x);
-      px[1] = static_cast<float>(acc.y);
-      px[2] = static_cast<float>(acc.z);
+      store_pixel(out, band, i, row, acc);
     }
     stats.pixels_total += cam.width;
   }
