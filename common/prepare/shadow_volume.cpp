@@ -571,11 +571,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
     }
   }
 
-  Aabb world;
-  for (const Aabb& b : set.bounds) world.extend(b);
-  double scale = 1.0;
-  if (!world.empty())
-    scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+  const double scale = ps.world_scale;
 
   // The boxes of the shadow search: the hierarchy's, widened to the hulls
   // (children follow their parent in ps.bvh.nodes).
