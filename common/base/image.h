@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "common/base/math.h"
+#include "common/base/params.h"
 #include "common/base/status.h"
 
 namespace locus {
@@ -20,6 +21,17 @@ struct Image {
   float* pixel(int x, int y) { return &rgb[(static_cast<size_t>(y) * width + x) * 3]; }
   const float* pixel(int x, int y) const { return &rgb[(static_cast<size_t>(y) * width + x) * 3]; }
 };
+
+// The one pixel store of the renderer's row loops (local, multi-scanned and
+// ray-traced rows): frame pixel (x, y) of `band` goes to row y - band.y0 of
+// the band's image, each channel rounded to float, unclamped (an EXR keeps
+// the linear radiance; 8-bit and 16-bit outputs clamp when written).
+inline void store_pixel(Image& band_pixels, const Band& band, int x, int y, const Color& c) {
+  float* px = band_pixels.pixel(x, y - band.y0);
+  px[0] = static_cast<float>(c.x);
+  px[1] = static_cast<float>(c.y);
+  px[2] = static_cast<float>(c.z);
+}
 
 // Writes by extension: .png (8-bit, round(255 * clamp(v, 0, 1)), no transfer
 // curve), .exr (float, linear, unclamped), .tif (16-bit). SHADING.md "Output".

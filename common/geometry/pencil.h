@@ -4,7 +4,7 @@
 // meets a sphere or cone changes only where the line touches the body's
 // quadric or passes through a point of one of its rim circles; these
 // events bound exact shadow intervals on a scanline (span_intervals.cpp) and
-// exact silhouettes on a sub-scanline (multiscan.cpp; docs/shadow-volumes.md
+// exact silhouettes on a sub-scanline (sub_line.cpp; docs/shadow-volumes.md
 // "Exact intervals of curved occluders").
 #pragma once
 

@@ -31,6 +31,15 @@ Scene tessellated(const Scene& s, const RenderParams& params, double* seconds) {
   *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }
+
+// The largest coordinate magnitude of the primitives' boxes, at least 1e-3
+// (1 for an empty scene): what the world-scale tolerances are relative to.
+double scale_of_world(const std::vector<Aabb>& bounds) {
+  Aabb world;
+  for (const Aabb& b : bounds) world.extend(b);
+  if (world.empty()) return 1.0;
+  return std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
+}
 }  // namespace
 
 PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
@@ -42,13 +51,10 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
   for (int j = 0; j < static_cast<int>(s.lights.size()); ++j) emission.push_back(light_emission(s, j));
   ambient = ambient_intensity(s);
+  world_scale = scale_of_world(prims.bounds);
   // Secondary rays start this far off the surface: relative to the scene's
   // size, far above double rounding, far below any feature of SPD scenes.
-  Aabb world;
-  for (const Aabb& b : prims.bounds) world.extend(b);
-  double scale = 1.0;
-  if (!world.empty()) scale = std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
-  eps = 1e-9 * std::min(scale, 1e7) * 100.0;
+  eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
   if (params.method == Method::kLocal) scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
   // The scanline pass finds the shadows of its spans with shadow volumes
   // (paper §3.2 step 2) in configurations II-IV; IV also searches the

@@ -42,7 +42,12 @@ class PreparedScene {
   bool bvh_for_shadows = true;  // shadow rays
   std::vector<Color> emission;  // per light, resolved
   double ambient = 0;
-  double eps = 1e-9;            // offset of secondary ray origins
+  // The world's scale, once for every tolerance relative to it: the largest
+  // coordinate magnitude of the primitives' boxes, at least 1e-3 (1 for an
+  // empty scene).
+  double world_scale = 1.0;
+  // Offset of secondary ray origins: 1e-7 of world_scale (capped at 1e7).
+  double eps = 1e-9;
   std::unique_ptr<ScanScene> scan;  // the local method's faces (--method local)
   // Configuration IV (--method local --boxes eye+shadow): shadow volumes
   // replace shadow rays (paper §4.1).

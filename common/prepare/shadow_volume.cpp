@@ -559,15 +559,6 @@ std::vector<ReceiverHull> receiver_hulls(const PreparedScene& ps, const Occluder
   return hulls;
 }
 
-// The largest coordinate of the scene's bounds (at least 1e-3), the scale
-// of rounding in the volumes' planes.
-double world_scale(const PrimitiveSet& set) {
-  Aabb world;
-  for (const Aabb& b : set.bounds) world.extend(b);
-  if (world.empty()) return 1.0;
-  return std::max({1e-3, max_component(glm::abs(world.lo)), max_component(glm::abs(world.hi))});
-}
-
 // The planes' products with the camera frame (VolumeSet::cam), for the
 // scanline intervals.
 void add_camera_dots(const CameraFrame& cam, VolumeSet& set) {
@@ -584,7 +575,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
   ShadowVolumes sv;
   sv.search = search;
   const OccluderShapes shapes = occluder_shapes(ps);
-  const double scale = world_scale(ps.prims);
+  const double scale = ps.world_scale;
   SearchShapes search_with;
   if (search) search_with = search_shapes(ps, receiver_hulls(ps, shapes), sv.parts);
   for (const Light& light : ps.scene.lights) {

@@ -8,10 +8,12 @@
 // is false), and the caller searches everything.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "common/scan/pixel_buckets.h"
 #include "common/scan/scanline.h"
+#include "common/trace/raytrace.h"
 
 namespace locus {
 
@@ -32,6 +34,22 @@ class EyeCandidates {
   // The primitives whose faces' outlines meet the closed pixel square that
   // holds image point (x, y).
   const std::vector<int>& in_square(double x, double y);
+
+  // The nearest surface beyond `hither` along `ray`, the eye ray through
+  // image point (x, y), searched among the primitives whose outlines hold
+  // the point: on the current sub-scanline (y is that line), those of its
+  // intervals (on_line); elsewhere those meeting its pixel square
+  // (in_square). Where the outlines do not tell (!active()), among all.
+  std::optional<SurfaceHit> nearest_on_line(Tracer& tracer, const Ray& ray, double hither,
+                                            double x) {
+    if (!active_) return tracer.nearest(ray, hither, kInf);
+    return tracer.nearest_among(ray, hither, kInf, on_line(x));
+  }
+  std::optional<SurfaceHit> nearest_in_square(Tracer& tracer, const Ray& ray, double hither,
+                                              double x, double y) {
+    if (!active_) return tracer.nearest(ray, hither, kInf);
+    return tracer.nearest_among(ray, hither, kInf, in_square(x, y));
+  }
 
  private:
   const ScanScene& scan_;

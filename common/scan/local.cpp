@@ -67,10 +67,7 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
     }
     prev_traced = traced;
     prev_face = fi;
-    float* px = out.pixel(x, y - band.y0);
-    px[0] = static_cast<float>(c.x);
-    px[1] = static_cast<float>(c.y);
-    px[2] = static_cast<float>(c.z);
+    store_pixel(out, band, x, y, c);
   }
   stats.pixels_total += cam.width;
 }

@@ -19,6 +19,10 @@
 // outline is tried first, and then found exactly); so does it where the
 // shadow of a curved or transparent occluder begins, unless that shadow's
 // interval is exact (an opaque sphere or cone between face and light).
+//
+// In three parts: SubLineBuilder (sub_line.h) builds each sub-scanline's
+// pieces, PixelSamples (pixel_samples.h) gives traced pieces their radiance,
+// and multiscan_rows (multiscan.cpp) integrates the pieces into pixels.
 #pragma once
 
 #include "common/base/image.h"

@@ -284,10 +284,7 @@ void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Ba
       }
     }
     sum /= static_cast<double>(n * n);
-    float* px = out.pixel(x, y - band.y0);
-    px[0] = static_cast<float>(sum.x);
-    px[1] = static_cast<float>(sum.y);
-    px[2] = static_cast<float>(sum.z);
+    store_pixel(out, band, x, y, sum);
   }
   stats.pixels_total += cam.width;
   stats.pixels_ray_traced += cam.width;

@@ -114,7 +114,7 @@ TEST(StabilityScale, SameImageAtScales1e_3And1e5) {
 //    1/128;
 //  - pixels of ray-traced spans (mirrors, glass, curved bodies): their
 //    samples are points, 1 per pixel per sub-scanline, 4 where neighbours
-//    differ by more than 0.05 (multiscan.cpp). When a reflected edge of
+//    differ by more than 0.05 (pixel_samples.cpp). When a reflected edge of
 //    contrast C crosses one of the 4 sample points, the pixel jumps by
 //    C * 1/4 (the sample's share of the piece) * 1/4 (the sub-scanline's
 //    weight); with C <= 1 in this scene: 1/16. Unrefined samples straddle

@@ -100,7 +100,7 @@ struct Bounds {
   // the pixel. Ray-traced pieces are interpolated from the pixel's corner
   // samples where those agree within kContrast = 0.05, else sampled once,
   // or N/2 times across the piece where the corners see one material but
-  // differ (multiscan.cpp): at aa 4, 1/4 of the range in x for one edge
+  // differ (pixel_samples.cpp): at aa 4, 1/4 of the range in x for one edge
   // and the trapezoid rule's 1/8 in y; a feature inside the pixel that no
   // corner sees may be lost where the corners agree. Was 1/4 with the
   // earlier four samples per refined piece (docs/multiscan.md).

@@ -1,0 +1,122 @@
+// Multi-scanning's sub-scanlines (paper §3.3, Figs. 4 and 5;
+// docs/multiscan.md "What is computed"): the visible figures of one
+// sub-scanline as pieces cut at pixel edges, built here (sub_line.cpp) and
+// integrated into pixels by multiscan_rows (multiscan.cpp).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "common/prepare/prepared.h"
+#include "common/scan/eye_candidates.h"
+#include "common/scan/pixel_samples.h"
+#include "common/scan/scanline.h"
+#include "common/scan/span_shadows.h"
+#include "common/trace/raytrace.h"
+
+namespace locus {
+
+// A visible figure's piece of one sub-scanline, inside one pixel.
+struct Piece {
+  enum Kind : uint8_t { kBackground, kTraced, kFigure };
+  double x0 = 0, x1 = 0;
+  Kind kind = kBackground;
+  int face = -1;  // kFigure: index into ScanScene::faces
+  int hit = -1;   // kTraced: the first surface the sample met (-1: none)
+  // kTraced: the piece's radiance for the pixel row below the sub-scanline
+  // (or holding it), and on a row boundary also for the row above (each
+  // row's pixels estimate it from their own samples; PixelSamples).
+  Color colour{0.0}, colour_up{0.0};
+  LightStates lights;  // kFigure: the state of the lights on the piece
+};
+
+// One sub-scanline: its pieces in x order, and pixel i's pieces
+// [first[i], first[i + 1]).
+struct SubLine {
+  double y = 0;
+  std::vector<Piece> pieces;
+  std::vector<int> first;
+  int spans = 0, traced_spans = 0;
+};
+
+// Builds the sub-scanlines of a chunk of pixel rows: the visible segments
+// (visible_segments, paper §3.1), each cut into pieces by its kind: the
+// background; diffuse faces' figures, cut where shadow intervals begin and
+// end (§3.2 step 2); mirrors' and glass's samples; curved bodies' spans,
+// whose true silhouettes are found by bisection (§3.3's convergence
+// search) after a try at the body's outline (silhouette_guess).
+class SubLineBuilder {
+ public:
+  // Lattice rows [j0, j1] (pixel corners y = j0..j1) may be used.
+  SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa, int j0, int j1);
+
+  // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
+  void build(double y, int row, SubLine& line);
+
+ private:
+  // build()'s steps: the visible segments of the line and the queries set
+  // to it; the pieces of each segment; pixel i's pieces.
+  void start_line(double y, int row);
+  void add_pieces(SubLine& line);
+  void index_pixels(SubLine& line) const;
+
+  // Calls fn(a, b) for the parts of [x0, x1) in each pixel, left to right.
+  template <class Fn>
+  void for_pixels(double x0, double x1, Fn&& fn);
+
+  // Sampled with bisection: curved bodies' spans, and faces cut by hither.
+  bool is_curved(const VisibleSegment& s) const {
+    return s.face == -2 ||
+           (s.face >= 0 && (scan_.faces[s.face].curved || scan_.faces[s.face].near_hither));
+  }
+
+  Ray eye_ray(double x) const { return Ray{cam_.from, cam_.direction(x, y_)}; }
+
+  // The first surface along the eye ray at x, and its radiance.
+  std::pair<int, Color> sample(double x);
+  // The first surface along the eye ray at x (-1: none).
+  int first_hit(double x);
+
+  // Bisection (paper §3.3): where samples' keys differ, the x where they
+  // change.
+  template <class Key, class KeyAt, class Guess>
+  void changes(double xl, Key kl, double xr, const Key& kr, KeyAt& key_at, Guess& guess,
+               std::vector<std::pair<double, Key>>& out);
+  template <class Key, class KeyAt, class Fill, class Guess>
+  void refine(size_t begin, const std::vector<Key>& keys, KeyAt&& key_at, Fill&& fill,
+              Guess&& guess, std::vector<std::pair<double, Key>>& found);
+  // A curved body's outline where the first hit changes from kl to kr.
+  bool silhouette_guess(double xl, int kl, double xr, int kr, double* x);
+
+  // The pieces of each kind of span.
+  void curved(double x0, double x1);
+  void mirror(const VisibleSegment& s, SpanShadows* shadows);
+  void figures(const VisibleSegment& s, SpanShadows& shadows);
+  // A traced piece's radiance (PixelSamples::colours).
+  void traced_colours(Piece& p, FunctionRef<Color(double)> direct);
+
+  const PreparedScene& ps_;
+  const ScanScene& scan_;
+  const CameraFrame& cam_;
+  Tracer& tracer_;
+  Stats& stats_;
+  double y_ = 0;
+  std::vector<Piece>* out_ = nullptr;
+  std::vector<VisibleSegment> segs_;
+  VisibleScratch vis_;
+  std::optional<SpanShadows> shadows_;
+  std::vector<double> cuts_;
+  std::vector<int> ids_;
+  std::vector<LightStates> keys_;
+  // refine()'s buffers
+  std::vector<Piece> run_;
+  std::vector<std::pair<double, int>> found_ids_;
+  std::vector<std::pair<double, LightStates>> found_states_;
+  std::vector<double> guesses_;  // silhouette_guess's
+  EyeCandidates eye_;
+  PixelSamples samples_;  // traced pieces' radiance; uses eye_
+};
+
+}  // namespace locus
