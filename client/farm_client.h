@@ -9,7 +9,6 @@
 
 #include "common/farm/auth.h"
 #include "common/farm/types.h"
-#include "server/coordinator.h"
 
 namespace locus::v1 {
 class ClientService;

@@ -61,6 +61,15 @@ int fail(const std::string& message) {
 
 int fail(const Status& status) { return fail(status.message()); }
 
+// A label table's names as CLI::IsMember takes them: the flag accepts what
+// the farm's to_render_params() parses (common/base/params.h).
+template <class E, size_t N>
+std::vector<std::string> label_names(const Labels<E, N>& labels) {
+  std::vector<std::string> names;
+  for (const auto& l : labels) names.emplace_back(l.name);
+  return names;
+}
+
 // Parses "WxH" into the camera's resolution.
 bool parse_size(const std::string& s, int* w, int* h) {
   static const std::regex re("^([0-9]{1,6})x([0-9]{1,6})$");
@@ -419,12 +428,12 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
          "Output image or pattern (.png, .exr, .tif); #### becomes the zero-padded frame number")
       ->required();
   cmd->add_option("--size", a.size, "Override the resolution, WIDTHxHEIGHT");
-  cmd->add_option("--method", a.method, "Rendering method")
-      ->check(CLI::IsMember({"raytrace", "local"}));
-  cmd->add_option("--boxes", a.boxes, "Bounding boxes: none, eye, eye+shadow")
-      ->check(CLI::IsMember({"none", "eye", "eye+shadow"}));
+  cmd->add_option("--method", a.method, "Rendering method: " + label_choices(kMethodLabels))
+      ->check(CLI::IsMember(label_names(kMethodLabels)));
+  cmd->add_option("--boxes", a.boxes, "Bounding boxes: " + label_choices(kBoxesLabels))
+      ->check(CLI::IsMember(label_names(kBoxesLabels)));
   cmd->add_option("--spp", a.spp, "raytrace: N x N stratified samples per pixel")
-      ->check(CLI::Range(1, 64));
+      ->check(CLI::Range(1, kMaxSpp));
   cmd->add_option("--aa", a.aa,
                   "local: N sub-scanlines per pixel row (multi-scanning, paper §3.3; default 4); "
                   "0 = point sampling at pixel centres")

@@ -12,8 +12,8 @@
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/farm/metrics.h"
 #include "proto/wire/health.h"
-#include "server/metrics.h"
 #include "worker/worker_client.h"
 #include "worker/worker_metrics.h"
 
