@@ -180,7 +180,7 @@ Result<std::vector<std::string>> FarmClient::fetch(
   std::ofstream out;
   fs::path path, tmp;
   int64_t expected = 0;
-  v1::FileChunk chunk;
+  v1::FileChunk received;
   auto abandon = [&](Status s) -> Status {
     ctx.TryCancel();
     reader->Finish();
@@ -188,14 +188,15 @@ Result<std::vector<std::string>> FarmClient::fetch(
     if (!tmp.empty()) fs::remove(tmp, ec);
     return s;
   };
-  while (reader->Read(&chunk)) {
-    if (chunk.offset() == 0) {
+  while (reader->Read(&received)) {
+    const farm::FileChunk chunk = rpc::FromProto(std::move(received));
+    if (chunk.offset == 0) {
       // The name comes from the coordinator: it must not lead elsewhere.
-      if (Status s = farm::check_plain_file_name(chunk.file_name(), impl_->peer + " sent a file");
+      if (Status s = farm::check_plain_file_name(chunk.file_name, impl_->peer + " sent a file");
           !s.ok()) {
         return abandon(s);
       }
-      path = dest(chunk.frame(), chunk.file_name());
+      path = dest(chunk.frame, chunk.file_name);
       std::error_code ec;
       if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
       tmp = path;
@@ -204,12 +205,12 @@ Result<std::vector<std::string>> FarmClient::fetch(
       if (!out) return abandon(Status(Code::kFailedPrecondition, path.string() + ": cannot write"));
       expected = 0;
     }
-    if (chunk.offset() != expected || !out.is_open()) {
-      return abandon(Internal("frame " + std::to_string(chunk.frame()) + " arrived out of order"));
+    if (chunk.offset != expected || !out.is_open()) {
+      return abandon(Internal("frame " + std::to_string(chunk.frame) + " arrived out of order"));
     }
-    out.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
-    expected += static_cast<int64_t>(chunk.data().size());
-    if (chunk.last()) {
+    out.write(chunk.data.data(), static_cast<std::streamsize>(chunk.data.size()));
+    expected += static_cast<int64_t>(chunk.data.size());
+    if (chunk.last) {
       out.close();
       std::error_code ec;
       if (!out) return abandon(Status(Code::kFailedPrecondition, path.string() + ": cannot write"));

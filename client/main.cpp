@@ -35,11 +35,9 @@ struct JobArgs {
   std::string scene;
   std::string output;
   std::string size;
-  std::string method = "local";  // configuration IV by default (issue #5)
-  std::string boxes = "eye+shadow";
-  int spp = 1;
-  int aa = -1;  // -1: the method's default
-  double tess_tol = kDefaultTessTol;
+  // --method, --boxes, --spp, --aa, --tess-tol; configuration IV by
+  // default (issue #5), aa -1: the method's default.
+  farm::RenderSettings render;
   std::string frames;
   double orbit = 0;
   int bands = 0;
@@ -60,6 +58,15 @@ int fail(const std::string& message) {
 }
 
 int fail(const Status& status) { return fail(status.message()); }
+
+// A label table's names as CLI::IsMember takes them: the flag accepts what
+// the farm's to_render_params() parses (common/base/params.h).
+template <class E, size_t N>
+std::vector<std::string> label_names(const Labels<E, N>& labels) {
+  std::vector<std::string> names;
+  for (const auto& l : labels) names.emplace_back(l.name);
+  return names;
+}
 
 // Parses "WxH" into the camera's resolution.
 bool parse_size(const std::string& s, int* w, int* h) {
@@ -126,11 +133,7 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
     job.scene.camera.height = h;
   }
   r.scene_name = a.scene;
-  r.render.method = a.method;
-  r.render.boxes = a.boxes;
-  r.render.spp = a.spp;
-  r.render.aa = a.aa;  // -1: the method's default
-  r.render.tess_tol = a.tess_tol;
+  r.render = a.render;
   r.width = job.scene.camera.width;
   r.height = job.scene.camera.height;
   r.bands = a.bands;
@@ -419,17 +422,17 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
          "Output image or pattern (.png, .exr, .tif); #### becomes the zero-padded frame number")
       ->required();
   cmd->add_option("--size", a.size, "Override the resolution, WIDTHxHEIGHT");
-  cmd->add_option("--method", a.method, "Rendering method")
-      ->check(CLI::IsMember({"raytrace", "local"}));
-  cmd->add_option("--boxes", a.boxes, "Bounding boxes: none, eye, eye+shadow")
-      ->check(CLI::IsMember({"none", "eye", "eye+shadow"}));
-  cmd->add_option("--spp", a.spp, "raytrace: N x N stratified samples per pixel")
-      ->check(CLI::Range(1, 64));
-  cmd->add_option("--aa", a.aa,
+  cmd->add_option("--method", a.render.method, "Rendering method: " + label_choices(kMethodLabels))
+      ->check(CLI::IsMember(label_names(kMethodLabels)));
+  cmd->add_option("--boxes", a.render.boxes, "Bounding boxes: " + label_choices(kBoxesLabels))
+      ->check(CLI::IsMember(label_names(kBoxesLabels)));
+  cmd->add_option("--spp", a.render.spp, "raytrace: N x N stratified samples per pixel")
+      ->check(CLI::Range(1, kMaxSpp));
+  cmd->add_option("--aa", a.render.aa,
                   "local: N sub-scanlines per pixel row (multi-scanning, paper §3.3; default 4); "
                   "0 = point sampling at pixel centres")
       ->check(CLI::Range(0, kMaxAa));
-  cmd->add_option("--tess-tol", a.tess_tol,
+  cmd->add_option("--tess-tol", a.render.tess_tol,
                   "Bezier surfaces: largest screen-space deviation of their triangles from the "
                   "surface, in pixels (default 0.25)");
   cmd->add_option("--frames", a.frames, "Frames A-B of the animation (default 1)");

@@ -1,7 +1,5 @@
 #include "server/coordinator.h"
 
-#include "common/farm/band_split.h"
-
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/file.h>
@@ -9,7 +7,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -18,12 +15,10 @@
 
 #include "common/base/image.h"
 #include "common/base/log.h"
-#include "common/farm/paths.h"
 #include "common/scene/animation.h"
-#include "common/scene/scene_io.h"
-#include "common/scene/validate.h"
 #include "server/band_files.h"
 #include "server/metrics.h"
+#include "server/submission.h"
 
 namespace locus::farm {
 namespace fs = std::filesystem;
@@ -31,46 +26,6 @@ namespace {
 
 constexpr size_t kChunkBytes = 1 << 20;
 constexpr Millis kWatchInterval{100};  // at most ~10 updates a second per watcher
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
-
-// The coordinator writes only under its data directory, so of the client's
-// pattern it keeps the file name alone.
-Result<std::string> output_file_pattern(const std::string& output, int frames) {
-  if (output.empty())
-    return InvalidArgument("output: a pattern such as out/shot_####.png is required");
-  // Confined: the coordinator writes under its output root only, and says
-  // so rather than quietly dropping what would lead elsewhere.
-  if (Status s = check_no_parent_refs(output, "output"); !s.ok()) return s;
-  if (fs::path(output).is_absolute()) {
-    return InvalidArgument("output '" + output +
-                           "': absolute paths are refused; the coordinator writes each job's "
-                           "frames under its output root, give a file name such as shot_####.png");
-  }
-  const std::string name = fs::path(output).filename().string();
-  if (name.empty() || name == "." || name == "..") {
-    return InvalidArgument("output '" + output +
-                           "': names no file; expected a pattern such as out/shot_####.png");
-  }
-  if (std::any_of(name.begin(), name.end(),
-                  [](unsigned char c) { return c < 0x20 || c == 0x7f; })) {
-    return InvalidArgument("output: the file name contains control characters");
-  }
-  const std::string ext = lower(fs::path(name).extension().string());
-  if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
-    return InvalidArgument("output '" + output + "': unsupported image type '" + ext +
-                           "' (expected .png, .exr, .tif)");
-  }
-  if (frames > 1 && !has_frame_field(name)) {
-    return InvalidArgument(
-        "output '" + output + "': " + std::to_string(frames) +
-        " frames need a frame number field in the file name, e.g. shot_####.png");
-  }
-  return name;
-}
 
 }  // namespace
 
@@ -344,88 +299,14 @@ void Coordinator::write_loop() {
 // ---------------------------------------------------------------- clients
 
 Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
-  const std::string name = r.scene_name.empty() ? "scene" : r.scene_name.substr(0, 256);
-  const Limits& limits = options_.limits;
-  if (r.scene.objects_size() > limits.max_objects) {
-    return InvalidArgument(name + ": " + std::to_string(r.scene.objects_size()) +
-                           " objects; this farm takes at most " +
-                           std::to_string(limits.max_objects) + " (--max-objects)");
-  }
-  // OBJ files only from the mesh root (none by default: meshes inline);
-  // the scene stored for the workers keeps the names as given.
-  v1::Scene confined = r.scene;
-  if (Status s = confine_mesh_paths(confined, options_.mesh_root, name); !s.ok()) return s;
-  Result<Scene> scene = scene_from_proto(confined, name);
-  if (!scene.ok()) return Status(Code::kInvalidArgument, scene.status().message());
-  if (!scene->has_camera && (r.width == 0 || r.height == 0)) {
-    return InvalidArgument(name + ": the scene has no camera resolution; give the size");
-  }
-
-  JobSpec spec;
-  spec.scene_name = name;
-  spec.width = r.width > 0 ? r.width : scene->camera.width;
-  spec.height = r.height > 0 ? r.height : scene->camera.height;
-  if (r.width < 0 || r.height < 0 || spec.width < 1 || spec.height < 1 ||
-      spec.width > limits.max_resolution || spec.height > limits.max_resolution) {
-    return InvalidArgument("size " + std::to_string(spec.width) + "x" +
-                           std::to_string(spec.height) + ": each side must be 1.." +
-                           std::to_string(limits.max_resolution) + " (--max-resolution)");
-  }
-  spec.frame_first = r.frame_first;
-  spec.frame_last = r.frame_last;
-  if (r.frame_first < 0 || r.frame_last < r.frame_first) {
-    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
-                           std::to_string(r.frame_last) + ": expected A-B with 0 <= A <= B");
-  }
-  if (static_cast<int64_t>(r.frame_last) - r.frame_first + 1 > limits.max_frames) {
-    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
-                           std::to_string(r.frame_last) + ": at most " +
-                           std::to_string(limits.max_frames) + " frames per job (--max-frames)");
-  }
-  Result<RenderParams> params = to_render_params(r.render, 0);
-  if (!params.ok()) return params.status();
-  spec.render = from_render_params(*params);  // defaults resolved, as workers will
-  if (!std::isfinite(r.orbit_degrees))
-    return InvalidArgument("orbit: must be a finite number of degrees");
-  spec.orbit_degrees = r.orbit_degrees;
-  Result<std::string> pattern = output_file_pattern(r.output, spec.frames());
-  if (!pattern.ok()) return pattern.status();
-  spec.output = *pattern;
-
-  const int least = min_bands(spec.width, spec.height);
-  if (r.bands < 0 || r.bands > spec.height) {
-    return InvalidArgument("bands " + std::to_string(r.bands) + ": expected 1.." +
-                           std::to_string(spec.height) + " (a band is at least one row of the " +
-                           std::to_string(spec.height) + "-row frame)");
-  }
-  if (r.bands > 0 && r.bands < least) {
-    return InvalidArgument("bands " + std::to_string(r.bands) + ": a " +
-                           std::to_string(spec.width) + "x" + std::to_string(spec.height) +
-                           " frame needs at least " + std::to_string(least) +
-                           " bands so that each fits in one message");
-  }
-
-  if (r.request_id.size() > 128 ||
-      std::any_of(r.request_id.begin(), r.request_id.end(),
-                  [](unsigned char c) { return c <= 0x20 || c >= 0x7f; })) {
-    return InvalidArgument("request_id: at most 128 printable characters without spaces");
-  }
-
-  auto stored = std::make_shared<v1::Scene>(r.scene);
+  Result<CheckedSubmission> job = check_submission(r, options_.limits, options_.mesh_root);
+  if (!job.ok()) return job.status();
+  // The scene as the workers will get it, addressed by its content hash.
+  auto scene = std::make_shared<v1::Scene>(r.scene);
   std::string bytes;
-  stored->SerializeToString(&bytes);
-  spec.scene_hash = content_hash(bytes);
-  // What makes a retry a retry: the same scene and the same request. The
-  // tolerance came later: at its default a job keeps the fingerprint it had.
-  const std::string tess_tol = spec.render.tess_tol != kDefaultTessTol
-                                   ? "|tess-tol " + format_number(spec.render.tess_tol)
-                                   : "";
-  const std::string fingerprint =
-      content_hash(spec.scene_hash + "|" + spec.render.method + "|" + spec.render.boxes + "|" +
-                   std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
-                   std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
-                   std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" + r.output +
-                   "|" + std::to_string(r.orbit_degrees) + tess_tol);
+  scene->SerializeToString(&bytes);
+  job->spec.scene_hash = content_hash(bytes);
+  const std::string fingerprint = submission_fingerprint(r, job->spec);
 
   std::lock_guard lk(mu_);
   if (stopping_ || draining_) {
@@ -433,56 +314,61 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
                   "the coordinator is shutting down; submit again once it is back");
   }
   if (auto earlier = scheduler_.job_for_request(r.request_id)) {
-    if (earlier->fingerprint != fingerprint) {
-      return Status(Code::kAlreadyExists, "request id '" + r.request_id +
-                                              "' was already used for another submission (job " +
-                                              earlier->job_id +
-                                              "); a new submission needs a new request id");
-    }
-    spdlog::info("job {}: submission retried (request id {})", earlier->job_id, r.request_id);
-    return scheduler_.job(earlier->job_id);
+    return resubmitted(*earlier, r.request_id, fingerprint);
   }
-  spec.bands = r.bands > 0 ? r.bands
-                           : default_bands(spec.width, spec.height, spec.frames(),
-                                           static_cast<int>(scheduler_.worker_count()));
-  if (spec.bands_total() > limits.max_bands) {
-    return InvalidArgument(std::to_string(spec.frames()) + " frames x " +
-                           std::to_string(spec.bands) + " bands: at most " +
-                           std::to_string(limits.max_bands) + " bands per job (--max-bands)");
-  }
-  if (options_.cost_bands && spec.bands > 1 && params->method == Method::kLocal) {
-    // Bands of equal predicted cost (issue #9 item 4, docs/farm.md): from
-    // a point-sampled preview of the middle frame, used for every frame.
-    const int middle = spec.frame_first + (spec.frame_last - spec.frame_first) / 2;
-    const Scene posed = frame_scene(*scene, spec.width, spec.height, middle, spec.frame_first,
-                                    spec.frame_last, spec.orbit_degrees);
-    Result<std::vector<double>> costs = predict_row_costs(posed, *params);
-    if (costs.ok()) {
-      spec.band_edges = split_rows_by_cost(*costs, spec.bands);
-    } else {
-      spdlog::warn("{}: no cost prediction ({}); bands of equal height", name,
-                   costs.status().message());
-    }
-  }
-  if (scheduler_.unfinished_jobs() >= static_cast<size_t>(limits.max_jobs)) {
+  if (Status s = cut_into_bands(r.bands, *job); !s.ok()) return s;
+  const int max_jobs = options_.limits.max_jobs;
+  if (scheduler_.unfinished_jobs() >= static_cast<size_t>(max_jobs)) {
     return Status(Code::kResourceExhausted,
-                  "the farm already has " + std::to_string(limits.max_jobs) +
+                  "the farm already has " + std::to_string(max_jobs) +
                       " jobs queued or running (--max-jobs); wait for one to end, or cancel one");
   }
+  return record_job(job->spec, std::move(scene), bytes, r.request_id, fingerprint);
+}
+
+Result<JobInfo> Coordinator::resubmitted(const JobRecord& earlier, const std::string& request_id,
+                                         const std::string& fingerprint) {
+  if (earlier.fingerprint != fingerprint) {
+    return Status(Code::kAlreadyExists,
+                  "request id '" + request_id + "' was already used for another submission (job " +
+                      earlier.job_id + "); a new submission needs a new request id");
+  }
+  spdlog::info("job {}: submission retried (request id {})", earlier.job_id, request_id);
+  return scheduler_.job(earlier.job_id);
+}
+
+Status Coordinator::cut_into_bands(int bands, CheckedSubmission& job) {
+  JobSpec& spec = job.spec;
+  spec.bands = bands > 0 ? bands
+                         : default_bands(spec.width, spec.height, spec.frames(),
+                                         static_cast<int>(scheduler_.worker_count()));
+  if (spec.bands_total() > options_.limits.max_bands) {
+    return InvalidArgument(std::to_string(spec.frames()) + " frames x " +
+                           std::to_string(spec.bands) + " bands: at most " +
+                           std::to_string(options_.limits.max_bands) +
+                           " bands per job (--max-bands)");
+  }
+  if (options_.cost_bands) spec.band_edges = cost_band_edges(job);
+  return Status::Ok();
+}
+
+Result<JobInfo> Coordinator::record_job(const JobSpec& spec, std::shared_ptr<const v1::Scene> scene,
+                                        const std::string& bytes, const std::string& request_id,
+                                        const std::string& fingerprint) {
   // Recorded before the client hears of the job: an id the client was
   // given survives any restart.
   if (Status st = store_->put_scene(spec.scene_hash, bytes); !st.ok()) {
     return Status(Code::kUnavailable, "cannot record the job: " + st.message());
   }
   scenes_stored_.insert(spec.scene_hash);
-  const std::string id = scheduler_.add_job(spec, r.request_id, fingerprint);
+  const std::string id = scheduler_.add_job(spec, request_id, fingerprint);
   if (Status st = persist(); !st.ok()) {
     scheduler_.forget_job(id);
     return Status(Code::kUnavailable, "cannot record the job: " + st.message());
   }
-  scenes_.emplace(spec.scene_hash, std::move(stored));
-  spdlog::info("job {}: {} {}x{} frames {}-{} x {} bands -> {}", id, name, spec.width, spec.height,
-               spec.frame_first, spec.frame_last, spec.bands, spec.output);
+  scenes_.emplace(spec.scene_hash, std::move(scene));
+  spdlog::info("job {}: {} {}x{} frames {}-{} x {} bands -> {}", id, spec.scene_name, spec.width,
+               spec.height, spec.frame_first, spec.frame_last, spec.bands, spec.output);
   changed_.notify_all();
   return scheduler_.job(id);
 }
@@ -607,8 +493,8 @@ Registration Coordinator::register_worker(const std::string& name, int threads) 
   return r;
 }
 
-Result<std::optional<BandTask>> Coordinator::get_task(const std::string& worker_id, Millis wait,
-                                                      const CancelledFn& cancelled) {
+Result<std::optional<BandLease>> Coordinator::lease_band(const std::string& worker_id, Millis wait,
+                                                         const CancelledFn& cancelled) {
   auto since = SteadyClock::now();
   const auto end = since + std::clamp(wait, Millis(0), options_.max_poll);
   std::unique_lock lk(mu_);
@@ -618,12 +504,12 @@ Result<std::optional<BandTask>> Coordinator::get_task(const std::string& worker_
     if (closing_) return Status(Code::kUnavailable, "the coordinator is shutting down");
     // Checked before leasing: a band leased to a poll whose worker has gone
     // would sit idle until its lease lapsed.
-    if (stopping_ || (cancelled && cancelled())) return std::optional<BandTask>();
+    if (stopping_ || (cancelled && cancelled())) return std::optional<BandLease>();
     // Draining: no new leases; the poll waits out its time as on an idle farm
     // (the worker still counts as seen).
-    Result<std::optional<BandTask>> r = std::optional<BandTask>();
+    Result<std::optional<BandLease>> r = std::optional<BandLease>();
     if (!draining_) {
-      r = scheduler_.next_task(worker_id);
+      r = scheduler_.next_band(worker_id);
     } else if (Status alive = scheduler_.touch(worker_id); !alive.ok()) {
       r = alive;
     }

@@ -26,6 +26,7 @@
 namespace locus::farm {
 
 class CoordinatorMetrics;
+struct CheckedSubmission;
 
 struct CoordinatorOptions {
   // The job store (DATA/locus.db) and the pixels: DATA/jobs/<job>/bands/
@@ -101,8 +102,10 @@ class Coordinator {
 
   // ---- WorkerService ----
   Registration register_worker(const std::string& name, int threads);
-  Result<std::optional<BandTask>> get_task(const std::string& worker_id, Millis wait,
-                                           const CancelledFn& cancelled);
+  // GetTask, the long poll: the next band leased to the worker as soon as
+  // there is one, or nothing once `wait` (capped by max_poll) has passed.
+  Result<std::optional<BandLease>> lease_band(const std::string& worker_id, Millis wait,
+                                              const CancelledFn& cancelled);
   Result<std::shared_ptr<const v1::Scene>> get_scene(const std::string& worker_id,
                                                      const std::string& hash);
   Result<CompleteOutcome> complete_band(BandOutput output);
@@ -125,6 +128,15 @@ class Coordinator {
 
  private:
   Status recover();          // start(), before the threads
+  // submit()'s steps under mu_, after check_submission() and the
+  // fingerprint (server/submission.h): a retry answered with its first
+  // job; the band count and edges; the job stored, then scheduled.
+  Result<JobInfo> resubmitted(const JobRecord& earlier, const std::string& request_id,
+                              const std::string& fingerprint);
+  Status cut_into_bands(int bands, CheckedSubmission& job);
+  Result<JobInfo> record_job(const JobSpec& spec, std::shared_ptr<const v1::Scene> scene,
+                             const std::string& bytes, const std::string& request_id,
+                             const std::string& fingerprint);
   void tick_loop();
   void write_loop();
   void drop_unused_scenes();  // mu_ held

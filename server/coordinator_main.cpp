@@ -1,12 +1,16 @@
 // locus-coordinator: accepts jobs from `locus`, leases bands to the workers
 // that dial in, stitches and writes the frames under its output root.
 // Serves TLS with bearer tokens, or plaintext only with --insecure
-// (docs/farm.md "Security").
+// (docs/farm.md "Security"). main() runs the steps below in order: parse
+// the flags, set up logging and security, start the coordinator, serve
+// (the farm's port, then --health and --metrics), and on SIGINT or SIGTERM
+// drain and shut down (docs/deploy.md "Stopping").
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
+#include <memory>
 
 #include "common/base/log.h"
 #include "common/farm/auth.h"
@@ -16,15 +20,17 @@
 
 namespace {
 
+using locus::Result;
+using locus::Status;
+namespace farm = locus::farm;
+
 int fail(const std::string& message) {
   std::fprintf(stderr, "locus-coordinator: %s\n", message.c_str());
   return 2;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"locus-coordinator: the Locus render farm's coordinator"};
+// What the command line sets, with its defaults.
+struct Flags {
   std::string listen = "127.0.0.1:7000";
   std::string data = "locus-data";
   int lease_ms = 5000;
@@ -38,152 +44,215 @@ int main(int argc, char** argv) {
   std::string health_address, metrics_address;
   std::string log_format = "text", log_level = "info";
   int drain_ms = 20000;
-  locus::farm::CoordinatorOptions options;
-  locus::farm::Limits& limits = options.limits;
+  farm::CoordinatorOptions options;  // the flags that map one to one
   locus::rpc::ServerSecurity security;
   std::string client_tokens, worker_tokens;
-  app.add_option("--listen", listen, "Address to serve on, HOST:PORT (port 0: any free port)");
-  app.add_option("--data", data,
+};
+
+void add_farm_flags(CLI::App& app, Flags& f) {
+  app.add_option("--listen", f.listen, "Address to serve on, HOST:PORT (port 0: any free port)");
+  app.add_option("--data", f.data,
                  "Directory of the job store (locus.db) and the frames; a restart on the same "
                  "directory resumes its jobs");
-  app.add_option("--output-root", options.output_root,
+  app.add_option("--output-root", f.options.output_root,
                  "Directory under which each job's frames are written, ROOT/<job>/ (default "
                  "DATA/jobs)");
-  app.add_option("--mesh-root", options.mesh_root,
+  app.add_option("--mesh-root", f.options.mesh_root,
                  "Directory of OBJ files that submitted scenes may name (default: none, meshes "
                  "travel inline)");
-  app.add_option("--lease-ms", lease_ms, "A band's lease lapses this long after its last renewal")
+  app.add_option("--lease-ms", f.lease_ms, "A band's lease lapses this long after its last renewal")
       ->check(CLI::Range(200, 3600000));
-  app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat period asked of workers")
+  app.add_option("--heartbeat-ms", f.heartbeat_ms, "Heartbeat period asked of workers")
       ->check(CLI::Range(50, 600000));
-  app.add_option("--max-attempts,--attempts", attempts,
+  app.add_option("--max-attempts,--attempts", f.attempts,
                  "Failed attempts (errors, lapsed leases) per band before its job fails")
       ->check(CLI::Range(1, 100));
-  app.add_option("--quarantine-after", quarantine_after,
+  app.add_option("--quarantine-after", f.quarantine_after,
                  "Failures of one worker in a job after which it gets no more of that job's bands "
                  "while another worker can take them (0: never)")
       ->check(CLI::Range(0, 1000));
-  app.add_option("--speculate-factor", speculate_factor,
+  app.add_option("--speculate-factor", f.speculate_factor,
                  "A band running this many times its job's median band time gets a second, "
                  "speculative lease (0: never)")
       ->check(CLI::Range(0.0, 1000.0));
-  app.add_option("--speculate-min-ms", speculate_min_ms,
+  app.add_option("--speculate-min-ms", f.speculate_min_ms,
                  "... and only once it has run at least this long")
       ->check(CLI::Range(0, 3600000));
-  app.add_flag("--no-fsync", no_fsync,
+  app.add_flag("--no-fsync", f.no_fsync,
                "Do not fsync band and frame files (faster; a crash of the coordinator is still "
                "survived, a power loss may cost finished bands)");
-  app.add_flag("--equal-bands", equal_bands,
+  app.add_flag("--equal-bands", f.equal_bands,
                "Cut frames into bands of equal height instead of equal predicted cost");
-  // Security.
+}
+
+void add_security_flags(CLI::App& app, Flags& f) {
+  locus::rpc::ServerSecurity& security = f.security;
   app.add_option("--tls-cert", security.tls_cert, "Server certificate chain (PEM)");
   app.add_option("--tls-key", security.tls_key, "Server certificate's private key (PEM)");
   app.add_option("--tls-ca", security.tls_ca,
                  "CA (PEM) for mutual TLS: workers must present a certificate it signed");
-  app.add_option("--client-tokens", client_tokens,
+  app.add_option("--client-tokens", f.client_tokens,
                  "File of client tokens (submit, status, watch, cancel, fetch), one per line");
-  app.add_option("--worker-tokens", worker_tokens,
+  app.add_option("--worker-tokens", f.worker_tokens,
                  "File of worker tokens (take and return bands), one per line");
   app.add_flag("--insecure", security.insecure,
                "Allow serving without TLS, and without tokens (a trusted network only)");
-  // Operations (docs/deploy.md).
-  app.add_option("--health", health_address,
+}
+
+// Operations (docs/deploy.md) and the limits every job is held to.
+void add_operations_flags(CLI::App& app, Flags& f) {
+  app.add_option("--health", f.health_address,
                  "Also serve the gRPC health service alone, plaintext, on HOST:PORT (probes)");
-  app.add_option("--metrics", metrics_address,
+  app.add_option("--metrics", f.metrics_address,
                  "Serve Prometheus metrics at http://HOST:PORT/metrics");
-  app.add_option("--drain-ms", drain_ms,
+  app.add_option("--drain-ms", f.drain_ms,
                  "On SIGTERM, wait this long at most for the bands in flight before exiting")
       ->check(CLI::Range(0, 3600000));
-  app.add_option("--log-format", log_format, "Log lines as text or json (one object per line)")
+  app.add_option("--log-format", f.log_format, "Log lines as text or json (one object per line)")
       ->check(CLI::IsMember({"text", "json"}));
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off");
-  // Limits.
+  app.add_option("--log-level", f.log_level, "trace, debug, info, warn, error, critical or off");
+  farm::Limits& limits = f.options.limits;
   app.add_option("--max-resolution", limits.max_resolution, "Largest image side, in pixels")
       ->check(CLI::Range(1, locus::kMaxResolution));
   app.add_option("--max-objects", limits.max_objects, "Most objects in a submitted scene")
       ->check(CLI::Range(1, 10000000));
   app.add_option("--max-frames", limits.max_frames, "Most frames per job")
-      ->check(CLI::Range(1, locus::farm::kMaxFramesPerJob));
+      ->check(CLI::Range(1, farm::kMaxFramesPerJob));
   app.add_option("--max-bands", limits.max_bands, "Most bands per job (frames x bands)")
-      ->check(CLI::Range(int64_t{1}, locus::farm::kMaxBandsPerJob));
+      ->check(CLI::Range(int64_t{1}, farm::kMaxBandsPerJob));
   app.add_option("--max-jobs", limits.max_jobs, "Most jobs queued or running at once")
       ->check(CLI::Range(1, 1000000));
-  CLI11_PARSE(app, argc, argv);
-  // Logs go to stderr: stdout carries what scripts read.
-  if (auto st = locus::setup_logging(*locus::parse_log_format(log_format), log_level); !st.ok())
-    return fail(st.message());
-  if (heartbeat_ms * 2 > lease_ms) {
-    return fail("--heartbeat-ms " + std::to_string(heartbeat_ms) +
-                " must be at most half of --lease-ms " + std::to_string(lease_ms));
-  }
-  if (client_tokens.empty() != worker_tokens.empty())
-    return fail("--client-tokens and --worker-tokens go together (give both files)");
-  if (!client_tokens.empty()) {
-    auto auth = locus::farm::Authenticator::from_files(client_tokens, worker_tokens);
-    if (!auth.ok()) return fail(auth.status().message());
-    security.auth = std::move(*auth);
-  }
-  if (locus::Status st = locus::rpc::check_server_security(security); !st.ok()) return fail(st.message());
-  if (security.tls_cert.empty())
-    spdlog::warn("--insecure: serving plaintext; anyone on the path can read the traffic");
-  if (!security.auth.enforcing())
-    spdlog::warn("--insecure: no tokens; anyone who reaches {} can use the farm", listen);
+}
 
-  // Signals are taken synchronously by the main thread below; block them
-  // before gRPC starts its threads so none of those gets them.
+// A worker renews its lease at least twice per lease.
+Status check_lease_timing(const Flags& f) {
+  if (f.heartbeat_ms * 2 > f.lease_ms) {
+    return locus::InvalidArgument("--heartbeat-ms " + std::to_string(f.heartbeat_ms) +
+                                  " must be at most half of --lease-ms " +
+                                  std::to_string(f.lease_ms));
+  }
+  return Status::Ok();
+}
+
+// Token files read, then what the coordinator must refuse to start with;
+// what --insecure lets through is said in the log.
+Status set_up_security(Flags& f) {
+  if (f.client_tokens.empty() != f.worker_tokens.empty())
+    return locus::InvalidArgument(
+        "--client-tokens and --worker-tokens go together (give both files)");
+  if (!f.client_tokens.empty()) {
+    auto auth = farm::Authenticator::from_files(f.client_tokens, f.worker_tokens);
+    if (!auth.ok()) return auth.status();
+    f.security.auth = std::move(*auth);
+  }
+  if (Status st = locus::rpc::check_server_security(f.security); !st.ok()) return st;
+  if (f.security.tls_cert.empty())
+    spdlog::warn("--insecure: serving plaintext; anyone on the path can read the traffic");
+  if (!f.security.auth.enforcing())
+    spdlog::warn("--insecure: no tokens; anyone who reaches {} can use the farm", f.listen);
+  return Status::Ok();
+}
+
+farm::CoordinatorOptions coordinator_options(const Flags& f) {
+  farm::CoordinatorOptions options = f.options;
+  options.data_dir = f.data;
+  options.lease = farm::Millis(f.lease_ms);
+  options.heartbeat = farm::Millis(f.heartbeat_ms);
+  options.max_attempts = f.attempts;
+  options.quarantine_after = f.quarantine_after;
+  options.speculate_factor = f.speculate_factor;
+  options.speculate_min = farm::Millis(f.speculate_min_ms);
+  options.fsync = !f.no_fsync;
+  options.cost_bands = !f.equal_bands;
+  return options;
+}
+
+// Signals are taken synchronously by the main thread (drain_on_signal);
+// blocked before gRPC starts its threads so none of those gets them.
+sigset_t block_signals() {
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  return signals;
+}
 
-  options.data_dir = data;
-  options.lease = locus::farm::Millis(lease_ms);
-  options.heartbeat = locus::farm::Millis(heartbeat_ms);
-  options.max_attempts = attempts;
-  options.quarantine_after = quarantine_after;
-  options.speculate_factor = speculate_factor;
-  options.speculate_min = locus::farm::Millis(speculate_min_ms);
-  options.fsync = !no_fsync;
-  options.cost_bands = !equal_bands;
-  locus::farm::Coordinator coordinator(options);
-  if (auto st = coordinator.start(); !st.ok()) {
-    std::fprintf(stderr, "locus-coordinator: %s\n", st.message().c_str());
-    return 1;
-  }
-  const bool tls = !security.tls_cert.empty();
-  const bool mtls = !security.tls_ca.empty();
-  const bool tokens = security.auth.enforcing();
-  locus::rpc::CoordinatorServer server(coordinator);
-  auto port = server.start(listen, std::move(security));
-  if (!port.ok()) {
-    std::fprintf(stderr, "locus-coordinator: %s\n", port.status().message().c_str());
-    return 1;
-  }
-  spdlog::info("locus-coordinator listening on {} (port {}; {}{}, {}), frames in {}", listen,
+// The farm's port; the security goes to the server.
+Status serve_farm(locus::rpc::CoordinatorServer& server, farm::Coordinator& coordinator, Flags& f) {
+  const bool tls = !f.security.tls_cert.empty();
+  const bool mtls = !f.security.tls_ca.empty();
+  const bool tokens = f.security.auth.enforcing();
+  auto port = server.start(f.listen, std::move(f.security));
+  if (!port.ok()) return port.status();
+  spdlog::info("locus-coordinator listening on {} (port {}; {}{}, {}), frames in {}", f.listen,
                *port, tls ? "TLS" : "plaintext", mtls ? " with worker certificates" : "",
                tokens ? "tokens required" : "no tokens", coordinator.output_root());
   // Scripts that start it on port 0 read the port from stdout.
   std::printf("listening on port %d\n", *port);
   std::fflush(stdout);
-  if (!health_address.empty()) {
-    auto health_port = server.serve_health(health_address);
-    if (!health_port.ok()) return fail(health_port.status().message());
-    spdlog::info("health service on {} (port {})", health_address, *health_port);
-  }
-  std::unique_ptr<locus::farm::MetricsEndpoint> metrics;
-  if (!metrics_address.empty()) {
-    auto m = locus::farm::MetricsEndpoint::start(metrics_address, coordinator.metrics().registry(),
-                                                 [&coordinator] { coordinator.refresh_metrics(); });
-    if (!m.ok()) return fail(m.status().message());
-    metrics = std::move(*m);
-    spdlog::info("metrics on http://{}/metrics (port {})", metrics_address, metrics->port());
-  }
+  return Status::Ok();
+}
 
+// --health and --metrics, when asked for; the metrics endpoint lives as
+// long as the returned pointer.
+Result<std::unique_ptr<farm::MetricsEndpoint>> serve_operations(
+    locus::rpc::CoordinatorServer& server, farm::Coordinator& coordinator, const Flags& f) {
+  if (!f.health_address.empty()) {
+    auto health_port = server.serve_health(f.health_address);
+    if (!health_port.ok()) return health_port.status();
+    spdlog::info("health service on {} (port {})", f.health_address, *health_port);
+  }
+  std::unique_ptr<farm::MetricsEndpoint> metrics;
+  if (!f.metrics_address.empty()) {
+    auto m = farm::MetricsEndpoint::start(f.metrics_address, coordinator.metrics().registry(),
+                                          [&coordinator] { coordinator.refresh_metrics(); });
+    if (!m.ok()) return m.status();
+    metrics = std::move(*m);
+    spdlog::info("metrics on http://{}/metrics (port {})", f.metrics_address, metrics->port());
+  }
+  return metrics;
+}
+
+// Waits for SIGINT or SIGTERM, then drains: no new jobs or leases, the
+// bands in flight given up to --drain-ms, then shutdown.
+void drain_on_signal(locus::rpc::CoordinatorServer& server, const sigset_t& signals, int drain_ms) {
   int sig = 0;
   sigwait(&signals, &sig);
   spdlog::info("signal {}: draining, then shutting down", sig);
-  server.drain(locus::farm::Millis(drain_ms), locus::farm::Millis(2000));
+  server.drain(farm::Millis(drain_ms), farm::Millis(2000));
   spdlog::info("stopped");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"locus-coordinator: the Locus render farm's coordinator"};
+  Flags f;
+  add_farm_flags(app, f);
+  add_security_flags(app, f);
+  add_operations_flags(app, f);
+  CLI11_PARSE(app, argc, argv);
+  // Logs go to stderr: stdout carries what scripts read.
+  if (auto st = locus::setup_logging(*locus::parse_log_format(f.log_format), f.log_level); !st.ok())
+    return fail(st.message());
+  if (Status st = check_lease_timing(f); !st.ok()) return fail(st.message());
+  if (Status st = set_up_security(f); !st.ok()) return fail(st.message());
+  const sigset_t signals = block_signals();
+
+  farm::Coordinator coordinator(coordinator_options(f));
+  if (Status st = coordinator.start(); !st.ok()) {
+    std::fprintf(stderr, "locus-coordinator: %s\n", st.message().c_str());
+    return 1;
+  }
+  locus::rpc::CoordinatorServer server(coordinator);
+  if (Status st = serve_farm(server, coordinator, f); !st.ok()) {
+    std::fprintf(stderr, "locus-coordinator: %s\n", st.message().c_str());
+    return 1;
+  }
+  auto metrics = serve_operations(server, coordinator, f);
+  if (!metrics.ok()) return fail(metrics.status().message());
+
+  drain_on_signal(server, signals, f.drain_ms);
   return 0;
 }

@@ -84,15 +84,8 @@ Status Handlers::FetchResults(const v1::FetchResultsRequest& req,
   if (req.frames_size() > kMaxFetchFrames)
     return InvalidArgument("frames: at most " + std::to_string(kMaxFetchFrames) + " per fetch");
   std::vector<int> frames(req.frames().begin(), req.frames().end());
-  return c_.fetch(req.job_id(), frames, [&write](const farm::FileChunk& c) {
-    v1::FileChunk p;
-    p.set_frame(c.frame);
-    p.set_file_name(c.file_name);
-    p.set_offset(c.offset);
-    p.set_data(c.data);
-    p.set_last(c.last);
-    return write(p);
-  });
+  return c_.fetch(req.job_id(), frames,
+                  [&write](const farm::FileChunk& c) { return write(ToProto(c)); });
 }
 
 Status Handlers::Register(const v1::RegisterRequest& req, const std::string& peer,
@@ -108,7 +101,7 @@ Status Handlers::Register(const v1::RegisterRequest& req, const std::string& pee
 Status Handlers::GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
                          v1::GetTaskResponse* resp) {
   if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
-  auto r = c_.get_task(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled);
+  auto r = c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled);
   if (!r.ok()) return r.status();
   if (r->has_value()) *resp->mutable_task() = ToProto(**r);
   return Status::Ok();

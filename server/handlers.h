@@ -33,6 +33,7 @@ class Handlers {
   // `peer` names an unnamed worker.
   Status Register(const v1::RegisterRequest& req, const std::string& peer,
                   v1::RegisterResponse* resp);
+  // Leases a band (Coordinator::lease_band); the RPC keeps its wire name.
   Status GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
                  v1::GetTaskResponse* resp);
   Status GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp);

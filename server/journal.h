@@ -9,6 +9,7 @@
 #include <variant>
 #include <vector>
 
+#include "common/base/labels.h"
 #include "common/farm/types.h"
 
 namespace locus::farm {
@@ -24,7 +25,20 @@ enum class LeaseOutcome {
   kDiscarded,   // another lease of the band won the race
   kRevoked,     // the job was cancelled or failed
 };
-const char* lease_outcome_name(LeaseOutcome outcome);
+// The `outcome` column's words and the metrics' `reason` label.
+inline constexpr Labels<LeaseOutcome, 8> kLeaseOutcomeLabels = {
+    {{LeaseOutcome::kDone, "done"},
+     {LeaseOutcome::kFailed, "failed"},
+     {LeaseOutcome::kMalformed, "malformed"},
+     {LeaseOutcome::kLapsed, "lapsed"},
+     {LeaseOutcome::kSilent, "silent"},
+     {LeaseOutcome::kHandedBack, "handed back"},
+     {LeaseOutcome::kDiscarded, "discarded"},
+     {LeaseOutcome::kRevoked, "revoked"}}};
+// A C string: every name in the table (and the fallback) is a literal.
+inline const char* lease_outcome_name(LeaseOutcome outcome) {
+  return label_name(kLeaseOutcomeLabels, outcome).data();
+}
 // Whether the outcome counts as one of the band's failed attempts.
 bool is_charged(LeaseOutcome outcome);
 

@@ -7,9 +7,6 @@ namespace {
 // The outcomes charged to a band: its failures.
 constexpr std::array<LeaseOutcome, 4> kFailures = {LeaseOutcome::kFailed, LeaseOutcome::kMalformed,
                                                    LeaseOutcome::kLapsed, LeaseOutcome::kSilent};
-constexpr std::array<JobState, 5> kJobStates = {JobState::kQueued, JobState::kRunning,
-                                                JobState::kSucceeded, JobState::kFailed,
-                                                JobState::kCancelled};
 
 }  // namespace
 
@@ -47,9 +44,9 @@ CoordinatorMetrics::CoordinatorMetrics()
       sent_(counters(*registry_, "locus_rpc_sent_bytes_total",
                      "Bytes of response messages sent, by call")) {
   // Every series exists from the start, at zero.
-  for (JobState s : kJobStates) {
-    jobs_by_state_[static_cast<size_t>(s)] = &jobs_.Add({{"state", job_state_name(s)}});
-    if (is_terminal(s)) jobs_finished_.Add({{"state", job_state_name(s)}});
+  for (const auto& [s, name] : kJobStateLabels) {
+    jobs_by_state_[static_cast<size_t>(s)] = &jobs_.Add({{"state", std::string(name)}});
+    if (is_terminal(s)) jobs_finished_.Add({{"state", std::string(name)}});
   }
   for (LeaseOutcome o : kFailures) failures_.Add({{"reason", lease_outcome_name(o)}});
 }

@@ -40,7 +40,7 @@ class CoordinatorMetrics {
   prometheus::Gauge& bands_running_;
   prometheus::Gauge& bands_done_;
   prometheus::Family<prometheus::Gauge>& jobs_;
-  std::array<prometheus::Gauge*, 5> jobs_by_state_{};
+  std::array<prometheus::Gauge*, kJobStateLabels.size()> jobs_by_state_{};
   prometheus::Gauge& workers_;
   prometheus::Counter& jobs_submitted_;
   prometheus::Family<prometheus::Counter>& jobs_finished_;

@@ -25,28 +25,6 @@ constexpr size_t kDurationsKept = 64;  // per job, for the speculation threshold
 
 }  // namespace
 
-const char* lease_outcome_name(LeaseOutcome o) {
-  switch (o) {
-    case LeaseOutcome::kDone:
-      return "done";
-    case LeaseOutcome::kFailed:
-      return "failed";
-    case LeaseOutcome::kMalformed:
-      return "malformed";
-    case LeaseOutcome::kLapsed:
-      return "lapsed";
-    case LeaseOutcome::kSilent:
-      return "silent";
-    case LeaseOutcome::kHandedBack:
-      return "handed back";
-    case LeaseOutcome::kDiscarded:
-      return "discarded";
-    case LeaseOutcome::kRevoked:
-      return "revoked";
-  }
-  return "unknown";
-}
-
 bool is_charged(LeaseOutcome o) {
   return o == LeaseOutcome::kFailed || o == LeaseOutcome::kMalformed ||
          o == LeaseOutcome::kLapsed || o == LeaseOutcome::kSilent;
@@ -60,99 +38,6 @@ Scheduler::Scheduler(SchedulerOptions options, NowFn now)
   char buf[32];
   std::snprintf(buf, sizeof buf, "%08x-", rd());
   lease_prefix_ = buf;
-}
-
-// ---------------------------------------------------------------- restart
-
-std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
-  std::vector<FrameReady> ready;
-  const TimePoint now = now_();
-  next_worker_ = std::max<uint64_t>(next_worker_, state.next_worker);
-  for (const RecoveredJob& r : state.jobs) {
-    Job job;
-    job.record = r.record;
-    JobInfo& info = job.info;
-    info.job_id = r.record.job_id;
-    info.spec = r.record.spec;
-    info.state = r.state;
-    info.error = r.error;
-    info.stats = r.stats;
-    info.results_discarded = r.results_discarded;
-    info.speculative_leases = r.speculative_leases;
-    info.frames_written = r.frames_written;
-    std::sort(info.frames_written.begin(), info.frames_written.end());
-    info.frames_done = static_cast<int>(info.frames_written.size());
-    info.bands_done = r.bands_done;
-    job.submitted = now - std::chrono::duration_cast<SteadyClock::duration>(
-                              std::chrono::duration<double>(std::max(0.0, r.seconds_elapsed)));
-    job.finished = now;
-    const JobSpec& s = info.spec;
-    if (!is_terminal(r.state)) {
-      job.tasks.resize(s.bands_total());
-      auto index = [&](int frame, int band) {
-        return static_cast<int64_t>(frame - s.frame_first) * s.bands + band;
-      };
-      auto valid = [&](int frame, int band) {
-        return frame >= s.frame_first && frame <= s.frame_last && band >= 0 && band < s.bands;
-      };
-      for (int f : info.frames_written) {
-        if (f < s.frame_first || f > s.frame_last) continue;
-        for (int b = 0; b < s.bands; ++b) job.tasks[index(f, b)].state = TaskState::kDone;
-      }
-      for (const RecoveredJob::BandRef& b : r.done_bands) {
-        if (!valid(b.frame, b.band)) continue;
-        Task& t = job.tasks[index(b.frame, b.band)];
-        if (t.state == TaskState::kDone) continue;  // its frame is written
-        t.state = TaskState::kDone;
-        ++job.frame_bands[b.frame];
-      }
-      for (const RecoveredJob::Failure& f : r.failures) {
-        if (!valid(f.frame, f.band)) continue;
-        const int i = static_cast<int>(index(f.frame, f.band));
-        Task& t = job.tasks[i];
-        if (t.failures < 255) ++t.failures;
-        job.failures[i].workers.insert(f.worker_name);
-        job.failures[i].last_error = f.error;
-        ++job.worker_failures[f.worker_name];
-      }
-      for (const auto& [name, n] : job.worker_failures) {
-        if (options_.quarantine_after > 0 && n >= options_.quarantine_after)
-          info.quarantined.push_back(name);
-      }
-      int64_t done = 0;
-      int last_touched = -1;
-      for (int i = 0; i < static_cast<int>(job.tasks.size()); ++i) {
-        if (job.tasks[i].state == TaskState::kDone) {
-          ++done;
-          last_touched = i;
-        } else if (job.failures.count(i)) {
-          last_touched = i;
-        }
-      }
-      info.bands_done = done;
-      job.next_fresh = last_touched + 1;
-      for (int i = 0; i < job.next_fresh; ++i) {
-        if (job.tasks[i].state != TaskState::kDone) job.retry.push_back(i);
-      }
-      for (auto it = job.frame_bands.begin(); it != job.frame_bands.end();) {
-        if (it->second == s.bands) {
-          ready.push_back(FrameReady{info.job_id, it->first, frame_path(s.output, it->first),
-                                     s.width, s.height, s.bands, s.band_edges});
-          it = job.frame_bands.erase(it);
-        } else {
-          ++it;
-        }
-      }
-      spdlog::info("job {} resumed: {}/{} bands done, {}/{} frames written", info.job_id, done,
-                   s.bands_total(), info.frames_done, s.frames());
-    }
-    next_job_ = std::max<uint64_t>(next_job_, static_cast<uint64_t>(r.record.seq) + 1);
-    if (!r.record.request_id.empty()) requests_[r.record.request_id] = info.job_id;
-    order_.push_back(info.job_id);
-    jobs_.emplace(info.job_id, std::move(job));
-  }
-  ++version_;
-  return ready;
 }
 
 // ---------------------------------------------------------------- jobs
@@ -171,7 +56,7 @@ std::string Scheduler::add_job(JobSpec spec, const std::string& request_id,
   job.record.fingerprint = fingerprint;
   job.record.spec = job.info.spec;
   job.submitted = now_();
-  job.tasks.resize(job.info.spec.bands_total());
+  job.bands.resize(job.info.spec.bands_total());
   events_.push_back(event::JobAdded{job.record});
   if (!request_id.empty()) requests_[request_id] = id;
   jobs_.emplace(id, std::move(job));
@@ -206,9 +91,9 @@ const Scheduler::Job* Scheduler::find_job(const std::string& id) const {
   return it == jobs_.end() ? nullptr : &it->second;
 }
 
-std::string Scheduler::band_name(const Job& job, int task) const {
-  return "band " + std::to_string(band_of(job, task)) + " of frame " +
-         std::to_string(frame_of(job, task));
+std::string Scheduler::band_name(const Job& job, int job_band) const {
+  return "band " + std::to_string(band_of(job, job_band)) + " of frame " +
+         std::to_string(frame_of(job, job_band));
 }
 
 JobInfo Scheduler::snapshot(const Job& job) const {
@@ -235,9 +120,10 @@ void Scheduler::drop_leases_of(Job& job) {
     if (it->second.job_id == job.info.job_id) {
       auto w = workers_.find(it->second.worker_id);
       if (w != workers_.end()) w->second.leases.erase(it->first);
-      events_.push_back(event::LeaseEnded{
-          it->first, job.info.job_id, frame_of(job, it->second.task), band_of(job, it->second.task),
-          LeaseOutcome::kRevoked, std::string("job ") + job_state_name(job.info.state)});
+      events_.push_back(event::LeaseEnded{it->first, job.info.job_id,
+                                          frame_of(job, it->second.job_band),
+                                          band_of(job, it->second.job_band), LeaseOutcome::kRevoked,
+                                          std::string("job ") + job_state_name(job.info.state)});
       it = leases_.erase(it);
     } else {
       ++it;
@@ -253,7 +139,7 @@ void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   events_.push_back(event::JobStateChanged{job.info.job_id, state, error});
   drop_leases_of(job);
   // A finished job keeps only its JobInfo in memory; the store has the rest.
-  job.tasks = {};
+  job.bands = {};
   job.retry = {};
   job.frame_bands.clear();
   job.failures.clear();
@@ -324,8 +210,8 @@ std::vector<WorkerInfo> Scheduler::workers() const {
       const Lease& l = leases_.at(*w.leases.begin());
       const Job& job = jobs_.at(l.job_id);
       info.job_id = l.job_id;
-      info.frame = frame_of(job, l.task);
-      info.band = band_of(job, l.task);
+      info.frame = frame_of(job, l.job_band);
+      info.band = band_of(job, l.job_band);
     }
     info.seconds_since_seen = seconds(now - w.last_seen);
     out.push_back(std::move(info));
@@ -354,10 +240,10 @@ FarmCounts Scheduler::counts() const {
     c.bands_done += job.info.bands_done;
     if (is_terminal(job.info.state)) continue;
     c.bands_queued += static_cast<int64_t>(job.retry.size()) +
-                      static_cast<int64_t>(job.tasks.size()) - job.next_fresh;
+                      static_cast<int64_t>(job.bands.size()) - job.next_fresh;
   }
   std::set<std::pair<std::string, int>> running;  // a band with two leases is one band
-  for (const auto& [id, l] : leases_) running.emplace(l.job_id, l.task);
+  for (const auto& [id, l] : leases_) running.emplace(l.job_id, l.job_band);
   c.bands_running = static_cast<int64_t>(running.size());
   c.workers = static_cast<int64_t>(workers_.size());
   return c;
@@ -378,10 +264,11 @@ bool Scheduler::quarantined(const Job& job, const std::string& worker_name) cons
   return it != job.worker_failures.end() && it->second >= options_.quarantine_after;
 }
 
-bool Scheduler::another_worker_for(const Job& job, int task, const std::string& worker_name) const {
+bool Scheduler::another_worker_for(const Job& job, int job_band,
+                                   const std::string& worker_name) const {
   const Failures* f = nullptr;
-  if (task >= 0) {
-    auto it = job.failures.find(task);
+  if (job_band >= 0) {
+    auto it = job.failures.find(job_band);
     if (it != job.failures.end()) f = &it->second;
   }
   for (const auto& [id, w] : workers_) {
@@ -392,19 +279,19 @@ bool Scheduler::another_worker_for(const Job& job, int task, const std::string& 
   return false;
 }
 
-int Scheduler::pick_task(Job& job, const std::string& worker_name) {
+int Scheduler::pick_band(Job& job, const std::string& worker_name) {
   // Bands back in the queue first, each on a worker it has not failed on
   // where another can take it.
   for (auto it = job.retry.begin(); it != job.retry.end(); ++it) {
-    const int t = *it;
-    auto f = job.failures.find(t);
+    const int i = *it;
+    auto f = job.failures.find(i);
     if (f == job.failures.end() || !f->second.workers.count(worker_name) ||
-        !another_worker_for(job, t, worker_name)) {
+        !another_worker_for(job, i, worker_name)) {
       job.retry.erase(it);
-      return t;
+      return i;
     }
   }
-  if (job.next_fresh < static_cast<int>(job.tasks.size())) return job.next_fresh++;
+  if (job.next_fresh < static_cast<int>(job.bands.size())) return job.next_fresh++;
   return -1;
 }
 
@@ -427,8 +314,8 @@ const Scheduler::Lease* Scheduler::speculation_candidate(const std::string& work
     if (l.speculative || l.worker_name == worker_name) continue;
     const Job& job = jobs_.at(l.job_id);
     if (is_terminal(job.info.state) || quarantined(job, worker_name)) continue;
-    const Task& t = job.tasks[l.task];
-    if (t.leases != 1 || t.speculated) continue;
+    const BandState& state = job.bands[l.job_band];
+    if (state.leases != 1 || state.speculated) continue;
     const double after = speculate_after(job);
     if (after <= 0) continue;
     const double ratio = seconds(now - l.granted) / after;
@@ -440,43 +327,43 @@ const Scheduler::Lease* Scheduler::speculation_candidate(const std::string& work
   return best;
 }
 
-BandTask Scheduler::make_task(const Job& job, int task, const Lease& lease,
-                              const std::string& lease_id) const {
+BandLease Scheduler::make_lease(const Job& job, int job_band, const Lease& lease,
+                                const std::string& lease_id) const {
   const JobSpec& s = job.info.spec;
-  BandTask t;
-  t.lease_id = lease_id;
-  t.lease_remaining = std::chrono::duration_cast<Millis>(lease.deadline - now_());
-  t.job_id = job.info.job_id;
-  t.scene_hash = s.scene_hash;
-  t.frame = frame_of(job, task);
-  t.band = band_of(job, task);
-  const Band rows = band_rows(s, t.band);
-  t.y0 = rows.y0;
-  t.y1 = rows.y1;
-  t.width = s.width;
-  t.height = s.height;
-  t.render = s.render;
-  t.orbit_degrees = s.orbit_degrees;
-  t.frame_first = s.frame_first;
-  t.frame_last = s.frame_last;
-  return t;
+  BandLease out;
+  out.lease_id = lease_id;
+  out.lease_remaining = std::chrono::duration_cast<Millis>(lease.deadline - now_());
+  out.job_id = job.info.job_id;
+  out.scene_hash = s.scene_hash;
+  out.frame = frame_of(job, job_band);
+  out.band = band_of(job, job_band);
+  const Band rows = band_rows(s, out.band);
+  out.y0 = rows.y0;
+  out.y1 = rows.y1;
+  out.width = s.width;
+  out.height = s.height;
+  out.render = s.render;
+  out.orbit_degrees = s.orbit_degrees;
+  out.frame_first = s.frame_first;
+  out.frame_last = s.frame_last;
+  return out;
 }
 
-Result<std::optional<BandTask>> Scheduler::grant(Job& job, int task, Worker& worker,
-                                                 bool speculative) {
-  Task& t = job.tasks[task];
-  t.state = TaskState::kLeased;
-  ++t.leases;
+Result<std::optional<BandLease>> Scheduler::grant(Job& job, int job_band, Worker& worker,
+                                                  bool speculative) {
+  BandState& state = job.bands[job_band];
+  state.phase = BandPhase::kLeased;
+  ++state.leases;
   if (speculative) {
-    t.speculated = 1;
+    state.speculated = 1;
     ++job.info.speculative_leases;
-    BandLogScope log_scope(job.info.job_id, frame_of(job, task), band_of(job, task));
+    BandLogScope log_scope(job.info.job_id, frame_of(job, job_band), band_of(job, job_band));
     spdlog::info("job {}: {} runs far longer than its peers; second lease to worker {}",
-                 job.info.job_id, band_name(job, task), worker.info.worker_id);
+                 job.info.job_id, band_name(job, job_band), worker.info.worker_id);
   }
   const std::string id = lease_prefix_ + std::to_string(next_lease_++);
   const TimePoint now = now_();
-  Lease lease{job.info.job_id,      task,       worker.info.worker_id, worker.info.name, now,
+  Lease lease{job.info.job_id,      job_band,   worker.info.worker_id, worker.info.name, now,
               now + options_.lease, speculative};
   leases_.emplace(id, lease);
   worker.leases.insert(id);
@@ -484,14 +371,14 @@ Result<std::optional<BandTask>> Scheduler::grant(Job& job, int task, Worker& wor
     job.info.state = JobState::kRunning;
     events_.push_back(event::JobStateChanged{job.info.job_id, JobState::kRunning, ""});
   }
-  events_.push_back(event::LeaseGranted{id, job.info.job_id, frame_of(job, task),
-                                        band_of(job, task), worker.info.worker_id, worker.info.name,
-                                        speculative});
+  events_.push_back(event::LeaseGranted{id, job.info.job_id, frame_of(job, job_band),
+                                        band_of(job, job_band), worker.info.worker_id,
+                                        worker.info.name, speculative});
   ++version_;
-  return std::optional<BandTask>(make_task(job, task, lease, id));
+  return std::optional<BandLease>(make_lease(job, job_band, lease, id));
 }
 
-Result<std::optional<BandTask>> Scheduler::next_task(const std::string& worker_id) {
+Result<std::optional<BandLease>> Scheduler::next_band(const std::string& worker_id) {
   const Status alive = touch(worker_id);
   if (!alive.ok()) return alive;
   Worker& worker = workers_.at(worker_id);
@@ -502,14 +389,14 @@ Result<std::optional<BandTask>> Scheduler::next_task(const std::string& worker_i
     // Quarantine holds only while another worker can take the job's bands:
     // a farm of one keeps going, bounded by the attempt limit.
     if (quarantined(job, name) && another_worker_for(job, -1, name)) continue;
-    const int task = pick_task(job, name);
-    if (task >= 0) return grant(job, task, worker, false);
+    const int job_band = pick_band(job, name);
+    if (job_band >= 0) return grant(job, job_band, worker, false);
   }
   if (const Lease* l = speculation_candidate(name)) {
     Job& job = jobs_.at(l->job_id);
-    return grant(job, l->task, worker, true);
+    return grant(job, l->job_band, worker, true);
   }
-  return std::optional<BandTask>();
+  return std::optional<BandLease>();
 }
 
 Result<std::vector<std::string>> Scheduler::heartbeat(const std::string& worker_id,
@@ -538,8 +425,8 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
   if (w != workers_.end()) w->second.leases.erase(lease_id);
   Job* job = find_job(lease.job_id);
   if (!job) return;
-  const int frame = frame_of(*job, lease.task);
-  const int band = band_of(*job, lease.task);
+  const int frame = frame_of(*job, lease.job_band);
+  const int band = band_of(*job, lease.job_band);
   BandLogScope log_scope(lease.job_id, frame, band);
   event::LeaseEnded ended{lease_id, lease.job_id, frame, band, outcome, why, false};
   ++version_;
@@ -547,12 +434,12 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
     events_.push_back(std::move(ended));
     return;
   }
-  Task& t = job->tasks[lease.task];
-  if (t.leases > 0) --t.leases;
+  BandState& state = job->bands[lease.job_band];
+  if (state.leases > 0) --state.leases;
   if (outcome == LeaseOutcome::kDiscarded) ++job->info.results_discarded;
   if (is_charged(outcome)) {
-    if (t.failures < 255) ++t.failures;
-    Failures& f = job->failures[lease.task];
+    if (state.failures < 255) ++state.failures;
+    Failures& f = job->failures[lease.job_band];
     f.workers.insert(lease.worker_name);
     f.last_error = why;
     const int n = ++job->worker_failures[lease.worker_name];
@@ -564,20 +451,21 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
   }
   // The band goes back to the queue unless it is done or its other lease
   // goes on; past the attempt limit its job fails instead.
-  const bool free = t.state != TaskState::kDone && t.leases == 0;
-  const bool failed = free && t.failures >= options_.max_attempts;
+  const bool free = state.phase != BandPhase::kDone && state.leases == 0;
+  const bool failed = free && state.failures >= options_.max_attempts;
   ended.requeued = free && !failed;
   events_.push_back(std::move(ended));
   if (!free) return;
-  t.state = TaskState::kQueued;
+  state.phase = BandPhase::kQueued;
   if (failed) {
     end_job(*job, JobState::kFailed,
-            band_name(*job, lease.task) + " failed " + std::to_string(t.failures) +
+            band_name(*job, lease.job_band) + " failed " + std::to_string(state.failures) +
                 " times; last: " + why);
     return;
   }
-  spdlog::info("job {}: {} back in the queue: {}", lease.job_id, band_name(*job, lease.task), why);
-  job->retry.push_front(lease.task);
+  spdlog::info("job {}: {} back in the queue: {}", lease.job_id, band_name(*job, lease.job_band),
+               why);
+  job->retry.push_front(lease.job_band);
 }
 
 std::optional<BandTarget> Scheduler::result_target(const BandOutput& out) const {
@@ -586,10 +474,10 @@ std::optional<BandTarget> Scheduler::result_target(const BandOutput& out) const 
   if (it->second.deadline < now_() || out.handed_back || !out.error.empty()) return std::nullopt;
   const Job& job = jobs_.at(it->second.job_id);
   const JobSpec& s = job.info.spec;
-  const int band = band_of(job, it->second.task);
+  const int band = band_of(job, it->second.job_band);
   const Band rows = band_rows(s, band);
   if (out.rgb.size() != static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3) return std::nullopt;
-  return BandTarget{job.info.job_id, frame_of(job, it->second.task), band, s.width, rows.y0,
+  return BandTarget{job.info.job_id, frame_of(job, it->second.job_band), band, s.width, rows.y0,
                     rows.y1};
 }
 
@@ -626,8 +514,8 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
     outcome.accepted = true;
     return outcome;
   }
-  const int band = band_of(job, lease.task);
-  const int frame = frame_of(job, lease.task);
+  const int band = band_of(job, lease.job_band);
+  const int frame = frame_of(job, lease.job_band);
   const Band rows = band_rows(s, band);
   const size_t expected = static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3;
   if (out.rgb.size() != expected) {
@@ -643,9 +531,9 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   Worker& worker = workers_.at(out.worker_id);
   worker.leases.erase(out.lease_id);
   ++worker.info.bands_done;
-  Task& t = job.tasks[lease.task];
-  t.state = TaskState::kDone;
-  if (t.leases > 0) --t.leases;
+  BandState& state = job.bands[lease.job_band];
+  state.phase = BandPhase::kDone;
+  if (state.leases > 0) --state.leases;
   ++job.info.bands_done;
   job.info.stats += out.stats;
   const double took = seconds(now_() - lease.granted);
@@ -655,10 +543,10 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
                                     job.info.stats, took});
   // The first result wins: the band's other lease (a speculative copy, or
   // the original it copied) is discarded, counted once here.
-  if (t.leases > 0) {
+  if (state.leases > 0) {
     std::vector<std::string> others;
     for (const auto& [id, l] : leases_) {
-      if (l.job_id == lease.job_id && l.task == lease.task) others.push_back(id);
+      if (l.job_id == lease.job_id && l.job_band == lease.job_band) others.push_back(id);
     }
     for (const std::string& id : others) {
       release(id, LeaseOutcome::kDiscarded, "band done first by lease " + out.lease_id);

@@ -1,5 +1,5 @@
 // The coordinator's scheduling logic as a plain, single-threaded class:
-// jobs expand into frames x bands tasks; each task is leased to a worker
+// a job's frames are cut into bands; each band is leased to a worker
 // (lease id + deadline), and at most once more, speculatively, when it runs
 // far longer than its peers; leases lapse when not renewed and their bands
 // go back to the queue; results under a stale lease are dropped; failures
@@ -84,7 +84,7 @@ class Scheduler {
   size_t worker_count() const { return workers_.size(); }
 
   // Leases the next band to the worker, or nothing when no band waits.
-  Result<std::optional<BandTask>> next_task(const std::string& worker_id);
+  Result<std::optional<BandLease>> next_band(const std::string& worker_id);
   // Renews the worker's leases; returns those it must drop (re-leased,
   // lapsed, cancelled, won by another worker).
   Result<std::vector<std::string>> heartbeat(const std::string& worker_id,
@@ -117,10 +117,10 @@ class Scheduler {
   bool has_queued_bands() const;
 
  private:
-  enum class TaskState : uint8_t { kQueued, kLeased, kDone };
-  // Compact: a job may have a million tasks.
-  struct Task {
-    TaskState state = TaskState::kQueued;
+  enum class BandPhase : uint8_t { kQueued, kLeased, kDone };
+  // One band of a job. Compact: a job may have a million bands.
+  struct BandState {
+    BandPhase phase = BandPhase::kQueued;
     uint8_t failures = 0;  // charged attempts
     uint8_t leases = 0;    // live leases (2 while speculating)
     uint8_t speculated = 0;
@@ -134,17 +134,22 @@ class Scheduler {
     JobRecord record;
     TimePoint submitted;
     TimePoint finished;
-    std::vector<Task> tasks;                     // frame-major: (frame - first) * bands + band
-    int next_fresh = 0;                          // tasks from here on were never leased
-    std::deque<int> retry;                       // tasks back in the queue, served first
+    // Every band of the job, frame-major: the band's index in the job (its
+    // "job band", as the members below count) is (frame - first) * spec.bands
+    // + band, its index in the frame.
+    std::vector<BandState> bands;
+    int next_fresh = 0;                          // job bands from here on were never leased
+    std::deque<int> retry;                       // job bands back in the queue, served first
     std::map<int, int> frame_bands;              // bands done of the frames in progress
-    std::map<int, Failures> failures;            // by task
+    std::map<int, Failures> failures;            // by job band
     std::map<std::string, int> worker_failures;  // by worker name
     std::deque<double> durations;                // seconds of the last accepted bands
   };
+  // The coordinator's record of a lease; the worker gets it as a BandLease
+  // (make_lease).
   struct Lease {
     std::string job_id;
-    int task = 0;
+    int job_band = 0;
     std::string worker_id;
     std::string worker_name;
     TimePoint granted;
@@ -157,21 +162,29 @@ class Scheduler {
     std::set<std::string> leases;
   };
 
+  // restore()'s steps, for one job (server/scheduler_restore.cpp).
+  static Job recovered_job(const RecoveredJob& r, TimePoint now);
+  static void mark_done_bands(Job& job, const RecoveredJob& r);
+  void charge_failures(Job& job, const RecoveredJob& r) const;
+  static void queue_unfinished(Job& job);
+  // The frames whose bands are all done, taken out of frame_bands.
+  static std::vector<FrameReady> take_complete_frames(Job& job);
+
   Job* find_job(const std::string& id);
   const Job* find_job(const std::string& id) const;
   JobInfo snapshot(const Job& job) const;
   bool queued(const Job& job) const {
-    return !job.retry.empty() || job.next_fresh < static_cast<int>(job.tasks.size());
+    return !job.retry.empty() || job.next_fresh < static_cast<int>(job.bands.size());
   }
   bool quarantined(const Job& job, const std::string& worker_name) const;
-  // Whether a registered worker other than `worker_name` may take tasks of
-  // the job and has not failed on `task` (-1: any task).
-  bool another_worker_for(const Job& job, int task, const std::string& worker_name) const;
-  // The task the worker should take next in this job, or -1.
-  int pick_task(Job& job, const std::string& worker_name);
+  // Whether a registered worker other than `worker_name` may take bands of
+  // the job and has not failed on `job_band` (-1: any band).
+  bool another_worker_for(const Job& job, int job_band, const std::string& worker_name) const;
+  // The job band the worker should take next in this job, or -1.
+  int pick_band(Job& job, const std::string& worker_name);
   // A band running far longer than its peers, for a second lease, or null.
   const Lease* speculation_candidate(const std::string& worker_name) const;
-  Result<std::optional<BandTask>> grant(Job& job, int task, Worker& worker, bool speculative);
+  Result<std::optional<BandLease>> grant(Job& job, int job_band, Worker& worker, bool speculative);
   // Ends a lease with `outcome`; when no other lease of its band remains,
   // the band is queued again (first, to finish frames early). Charged
   // outcomes count against the band's attempts and the worker.
@@ -179,12 +192,13 @@ class Scheduler {
   void end_job(Job& job, JobState state, const std::string& error);
   void drop_leases_of(Job& job);
   double speculate_after(const Job& job) const;
-  BandTask make_task(const Job& job, int task, const Lease& lease, const std::string& id) const;
-  int frame_of(const Job& job, int task) const {
-    return job.info.spec.frame_first + task / job.info.spec.bands;
+  BandLease make_lease(const Job& job, int job_band, const Lease& lease,
+                       const std::string& id) const;
+  int frame_of(const Job& job, int job_band) const {
+    return job.info.spec.frame_first + job_band / job.info.spec.bands;
   }
-  int band_of(const Job& job, int task) const { return task % job.info.spec.bands; }
-  std::string band_name(const Job& job, int task) const;
+  int band_of(const Job& job, int job_band) const { return job_band % job.info.spec.bands; }
+  std::string band_name(const Job& job, int job_band) const;
 
   SchedulerOptions options_;
   NowFn now_;

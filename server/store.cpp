@@ -98,13 +98,15 @@ Stats decode_stats(const std::string& text) {
   return s;
 }
 
+// A word the table lacks (a damaged row) reads as a failed job.
 JobState state_from_name(const std::string& n) {
-  for (JobState s : {JobState::kQueued, JobState::kRunning, JobState::kSucceeded, JobState::kFailed,
-                     JobState::kCancelled}) {
-    if (n == job_state_name(s)) return s;
-  }
-  return JobState::kFailed;
+  return label_value(kJobStateLabels, n).value_or(JobState::kFailed);
 }
+
+// The SQL below names these outcomes in its text; the table is the word's
+// one home.
+static_assert(label_name(kLeaseOutcomeLabels, LeaseOutcome::kDone) == "done");
+static_assert(label_name(kLeaseOutcomeLabels, LeaseOutcome::kDiscarded) == "discarded");
 
 }  // namespace
 

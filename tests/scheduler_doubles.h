@@ -18,7 +18,7 @@ struct FakeClock {
 };
 
 // The band's pixels, all 0.5: the right size for its lease.
-inline BandOutput pixels(const std::string& worker, const BandTask& t) {
+inline BandOutput pixels(const std::string& worker, const BandLease& t) {
   BandOutput o;
   o.worker_id = worker;
   o.lease_id = t.lease_id;

@@ -34,7 +34,7 @@ Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto,
   return Status::Ok();
 }
 
-Result<BandOutput> BandRenderer::render(const BandTask& t) {
+Result<BandOutput> BandRenderer::render(const BandLease& t) {
   auto it = scenes_.find(t.scene_hash);
   if (it == scenes_.end()) return FailedPrecondition("scene " + t.scene_hash + " is not held");
   Result<RenderParams> params = to_render_params(t.render, threads_);

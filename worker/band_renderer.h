@@ -31,9 +31,9 @@ class BandRenderer {
   // Converts and keeps a scene received from the coordinator; its mesh
   // paths confined under the mesh root (common/farm/paths.h).
   Status add_scene(const std::string& hash, const v1::Scene& scene, const std::string& name);
-  // Renders the band of `task`; its scene must have been added. The
-  // returned output carries pixels and stats (ids are the caller's).
-  Result<BandOutput> render(const BandTask& task);
+  // Renders the leased band; its scene must have been added. The returned
+  // output carries pixels and stats (ids are the caller's).
+  Result<BandOutput> render(const BandLease& band);
 
   size_t scenes_held() const { return scenes_.size(); }
   int prepares() const { return prepares_; }

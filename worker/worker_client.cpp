@@ -56,9 +56,10 @@ class WorkerClient::Impl {
   using BandEnd = WorkerMetrics::BandEnd;
   bool register_worker();
   void heartbeat_loop();
-  void handle(const BandTask& task);
+  // Renders the leased band and returns it (or gives it back when stopping).
+  void handle(const BandLease& band);
   // Nothing when the scene is at hand; otherwise how the band ended.
-  std::optional<BandEnd> fetch_scene(const BandTask& task);
+  std::optional<BandEnd> fetch_scene(const BandLease& band);
   BandEnd send(BandOutput output);
   // Ready: registered, and the last call reached the coordinator.
   void set_ready(bool ready) {
@@ -165,6 +166,7 @@ int WorkerClient::Impl::run() {
       }
       continue;
     }
+    // GetTask (the wire's name): a long poll for the next band's lease.
     v1::GetTaskRequest req;
     req.set_worker_id(id);
     req.set_wait_ms(static_cast<int32_t>(o_.poll.count()));
@@ -260,7 +262,7 @@ void WorkerClient::Impl::heartbeat_loop() {
   }
 }
 
-std::optional<WorkerClient::Impl::BandEnd> WorkerClient::Impl::fetch_scene(const BandTask& t) {
+std::optional<WorkerClient::Impl::BandEnd> WorkerClient::Impl::fetch_scene(const BandLease& t) {
   if (renderer_.has_scene(t.scene_hash)) return std::nullopt;
   v1::GetSceneRequest req;
   req.set_scene_hash(t.scene_hash);
@@ -318,7 +320,7 @@ void WorkerClient::Impl::hand_back() {
   }
 }
 
-void WorkerClient::Impl::handle(const BandTask& t) {
+void WorkerClient::Impl::handle(const BandLease& t) {
   // Every line logged about this band carries its ids.
   BandLogScope log_scope(t.job_id, t.frame, t.band);
   metrics_.band_started();

@@ -1,22 +1,22 @@
 #include "worker/worker_metrics.h"
 
+#include <string>
+
+#include "common/base/labels.h"
 #include "common/farm/metrics.h"
 
 namespace locus::farm {
 namespace {
 
-const char* band_end_name(WorkerMetrics::BandEnd end) {
-  switch (end) {
-    case WorkerMetrics::BandEnd::kDone:
-      return "done";
-    case WorkerMetrics::BandEnd::kFailed:
-      return "failed";
-    case WorkerMetrics::BandEnd::kDropped:
-      return "dropped";
-    case WorkerMetrics::BandEnd::kHandedBack:
-      return "handed_back";
-  }
-  return "?";
+// The `outcome` label of locus_worker_bands_total (docs/deploy.md "Metrics").
+constexpr Labels<WorkerMetrics::BandEnd, 4> kBandEndLabels = {
+    {{WorkerMetrics::BandEnd::kDone, "done"},
+     {WorkerMetrics::BandEnd::kFailed, "failed"},
+     {WorkerMetrics::BandEnd::kDropped, "dropped"},
+     {WorkerMetrics::BandEnd::kHandedBack, "handed_back"}}};
+
+std::string band_end_name(WorkerMetrics::BandEnd end) {
+  return std::string(label_name(kBandEndLabels, end, "?"));
 }
 
 }  // namespace
@@ -39,8 +39,7 @@ WorkerMetrics::WorkerMetrics()
                         "Bytes of messages received from the coordinator")),
       sent_(counter(*registry_, "locus_worker_sent_bytes_total",
                     "Bytes of messages sent to the coordinator")) {
-  for (BandEnd e : {BandEnd::kDone, BandEnd::kFailed, BandEnd::kDropped, BandEnd::kHandedBack})
-    bands_.Add({{"outcome", band_end_name(e)}});
+  for (const auto& [end, name] : kBandEndLabels) bands_.Add({{"outcome", std::string(name)}});
 }
 
 void WorkerMetrics::set_connected(bool connected) { connected_.Set(connected ? 1 : 0); }

@@ -2,9 +2,10 @@
 // out, and the bytes a band costs on the wire. Prints "key value" lines
 // (bench/farm/run.sh turns them into bench/results/farm.md).
 //   logic:  farm::Coordinator in process, a loop playing the worker
-//           (get_task + complete_band of zero pixels): dispatch + stitch.
+//           (lease_band + complete_band of zero pixels): dispatch + stitch.
 //   grpc:   the same over gRPC on 127.0.0.1 (GetTask + CompleteBand).
-//   bytes:  serialized sizes of a BandTask and a band's result.
+//   bytes:  serialized sizes of a band's lease (GetTaskResponse) and of its
+//           result.
 #include <spdlog/spdlog.h>
 
 #include <chrono>
@@ -71,7 +72,7 @@ int main() {
     const double t0 = now_s();
     int bands = 0;
     for (;;) {
-      auto t = c.get_task(worker, Millis(0), nullptr);
+      auto t = c.lease_band(worker, Millis(0), nullptr);
       if (!t.ok() || !t->has_value()) break;
       BandOutput out;
       out.worker_id = worker;
@@ -115,20 +116,21 @@ int main() {
     if (!job.ok()) return 1;
     const double t0 = now_s();
     int bands = 0;
-    size_t task_bytes = 0, result_bytes = 0;
+    size_t lease_bytes = 0, result_bytes = 0;
     for (;;) {
       v1::GetTaskRequest get;
       get.set_worker_id(who.worker_id());
       get.set_wait_ms(0);
-      v1::GetTaskResponse task;
+      v1::GetTaskResponse leased;  // GetTask: the wire's name for leasing a band
       grpc::ClientContext c1;
       rpc::prepare(c1, *conn, rpc::kShortCall);
-      if (!stub->GetTask(&c1, get, &task).ok() || !task.has_task()) break;
+      if (!stub->GetTask(&c1, get, &leased).ok() || !leased.has_task()) break;
       v1::CompleteBandRequest done;
       done.set_worker_id(who.worker_id());
-      done.set_lease_id(task.task().lease_id());
-      done.mutable_rgb()->Resize(kW * (task.task().y1() - task.task().y0()) * 3, 0.0f);
-      task_bytes = task.ByteSizeLong();
+      const v1::BandTask& band = leased.task();
+      done.set_lease_id(band.lease_id());
+      done.mutable_rgb()->Resize(kW * (band.y1() - band.y0()) * 3, 0.0f);
+      lease_bytes = leased.ByteSizeLong();
       result_bytes = done.ByteSizeLong();
       v1::CompleteBandResponse ack;
       grpc::ClientContext c2;
@@ -139,7 +141,7 @@ int main() {
     const double t1 = now_s();
     wait_done(c, job->job_id);
     std::printf("grpc_bands %d\ngrpc_us_per_band %.2f\n", bands, (t1 - t0) * 1e6 / bands);
-    std::printf("bytes_task %zu\nbytes_result_64x1 %zu\n", task_bytes, result_bytes);
+    std::printf("bytes_lease %zu\nbytes_result_64x1 %zu\n", lease_bytes, result_bytes);
     server.shutdown(Millis(500));
   }
 

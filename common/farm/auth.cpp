@@ -61,8 +61,6 @@ Result<std::vector<std::string>> read_tokens(const std::string& path, const std:
 
 }  // namespace
 
-const char* role_name(Role role) { return role == Role::kClient ? "client" : "worker"; }
-
 Result<std::string> load_token(const std::string& token_file) {
   if (!token_file.empty()) {
     auto tokens = read_tokens(token_file, "--token-file");

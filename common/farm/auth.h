@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/base/labels.h"
 #include "common/base/status.h"
 
 namespace locus::farm {
@@ -19,7 +20,10 @@ namespace locus::farm {
 // client role's; WorkerService (Register, GetTask, GetScene, CompleteBand,
 // Heartbeat) the worker role's.
 enum class Role { kClient, kWorker };
-const char* role_name(Role role);
+inline constexpr Labels<Role, 2> kRoleLabels = {
+    {{Role::kClient, "client"}, {Role::kWorker, "worker"}}};
+// A C string: every name in the table (and the fallback) is a literal.
+inline const char* role_name(Role role) { return label_name(kRoleLabels, role).data(); }
 
 // What a client or worker needs to reach a coordinator (plain strings, so
 // that worker/ and client/ options carry them without gRPC headers).

@@ -14,73 +14,38 @@
 namespace locus::farm {
 
 Result<RenderParams> to_render_params(const RenderSettings& s, int threads) {
+  // Only the translation from the wire's names and "unset" values; the
+  // ranges and the method/anti-aliasing rules are check_render_params()'s.
+  const RenderSettings defaults;
+  const auto method = label_value(kMethodLabels, s.method.empty() ? defaults.method : s.method);
+  if (!method) {
+    return InvalidArgument("--method '" + s.method + "' is unknown; use " +
+                           label_choices(kMethodLabels));
+  }
+  const auto boxes = label_value(kBoxesLabels, s.boxes.empty() ? defaults.boxes : s.boxes);
+  if (!boxes) {
+    return InvalidArgument("--boxes '" + s.boxes + "' is unknown; use " +
+                           label_choices(kBoxesLabels));
+  }
   RenderParams p;
-  if (s.method == "raytrace") {
-    p.method = Method::kRaytrace;
-  } else if (s.method.empty() || s.method == "local") {
-    p.method = Method::kLocal;
-  } else {
-    return InvalidArgument("render method '" + s.method + "' is unknown; use raytrace or local");
-  }
-  if (s.boxes.empty() || s.boxes == "eye+shadow") {
-    p.boxes = Boxes::kEyeShadow;
-  } else if (s.boxes == "eye") {
-    p.boxes = Boxes::kEye;
-  } else if (s.boxes == "none") {
-    p.boxes = Boxes::kNone;
-  } else {
-    return InvalidArgument("boxes '" + s.boxes + "' is unknown; use none, eye or eye+shadow");
-  }
+  p.method = *method;
+  p.boxes = *boxes;
   p.spp = s.spp == 0 ? 1 : s.spp;
-  if (p.spp < 1 || p.spp > 64) {
-    return InvalidArgument("spp must be between 1 and 64, got " + std::to_string(s.spp));
-  }
-  p.aa = s.aa >= 0 ? s.aa : (p.method == Method::kLocal ? kDefaultAa : 0);
-  if (s.aa < -1 || p.aa > kMaxAa) {
-    return InvalidArgument("aa must be between 0 and " + std::to_string(kMaxAa) + ", got " +
-                           std::to_string(s.aa));
-  }
-  if (p.method == Method::kLocal && p.spp != 1) {
-    return InvalidArgument("--spp " + std::to_string(p.spp) +
-                           ": the local method anti-aliases by multi-scanning; use --aa N");
-  }
-  if (p.method == Method::kRaytrace && p.aa != 0) {
-    return InvalidArgument("--aa " + std::to_string(p.aa) +
-                           ": multi-scanning needs --method local; the ray tracer uses --spp N");
-  }
-  if (!(s.tess_tol > 0.0 && std::isfinite(s.tess_tol))) {
-    return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
-                           format_number(s.tess_tol));
-  }
+  p.aa = s.aa != -1 ? s.aa : (p.method == Method::kLocal ? kDefaultAa : 0);
   p.tess_tol = s.tess_tol;
   p.threads = threads;
+  if (Status st = check_render_params(p); !st.ok()) return st;
   return p;
 }
 
 RenderSettings from_render_params(const RenderParams& p) {
   RenderSettings s;
-  s.method = p.method == Method::kLocal ? "local" : "raytrace";
-  s.boxes = p.boxes == Boxes::kNone ? "none" : (p.boxes == Boxes::kEye ? "eye" : "eye+shadow");
+  s.method = label_name(kMethodLabels, p.method);
+  s.boxes = label_name(kBoxesLabels, p.boxes);
   s.spp = p.spp;
   s.aa = p.aa;
   s.tess_tol = p.tess_tol;
   return s;
-}
-
-const char* job_state_name(JobState s) {
-  switch (s) {
-    case JobState::kQueued:
-      return "queued";
-    case JobState::kRunning:
-      return "running";
-    case JobState::kSucceeded:
-      return "succeeded";
-    case JobState::kFailed:
-      return "failed";
-    case JobState::kCancelled:
-      return "cancelled";
-  }
-  return "unknown";
 }
 
 Band band_rows(int height, int bands, int index) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/base/image.h"
+#include "common/base/labels.h"
 #include "common/base/params.h"
 #include "common/base/status.h"
 #include "common/scene/scene.h"
@@ -60,12 +61,25 @@ struct RenderSettings {
   double tess_tol = kDefaultTessTol;  // pixels (--tess-tol)
 };
 
-// Checks the names and ranges; the thread count is the worker's own.
+// The settings as RenderParams: the names through kMethodLabels and
+// kBoxesLabels (empty: the default above), spp 0 as 1, aa -1 as the
+// method's default; then check_render_params(), the renderer's one check.
+// The thread count is the worker's own.
 Result<RenderParams> to_render_params(const RenderSettings& settings, int threads);
 RenderSettings from_render_params(const RenderParams& params);
 
 enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
-const char* job_state_name(JobState state);
+// The names of `locus status`, the metrics' `state` label and the job
+// store's `state` column (which parses them back).
+inline constexpr Labels<JobState, 5> kJobStateLabels = {{{JobState::kQueued, "queued"},
+                                                         {JobState::kRunning, "running"},
+                                                         {JobState::kSucceeded, "succeeded"},
+                                                         {JobState::kFailed, "failed"},
+                                                         {JobState::kCancelled, "cancelled"}}};
+// A C string: every name in the table (and the fallback) is a literal.
+inline const char* job_state_name(JobState state) {
+  return label_name(kJobStateLabels, state).data();
+}
 inline bool is_terminal(JobState s) {
   return s == JobState::kSucceeded || s == JobState::kFailed || s == JobState::kCancelled;
 }
@@ -115,8 +129,9 @@ int default_bands(int width, int height, int frames, int workers);
 int min_bands(int width, int height);
 
 // A band leased to a worker: everything a stateless worker needs but the
-// scene, which it fetches once per hash.
-struct BandTask {
+// scene, which it fetches once per hash. On the wire it is v1::BandTask,
+// the name of an older release (a band is never called a task in code).
+struct BandLease {
   std::string lease_id;
   Millis lease_remaining{0};
   std::string job_id;
@@ -189,7 +204,7 @@ struct FarmCounts {
   int64_t bands_queued = 0;       // waiting for a worker
   int64_t bands_running = 0;      // under a lease (a speculated band counts once)
   int64_t bands_done = 0;         // of the jobs the coordinator holds
-  std::array<int64_t, 5> jobs{};  // by JobState
+  std::array<int64_t, kJobStateLabels.size()> jobs{};  // by JobState
   int64_t workers = 0;            // registered and not dropped
 };
 

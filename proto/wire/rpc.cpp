@@ -385,7 +385,7 @@ farm::WorkerInfo FromProto(const v1::WorkerInfo& p) {
   return w;
 }
 
-v1::BandTask ToProto(const farm::BandTask& t) {
+v1::BandTask ToProto(const farm::BandLease& t) {
   v1::BandTask p;
   p.set_lease_id(t.lease_id);
   p.set_lease_ms(t.lease_remaining.count());
@@ -404,8 +404,8 @@ v1::BandTask ToProto(const farm::BandTask& t) {
   return p;
 }
 
-farm::BandTask FromProto(const v1::BandTask& p) {
-  farm::BandTask t;
+farm::BandLease FromProto(const v1::BandTask& p) {
+  farm::BandLease t;
   t.lease_id = p.lease_id();
   t.lease_remaining = farm::Millis(p.lease_ms());
   t.job_id = p.job_id();
@@ -475,6 +475,26 @@ farm::BandOutput FromProto(const v1::CompleteBandRequest& p) {
   o.error = p.error();
   o.handed_back = p.handed_back();
   return o;
+}
+
+v1::FileChunk ToProto(const farm::FileChunk& c) {
+  v1::FileChunk p;
+  p.set_frame(c.frame);
+  p.set_file_name(c.file_name);
+  p.set_offset(c.offset);
+  p.set_data(c.data);
+  p.set_last(c.last);
+  return p;
+}
+
+farm::FileChunk FromProto(v1::FileChunk&& p) {
+  farm::FileChunk c;
+  c.frame = p.frame();
+  c.file_name = p.file_name();
+  c.offset = p.offset();
+  c.data = std::move(*p.mutable_data());
+  c.last = p.last();
+  return c;
 }
 
 }  // namespace locus::rpc

@@ -71,12 +71,15 @@ v1::JobStatus ToProto(const farm::JobInfo& j);
 farm::JobInfo FromProto(const v1::JobStatus& p);
 v1::WorkerInfo ToProto(const farm::WorkerInfo& w);
 farm::WorkerInfo FromProto(const v1::WorkerInfo& p);
-v1::BandTask ToProto(const farm::BandTask& t);
-farm::BandTask FromProto(const v1::BandTask& p);
+v1::BandTask ToProto(const farm::BandLease& t);
+farm::BandLease FromProto(const v1::BandTask& p);
 farm::SubmitRequest FromProto(const v1::JobSpec& p);
 v1::JobSpec ToProto(const farm::SubmitRequest& r);
 // The pixels are moved out of `o`: they are the bulk of the farm's traffic.
 v1::CompleteBandRequest ToProto(farm::BandOutput&& o);
 farm::BandOutput FromProto(const v1::CompleteBandRequest& p);
+v1::FileChunk ToProto(const farm::FileChunk& c);
+// The bytes are moved out of `p` (a chunk is up to 1 MiB of a frame file).
+farm::FileChunk FromProto(v1::FileChunk&& p);
 
 }  // namespace locus::rpc

@@ -120,10 +120,10 @@ TEST_F(FarmTest, ResultAfterLeaseExpiryIsIgnored) {
   v1::GetTaskRequest get;
   get.set_worker_id(who.worker_id());
   get.set_wait_ms(2000);
-  v1::GetTaskResponse task;
+  v1::GetTaskResponse leased;
   prepare(c2);
-  ASSERT_TRUE(stub->GetTask(&c2, get, &task).ok());
-  ASSERT_TRUE(task.has_task());
+  ASSERT_TRUE(stub->GetTask(&c2, get, &leased).ok());
+  ASSERT_TRUE(leased.has_task());
   // Alive (heartbeats) but not renewing the lease: it lapses.
   for (int i = 0; i < 7; ++i) {
     std::this_thread::sleep_for(Millis(100));
@@ -137,8 +137,8 @@ TEST_F(FarmTest, ResultAfterLeaseExpiryIsIgnored) {
 
   v1::CompleteBandRequest late;
   late.set_worker_id(who.worker_id());
-  late.set_lease_id(task.task().lease_id());
-  const int rows = task.task().y1() - task.task().y0();
+  late.set_lease_id(leased.task().lease_id());
+  const int rows = leased.task().y1() - leased.task().y0();
   for (int i = 0; i < 32 * rows * 3; ++i) late.add_rgb(1.0f);  // a visibly wrong band
   v1::CompleteBandResponse answer;
   prepare(c3);
@@ -266,12 +266,12 @@ TEST_F(FarmTest, UnknownJobsAndMalformedWorkerCallsAreRefused) {
     v1::GetTaskRequest get;
     get.set_worker_id(who.worker_id());
     get.set_wait_ms(1000);
-    v1::GetTaskResponse task;
-    ASSERT_TRUE(stub->GetTask(&c2, get, &task).ok());
-    ASSERT_TRUE(task.has_task());
+    v1::GetTaskResponse leased;
+    ASSERT_TRUE(stub->GetTask(&c2, get, &leased).ok());
+    ASSERT_TRUE(leased.has_task());
     v1::CompleteBandRequest wrong;
     wrong.set_worker_id(who.worker_id());
-    wrong.set_lease_id(task.task().lease_id());
+    wrong.set_lease_id(leased.task().lease_id());
     wrong.add_rgb(0.5f);
     v1::CompleteBandResponse resp;
     const grpc::Status st = stub->CompleteBand(&c3, wrong, &resp);
@@ -295,7 +295,7 @@ TEST(BandRenderer, RendersBandsOfOneFramePreparingOnce) {
   ASSERT_TRUE(scene.ok());
   BandRenderer renderer(1);
   ASSERT_TRUE(renderer.add_scene("h", scene_to_proto(*scene), "spheres").ok());
-  BandTask t;
+  BandLease t;
   t.scene_hash = "h";
   t.frame = 1;
   t.width = 32;

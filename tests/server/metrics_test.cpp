@@ -128,8 +128,8 @@ TEST(CoordinatorMetrics, CountsSchedulerEvents) {
   EXPECT_EQ(sample(text, "locus_workers_connected"), 2);
 
   // w1 renders a band in 250 ms; w2 takes one and lets its lease lapse.
-  BandTask t1 = **s.next_task(w1);
-  BandTask t2 = **s.next_task(w2);
+  BandLease t1 = **s.next_band(w1);
+  BandLease t2 = **s.next_band(w2);
   text = scrape();
   EXPECT_EQ(sample(text, R"(locus_jobs{state="running"})"), 1);
   EXPECT_EQ(sample(text, R"(locus_bands{state="running"})"), 2);
@@ -153,7 +153,7 @@ TEST(CoordinatorMetrics, CountsSchedulerEvents) {
   // The lapsed band goes to w1 (it has not failed there) and fails with an
   // error: its second failure reaches --max-attempts 2, the job fails and
   // the band is not queued again.
-  BandTask again = **s.next_task(w1);
+  BandLease again = **s.next_band(w1);
   ASSERT_EQ(again.band, t2.band);
   BandOutput err;
   err.worker_id = w1;

@@ -31,7 +31,7 @@ float value(int f, int x, int y, int c) {
   return static_cast<float>(f * 1000000 + y * 1000 + x * 3 + c);
 }
 
-BandOutput render(const std::string& worker, const BandTask& t) {
+BandOutput render(const std::string& worker, const BandLease& t) {
   BandOutput o;
   o.worker_id = worker;
   o.lease_id = t.lease_id;
@@ -48,8 +48,8 @@ class SchedulerTest : public ::testing::Test {
  protected:
   SchedulerTest() : s(SchedulerOptions{Millis(1000), Millis(3000), 3}, clock.fn()) {}
 
-  BandTask lease(const std::string& worker) {
-    auto r = s.next_task(worker);
+  BandLease lease(const std::string& worker) {
+    auto r = s.next_band(worker);
     EXPECT_TRUE(r.ok()) << r.status().message();
     EXPECT_TRUE(r.ok() && r->has_value());
     return **r;
@@ -87,19 +87,19 @@ TEST(DefaultBands, SeveralPerWorkerWithinLimits) {
 TEST_F(SchedulerTest, FramesAreReadyWhenTheirLastBandIsIn) {
   const std::string job = s.add_job(spec(5, 7, 3, 4, 3));
   const std::string w1 = s.add_worker("a", 1), w2 = s.add_worker("b", 1);
-  std::vector<BandTask> tasks;
-  for (int i = 0; i < 6; ++i) tasks.push_back(lease(i % 2 ? w2 : w1));
-  EXPECT_FALSE(s.next_task(w1)->has_value());
+  std::vector<BandLease> leases;
+  for (int i = 0; i < 6; ++i) leases.push_back(lease(i % 2 ? w2 : w1));
+  EXPECT_FALSE(s.next_band(w1)->has_value());
   EXPECT_EQ(s.job(job)->state, JobState::kRunning);
   std::vector<FrameReady> frames;
   for (int i : {5, 0, 3, 1, 4, 2}) {
-    auto r = s.complete_band(render(i % 2 ? w2 : w1, tasks[i]));
+    auto r = s.complete_band(render(i % 2 ? w2 : w1, leases[i]));
     ASSERT_TRUE(r.ok()) << r.status().message();
     EXPECT_TRUE(r->accepted) << r->reason;
     if (r->frame) frames.push_back(*r->frame);
   }
-  // Frame 4 (tasks 3-5) is complete with task 4, the 5th returned; frame 3
-  // (tasks 0-2) with task 2, the last.
+  // Frame 4 (leases 3-5) is complete with lease 4, the 5th returned; frame 3
+  // (leases 0-2) with lease 2, the last.
   ASSERT_EQ(frames.size(), 2u);
   EXPECT_EQ(frames[0].frame, 4);
   EXPECT_EQ(frames[0].file_name, "shot_0004.png");
@@ -120,11 +120,11 @@ TEST_F(SchedulerTest, FramesAreReadyWhenTheirLastBandIsIn) {
 TEST_F(SchedulerTest, LapsedLeaseIsLeasedAgainAndItsLateResultIgnored) {
   const std::string job = s.add_job(spec(4, 4, 1, 1, 1));
   const std::string slow = s.add_worker("slow", 1), fast = s.add_worker("fast", 1);
-  const BandTask first = lease(slow);
+  const BandLease first = lease(slow);
   clock.advance(1001);
   s.touch(slow);  // alive, but the lease was not renewed
   s.expire();
-  const BandTask second = lease(fast);
+  const BandLease second = lease(fast);
   EXPECT_NE(first.lease_id, second.lease_id);
   EXPECT_EQ(first.band, second.band);
   auto late = s.complete_band(render(slow, first));
@@ -141,21 +141,21 @@ TEST_F(SchedulerTest, LapsedLeaseIsLeasedAgainAndItsLateResultIgnored) {
 TEST_F(SchedulerTest, ResultAfterDeadlineIsRejectedEvenBeforeExpiryRuns) {
   s.add_job(spec(4, 4, 1, 1, 1));
   const std::string w = s.add_worker("w", 1);
-  const BandTask t = lease(w);
+  const BandLease t = lease(w);
   clock.advance(1500);
   auto r = s.complete_band(render(w, t));
   ASSERT_TRUE(r.ok());
   EXPECT_FALSE(r->accepted);
   EXPECT_NE(r->reason.find("lapsed"), std::string::npos) << r->reason;
   // The band is back in the queue.
-  const BandTask again = lease(w);
+  const BandLease again = lease(w);
   EXPECT_EQ(again.band, t.band);
 }
 
 TEST_F(SchedulerTest, HeartbeatRenewsLeases) {
   s.add_job(spec(4, 4, 1, 1, 1));
   const std::string w = s.add_worker("w", 1);
-  const BandTask t = lease(w);
+  const BandLease t = lease(w);
   for (int i = 0; i < 10; ++i) {
     clock.advance(600);
     auto revoked = s.heartbeat(w, {t.lease_id});
@@ -171,7 +171,7 @@ TEST_F(SchedulerTest, HeartbeatRenewsLeases) {
 TEST_F(SchedulerTest, SilentWorkerIsDroppedAndItsBandsReleased) {
   const std::string job = s.add_job(spec(4, 4, 1, 1, 2));
   const std::string dead = s.add_worker("dead", 1), live = s.add_worker("live", 1);
-  const BandTask t = lease(dead);
+  const BandLease t = lease(dead);
   clock.advance(900);
   s.heartbeat(live, {});
   s.heartbeat(dead, {t.lease_id});  // renewing, then it dies
@@ -191,11 +191,11 @@ TEST_F(SchedulerTest, SilentWorkerIsDroppedAndItsBandsReleased) {
 TEST_F(SchedulerTest, CancelRevokesLeasesAndStopsDispatch) {
   const std::string job = s.add_job(spec(4, 8, 1, 3, 4));
   const std::string w = s.add_worker("w", 1);
-  const BandTask t = lease(w);
+  const BandLease t = lease(w);
   auto c = s.cancel(job);
   ASSERT_TRUE(c.ok());
   EXPECT_EQ(c->state, JobState::kCancelled);
-  EXPECT_FALSE(s.next_task(w)->has_value());
+  EXPECT_FALSE(s.next_band(w)->has_value());
   auto hb = s.heartbeat(w, {t.lease_id});
   ASSERT_TRUE(hb.ok());
   EXPECT_EQ(*hb, std::vector<std::string>{t.lease_id});
@@ -210,7 +210,7 @@ TEST_F(SchedulerTest, RepeatedFailuresFailTheJob) {
   const std::string job = s.add_job(spec(4, 4, 1, 1, 1));
   const std::string w = s.add_worker("w", 1);
   for (int i = 0; i < 3; ++i) {
-    BandTask t = lease(w);
+    BandLease t = lease(w);
     BandOutput o;
     o.worker_id = w;
     o.lease_id = t.lease_id;
@@ -221,28 +221,28 @@ TEST_F(SchedulerTest, RepeatedFailuresFailTheJob) {
   EXPECT_EQ(j->state, JobState::kFailed);
   EXPECT_NE(j->error.find("out of memory"), std::string::npos) << j->error;
   EXPECT_NE(j->error.find("3 times"), std::string::npos) << j->error;
-  EXPECT_FALSE(s.next_task(w)->has_value());
+  EXPECT_FALSE(s.next_band(w)->has_value());
 }
 
 TEST_F(SchedulerTest, MalformedPixelsAreRefusedAndTheBandRequeued) {
   s.add_job(spec(4, 4, 1, 1, 1));
   const std::string w = s.add_worker("w", 1);
-  BandTask t = lease(w);
+  BandLease t = lease(w);
   BandOutput o = render(w, t);
   o.rgb.pop_back();
   auto r = s.complete_band(o);
   EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
   EXPECT_NE(r.status().message().find("expected 48 floats"), std::string::npos)
       << r.status().message();
-  BandTask again = lease(w);
+  BandLease again = lease(w);
   EXPECT_EQ(again.band, t.band);
 }
 
 TEST_F(SchedulerTest, UnknownWorkersAndForeignLeasesAreRefused) {
   s.add_job(spec(4, 4, 1, 1, 1));
-  EXPECT_EQ(s.next_task("w9999").status().code(), Code::kNotFound);
+  EXPECT_EQ(s.next_band("w9999").status().code(), Code::kNotFound);
   const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1);
-  BandTask t = lease(a);
+  BandLease t = lease(a);
   auto r = s.complete_band(render(b, t));  // b sends a's lease
   ASSERT_TRUE(r.ok());
   EXPECT_FALSE(r->accepted);
@@ -271,7 +271,7 @@ TEST_F(SchedulerTest, JobsAreServedInSubmissionOrder) {
   EXPECT_TRUE(s.workers()[0].busy);
 }
 
-BandOutput failure(const std::string& worker, const BandTask& t, const std::string& error) {
+BandOutput failure(const std::string& worker, const BandLease& t, const std::string& error) {
   BandOutput o;
   o.worker_id = worker;
   o.lease_id = t.lease_id;
@@ -282,13 +282,13 @@ BandOutput failure(const std::string& worker, const BandTask& t, const std::stri
 TEST_F(SchedulerTest, FailedBandGoesToAnotherWorkerWherePossible) {
   s.add_job(spec(4, 4, 1, 1, 2));
   const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1);
-  const BandTask first = lease(a);
+  const BandLease first = lease(a);
   ASSERT_TRUE(s.complete_band(failure(a, first, "no memory")).ok());
   // a is not given the band it failed on while b can take it...
-  const BandTask next_a = lease(a);
+  const BandLease next_a = lease(a);
   EXPECT_NE(next_a.band, first.band);
   // ...b is.
-  const BandTask next_b = lease(b);
+  const BandLease next_b = lease(b);
   EXPECT_EQ(next_b.band, first.band);
   EXPECT_NE(next_b.lease_id, first.lease_id);
 }
@@ -298,7 +298,7 @@ TEST_F(SchedulerTest, AttemptsGoToDifferentWorkersThenTheJobFailsWithTheError) {
   const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1), c = s.add_worker("c", 1);
   std::set<std::string> took;
   for (const std::string& w : {a, b, c}) {
-    const BandTask t = lease(w);
+    const BandLease t = lease(w);
     took.insert(w);
     ASSERT_TRUE(s.complete_band(failure(w, t, "bad scene on " + w)).ok());
   }
@@ -316,7 +316,7 @@ TEST_F(SchedulerTest, WorkerFailingRepeatedlyIsQuarantinedForThatJob) {
   for (int i = 0; i < 2; ++i) ASSERT_TRUE(s.complete_band(failure(bad, lease(bad), "GPU lost")).ok());
   EXPECT_EQ(s.job(j1)->quarantined, std::vector<std::string>{"bad-host:1"});
   // No more bands of j1 for it while `good` can take them...
-  EXPECT_FALSE(s.next_task(bad)->has_value());
+  EXPECT_FALSE(s.next_band(bad)->has_value());
   // ...but bands of another job, yes.
   const std::string j2 = s.add_job(spec(4, 4, 1, 1, 1));
   EXPECT_EQ(lease(bad).job_id, j2);
@@ -340,26 +340,26 @@ TEST_F(SchedulerTest, QuarantineDoesNotStallAFarmOfOne) {
 TEST_F(SchedulerTest, SlowBandIsSpeculatedAndTheFirstResultWins) {
   const std::string job = s.add_job(spec(4, 8, 1, 1, 6));
   const std::string slow = s.add_worker("slow", 1), fast = s.add_worker("fast", 1);
-  const BandTask stuck = lease(slow);
+  const BandLease stuck = lease(slow);
   for (int i = 0; i < 5; ++i) {
-    const BandTask t = lease(fast);
+    const BandLease t = lease(fast);
     clock.advance(100);
     s.heartbeat(slow, {stuck.lease_id});
     ASSERT_TRUE(s.complete_band(render(fast, t))->accepted);
   }
   // Median 0.1 s; the stuck band has run 0.5 s: not yet past the minimum.
-  EXPECT_FALSE(s.next_task(fast)->has_value());
+  EXPECT_FALSE(s.next_band(fast)->has_value());
   for (int i = 0; i < 6; ++i) {
     clock.advance(200);
     s.heartbeat(slow, {stuck.lease_id});
   }
-  const BandTask copy = lease(fast);
+  const BandLease copy = lease(fast);
   EXPECT_EQ(copy.band, stuck.band);
   EXPECT_NE(copy.lease_id, stuck.lease_id);
   EXPECT_EQ(s.job(job)->speculative_leases, 1);
   // Not a third copy.
   const std::string other = s.add_worker("other", 1);
-  EXPECT_FALSE(s.next_task(other)->has_value());
+  EXPECT_FALSE(s.next_band(other)->has_value());
   auto won = s.complete_band(render(fast, copy));
   ASSERT_TRUE(won.ok() && won->accepted);
   EXPECT_TRUE(won->frame);
@@ -376,16 +376,16 @@ TEST_F(SchedulerTest, SlowBandIsSpeculatedAndTheFirstResultWins) {
 TEST_F(SchedulerTest, OriginalMayStillWinOverItsSpeculativeCopy) {
   const std::string job = s.add_job(spec(4, 8, 1, 1, 4));
   const std::string slow = s.add_worker("slow", 1), fast = s.add_worker("fast", 1);
-  const BandTask stuck = lease(slow);
+  const BandLease stuck = lease(slow);
   for (int i = 0; i < 3; ++i) {
-    const BandTask t = lease(fast);
+    const BandLease t = lease(fast);
     clock.advance(10);
     ASSERT_TRUE(s.complete_band(render(fast, t))->accepted);
   }
   clock.advance(900);
   s.heartbeat(slow, {stuck.lease_id});
   clock.advance(200);
-  const BandTask copy = lease(fast);
+  const BandLease copy = lease(fast);
   ASSERT_EQ(copy.band, stuck.band);
   ASSERT_TRUE(s.complete_band(render(slow, stuck))->accepted);
   EXPECT_FALSE(s.complete_band(render(fast, copy))->accepted);
@@ -421,7 +421,7 @@ TEST_F(SchedulerTest, RetriedSubmissionFindsItsJob) {
 TEST_F(SchedulerTest, EveryDurableChangeIsAnEvent) {
   const std::string job = s.add_job(spec(2, 2, 1, 1, 1));
   const std::string w = s.add_worker("w", 1);
-  const BandTask t = lease(w);
+  const BandLease t = lease(w);
   auto r = s.complete_band(render(w, t));
   s.frame_written(job, 1, Status::Ok());
   std::vector<size_t> kinds;

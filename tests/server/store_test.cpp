@@ -82,8 +82,8 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
     job = s.add_job(sp, "request-7", "fingerprint");
     w1 = s.add_worker("host:1", 1);
     w2 = s.add_worker("host:2", 1);
-    std::vector<BandTask> t;
-    for (int i = 0; i < 5; ++i) t.push_back(**s.next_task(i % 2 ? w2 : w1));
+    std::vector<BandLease> t;
+    for (int i = 0; i < 5; ++i) t.push_back(**s.next_band(i % 2 ? w2 : w1));
     ASSERT_TRUE(s.complete_band(pixels(w1, t[0]))->accepted);
     ASSERT_TRUE(s.complete_band(pixels(w2, t[1]))->accepted);
     ASSERT_TRUE(s.complete_band(pixels(w1, t[2]))->accepted);  // frame 2 complete
@@ -139,7 +139,7 @@ TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   EXPECT_EQ(w, "w0003");  // never a number of the previous run
   std::set<int> bands;
   const int edges[] = {0, 1, 4, 6};
-  while (auto t = *again.next_task(w)) {
+  while (auto t = *again.next_band(w)) {
     EXPECT_EQ(t->frame, 3);
     EXPECT_EQ(t->y0, edges[t->band]);
     EXPECT_EQ(t->y1, edges[t->band + 1]);
@@ -290,12 +290,12 @@ struct TestWorker {
   TestWorker(Coordinator& coordinator, const std::string& name)
       : c(&coordinator), id(coordinator.register_worker(name, 1).worker_id) {}
 
-  std::optional<BandTask> take() {
-    auto t = c->get_task(id, Millis(0), nullptr);
+  std::optional<BandLease> take() {
+    auto t = c->lease_band(id, Millis(0), nullptr);
     EXPECT_TRUE(t.ok()) << t.status().message();
     return t.ok() ? *t : std::nullopt;
   }
-  BandOutput render(const BandTask& t) {
+  BandOutput render(const BandLease& t) {
     if (!renderer.has_scene(t.scene_hash)) {
       auto scene = c->get_scene(id, t.scene_hash);
       EXPECT_TRUE(scene.ok());
@@ -307,7 +307,7 @@ struct TestWorker {
     out->lease_id = t.lease_id;
     return *out;
   }
-  bool complete(const BandTask& t) {
+  bool complete(const BandLease& t) {
     auto r = c->complete_band(render(t));
     EXPECT_TRUE(r.ok()) << r.status().message();
     return r.ok() && r->accepted;
@@ -363,7 +363,7 @@ TEST(CoordinatorRestart, ResumesWithoutRenderingABandTwiceOrLosingOne) {
   const SubmitRequest r = spheres(1, 3, 4);
   std::string job;
   std::set<std::pair<int, int>> done_before;
-  BandTask in_flight;
+  BandLease in_flight;
   BandOutput late;
   {
     Coordinator a(options(dir.path));
@@ -420,7 +420,7 @@ TEST(CoordinatorRestart, CrashAtRandomMomentsLosesAndDuplicatesNothing) {
       ASSERT_TRUE(a.start().ok());
       job = a.submit(r)->job_id;
       TestWorker w1(a, "one:1"), w2(a, "two:2");
-      std::vector<std::pair<TestWorker*, BandTask>> held;
+      std::vector<std::pair<TestWorker*, BandLease>> held;
       const int steps = static_cast<int>(rng() % 14);
       for (int i = 0; i < steps; ++i) {
         TestWorker* w = rng() % 2 ? &w1 : &w2;

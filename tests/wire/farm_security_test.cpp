@@ -457,14 +457,14 @@ TEST_F(FarmTest, MeshPathsAreConfinedOnCoordinatorAndWorker) {
             Code::kInvalidArgument);
   EXPECT_FALSE(rooted.has_scene("b"));
   ASSERT_TRUE(rooted.add_scene("d", with_obj("tri.obj").scene, "job scene").ok());
-  BandTask t;
+  BandLease t;
   t.scene_hash = "d";
   t.frame = t.frame_first = t.frame_last = 1;
   t.width = 32;
   t.height = 24;
   t.y1 = 24;
   EXPECT_TRUE(rooted.render(t).ok());
-  // Oversized tasks from a coordinator are refused, not attempted.
+  // Oversized bands from a coordinator are refused, not attempted.
   t.width = kMaxResolution + 1;
   EXPECT_EQ(rooted.render(t).status().code(), Code::kInvalidArgument);
 }

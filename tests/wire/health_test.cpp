@@ -82,20 +82,20 @@ TEST(CoordinatorDrain, RefusesNewWorkAndWaitsForTheBandsInFlight) {
     ASSERT_TRUE(job.ok()) << job.status().message();
     job_id = job->job_id;
     const std::string w = c.register_worker("host:1", 1).worker_id;
-    auto task = c.get_task(w, Millis(0), nullptr);
-    ASSERT_TRUE(task.ok() && task->has_value());
+    auto leased = c.lease_band(w, Millis(0), nullptr);
+    ASSERT_TRUE(leased.ok() && leased->has_value());
 
     c.drain();
     auto refused = c.submit(testing_farm::request(testing_farm::kSpheres, 16, 8, 1, 1, 2, "e.png"));
     ASSERT_FALSE(refused.ok());
     EXPECT_EQ(refused.status().code(), Code::kUnavailable);
-    auto none = c.get_task(w, Millis(100), nullptr);
+    auto none = c.lease_band(w, Millis(100), nullptr);
     ASSERT_TRUE(none.ok());
     EXPECT_FALSE(none->has_value()) << "no new lease while draining";
     EXPECT_FALSE(c.wait_drained(Millis(50))) << "a band is in flight";
 
     // The band in flight comes back and is accepted.
-    const BandTask& t = **task;
+    const BandLease& t = **leased;
     BandOutput out;
     out.worker_id = w;
     out.lease_id = t.lease_id;
@@ -134,10 +134,10 @@ TEST_F(FarmTest, HealthAndDrainOverLoopback) {
   ASSERT_TRUE(stub->Register(&c1, v1::RegisterRequest(), &who).ok());
   v1::GetTaskRequest get;
   get.set_worker_id(who.worker_id());
-  v1::GetTaskResponse task;
+  v1::GetTaskResponse leased;
   prepare(c2);
-  ASSERT_TRUE(stub->GetTask(&c2, get, &task).ok());
-  ASSERT_TRUE(task.has_task());
+  ASSERT_TRUE(stub->GetTask(&c2, get, &leased).ok());
+  ASSERT_TRUE(leased.has_task());
 
   auto drained =
       std::async(std::launch::async, [this] { server_->drain(Millis(10000), Millis(500)); });
@@ -163,8 +163,8 @@ TEST_F(FarmTest, HealthAndDrainOverLoopback) {
 
   v1::CompleteBandRequest result;
   result.set_worker_id(who.worker_id());
-  result.set_lease_id(task.task().lease_id());
-  const int rows = task.task().y1() - task.task().y0();
+  result.set_lease_id(leased.task().lease_id());
+  const int rows = leased.task().y1() - leased.task().y0();
   for (int i = 0; i < 16 * rows * 3; ++i) result.add_rgb(0.5f);
   v1::CompleteBandResponse answer;
   grpc::ClientContext c3;

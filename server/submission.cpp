@@ -1,0 +1,183 @@
+#include "server/submission.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "common/base/text.h"
+#include "common/farm/band_split.h"
+#include "common/farm/paths.h"
+#include "common/scene/animation.h"
+#include "common/scene/scene_io.h"
+
+namespace locus::farm {
+namespace fs = std::filesystem;
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// The scene within the farm's limits, as the renderer reads it.
+Result<Scene> check_scene(const SubmitRequest& r, const std::string& name, const Limits& limits,
+                          const std::string& mesh_root) {
+  if (r.scene.objects_size() > limits.max_objects) {
+    return InvalidArgument(name + ": " + std::to_string(r.scene.objects_size()) +
+                           " objects; this farm takes at most " +
+                           std::to_string(limits.max_objects) + " (--max-objects)");
+  }
+  // OBJ files only from the mesh root (none by default: meshes inline);
+  // the scene stored for the workers keeps the names as given.
+  v1::Scene confined = r.scene;
+  if (Status s = confine_mesh_paths(confined, mesh_root, name); !s.ok()) return s;
+  Result<Scene> scene = scene_from_proto(confined, name);
+  if (!scene.ok()) return Status(Code::kInvalidArgument, scene.status().message());
+  if (!scene->has_camera && (r.width == 0 || r.height == 0)) {
+    return InvalidArgument(name + ": the scene has no camera resolution; give the size");
+  }
+  return scene;
+}
+
+// The size (0: the scene camera's) and the frames, into `spec`.
+Status check_size_and_frames(const SubmitRequest& r, const Scene& scene, const Limits& limits,
+                             JobSpec& spec) {
+  spec.width = r.width > 0 ? r.width : scene.camera.width;
+  spec.height = r.height > 0 ? r.height : scene.camera.height;
+  if (r.width < 0 || r.height < 0 || spec.width < 1 || spec.height < 1 ||
+      spec.width > limits.max_resolution || spec.height > limits.max_resolution) {
+    return InvalidArgument("size " + std::to_string(spec.width) + "x" +
+                           std::to_string(spec.height) + ": each side must be 1.." +
+                           std::to_string(limits.max_resolution) + " (--max-resolution)");
+  }
+  spec.frame_first = r.frame_first;
+  spec.frame_last = r.frame_last;
+  if (r.frame_first < 0 || r.frame_last < r.frame_first) {
+    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
+                           std::to_string(r.frame_last) + ": expected A-B with 0 <= A <= B");
+  }
+  if (static_cast<int64_t>(r.frame_last) - r.frame_first + 1 > limits.max_frames) {
+    return InvalidArgument("frames " + std::to_string(r.frame_first) + "-" +
+                           std::to_string(r.frame_last) + ": at most " +
+                           std::to_string(limits.max_frames) + " frames per job (--max-frames)");
+  }
+  return Status::Ok();
+}
+
+// The coordinator writes only under its data directory, so of the client's
+// pattern it keeps the file name alone.
+Result<std::string> output_file_pattern(const std::string& output, int frames) {
+  if (output.empty())
+    return InvalidArgument("output: a pattern such as out/shot_####.png is required");
+  // Confined: the coordinator writes under its output root only, and says
+  // so rather than quietly dropping what would lead elsewhere.
+  if (Status s = check_no_parent_refs(output, "output"); !s.ok()) return s;
+  if (fs::path(output).is_absolute()) {
+    return InvalidArgument("output '" + output +
+                           "': absolute paths are refused; the coordinator writes each job's "
+                           "frames under its output root, give a file name such as shot_####.png");
+  }
+  const std::string name = fs::path(output).filename().string();
+  if (name.empty() || name == "." || name == "..") {
+    return InvalidArgument("output '" + output +
+                           "': names no file; expected a pattern such as out/shot_####.png");
+  }
+  if (std::any_of(name.begin(), name.end(),
+                  [](unsigned char c) { return c < 0x20 || c == 0x7f; })) {
+    return InvalidArgument("output: the file name contains control characters");
+  }
+  const std::string ext = lower(fs::path(name).extension().string());
+  if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
+    return InvalidArgument("output '" + output + "': unsupported image type '" + ext +
+                           "' (expected .png, .exr, .tif)");
+  }
+  if (frames > 1 && !has_frame_field(name)) {
+    return InvalidArgument(
+        "output '" + output + "': " + std::to_string(frames) +
+        " frames need a frame number field in the file name, e.g. shot_####.png");
+  }
+  return name;
+}
+
+// The band count asked for (0: the coordinator's default, chosen later).
+Status check_bands(int bands, const JobSpec& spec) {
+  const int least = min_bands(spec.width, spec.height);
+  if (bands < 0 || bands > spec.height) {
+    return InvalidArgument("bands " + std::to_string(bands) + ": expected 1.." +
+                           std::to_string(spec.height) + " (a band is at least one row of the " +
+                           std::to_string(spec.height) + "-row frame)");
+  }
+  if (bands > 0 && bands < least) {
+    return InvalidArgument("bands " + std::to_string(bands) + ": a " + std::to_string(spec.width) +
+                           "x" + std::to_string(spec.height) + " frame needs at least " +
+                           std::to_string(least) + " bands so that each fits in one message");
+  }
+  return Status::Ok();
+}
+
+Status check_request_id(const std::string& id) {
+  if (id.size() > 128 ||
+      std::any_of(id.begin(), id.end(), [](unsigned char c) { return c <= 0x20 || c >= 0x7f; })) {
+    return InvalidArgument("request_id: at most 128 printable characters without spaces");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<CheckedSubmission> check_submission(const SubmitRequest& r, const Limits& limits,
+                                           const std::string& mesh_root) {
+  CheckedSubmission job;
+  job.name = r.scene_name.empty() ? "scene" : r.scene_name.substr(0, 256);
+  Result<Scene> scene = check_scene(r, job.name, limits, mesh_root);
+  if (!scene.ok()) return scene.status();
+  job.scene = std::move(*scene);
+  JobSpec& spec = job.spec;
+  spec.scene_name = job.name;
+  if (Status s = check_size_and_frames(r, job.scene, limits, spec); !s.ok()) return s;
+  Result<RenderParams> params = to_render_params(r.render, 0);
+  if (!params.ok()) return params.status();
+  job.params = *params;
+  spec.render = from_render_params(*params);  // defaults resolved, as workers will
+  if (!std::isfinite(r.orbit_degrees))
+    return InvalidArgument("orbit: must be a finite number of degrees");
+  spec.orbit_degrees = r.orbit_degrees;
+  Result<std::string> pattern = output_file_pattern(r.output, spec.frames());
+  if (!pattern.ok()) return pattern.status();
+  spec.output = *pattern;
+  if (Status s = check_bands(r.bands, spec); !s.ok()) return s;
+  if (Status s = check_request_id(r.request_id); !s.ok()) return s;
+  return job;
+}
+
+std::string submission_fingerprint(const SubmitRequest& r, const JobSpec& spec) {
+  // The tolerance came later: at its default a job keeps the fingerprint
+  // it had.
+  const std::string tess_tol = spec.render.tess_tol != kDefaultTessTol
+                                   ? "|tess-tol " + format_number(spec.render.tess_tol)
+                                   : "";
+  return content_hash(spec.scene_hash + "|" + spec.render.method + "|" + spec.render.boxes + "|" +
+                      std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
+                      std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
+                      std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" +
+                      r.output + "|" + std::to_string(r.orbit_degrees) + tess_tol);
+}
+
+std::vector<int> cost_band_edges(const CheckedSubmission& job) {
+  const JobSpec& spec = job.spec;
+  if (spec.bands <= 1 || job.params.method != Method::kLocal) return {};
+  const int middle = spec.frame_first + (spec.frame_last - spec.frame_first) / 2;
+  const Scene posed = frame_scene(job.scene, spec.width, spec.height, middle, spec.frame_first,
+                                  spec.frame_last, spec.orbit_degrees);
+  Result<std::vector<double>> costs = predict_row_costs(posed, job.params);
+  if (!costs.ok()) {
+    spdlog::warn("{}: no cost prediction ({}); bands of equal height", job.name,
+                 costs.status().message());
+    return {};
+  }
+  return split_rows_by_cost(*costs, spec.bands);
+}
+
+}  // namespace locus::farm
