@@ -59,15 +59,6 @@ int fail(const std::string& message) {
 
 int fail(const Status& status) { return fail(status.message()); }
 
-// A label table's names as CLI::IsMember takes them: the flag accepts what
-// the farm's to_render_params() parses (common/base/params.h).
-template <class E, size_t N>
-std::vector<std::string> label_names(const Labels<E, N>& labels) {
-  std::vector<std::string> names;
-  for (const auto& l : labels) names.emplace_back(l.name);
-  return names;
-}
-
 // Parses "WxH" into the camera's resolution.
 bool parse_size(const std::string& s, int* w, int* h) {
   static const std::regex re("^([0-9]{1,6})x([0-9]{1,6})$");

@@ -109,8 +109,8 @@ void add_operations_flags(CLI::App& app, Flags& f) {
                  "On SIGTERM, wait this long at most for the bands in flight before exiting")
       ->check(CLI::Range(0, 3600000));
   app.add_option("--log-format", f.log_format, "Log lines as text or json (one object per line)")
-      ->check(CLI::IsMember({"text", "json"}));
-  app.add_option("--log-level", f.log_level, "trace, debug, info, warn, error, critical or off");
+      ->check(CLI::IsMember(locus::label_names(locus::kLogFormatLabels)));
+  app.add_option("--log-level", f.log_level, locus::label_choices(locus::kLogLevelLabels));
   farm::Limits& limits = f.options.limits;
   app.add_option("--max-resolution", limits.max_resolution, "Largest image side, in pixels")
       ->check(CLI::Range(1, locus::kMaxResolution));

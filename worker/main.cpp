@@ -62,8 +62,8 @@ int main(int argc, char** argv) {
   app.add_option("--metrics", metrics_address,
                  "Serve Prometheus metrics at http://HOST:PORT/metrics");
   app.add_option("--log-format", log_format, "Log lines as text or json (one object per line)")
-      ->check(CLI::IsMember({"text", "json"}));
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off");
+      ->check(CLI::IsMember(locus::label_names(locus::kLogFormatLabels)));
+  app.add_option("--log-level", log_level, locus::label_choices(locus::kLogLevelLabels));
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
   if (auto st = locus::setup_logging(*locus::parse_log_format(log_format), log_level); !st.ok())

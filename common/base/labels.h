@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 namespace locus {
 
@@ -50,6 +51,14 @@ std::string label_choices(const Labels<E, N>& labels) {
     out += labels[i].name;
   }
   return out;
+}
+
+// Every name, in order: the choices of a CLI option (CLI::IsMember).
+template <class E, size_t N>
+std::vector<std::string> label_names(const Labels<E, N>& labels) {
+  std::vector<std::string> names;
+  for (const auto& l : labels) names.emplace_back(l.name);
+  return names;
 }
 
 }  // namespace locus

@@ -102,9 +102,9 @@ size_t utf8_length(std::string_view s, size_t i) {
 }  // namespace
 
 Result<LogFormat> parse_log_format(std::string_view name) {
-  if (name == "text") return LogFormat::kText;
-  if (name == "json") return LogFormat::kJson;
-  return InvalidArgument("--log-format '" + std::string(name) + "': expected text or json");
+  if (const auto format = label_value(kLogFormatLabels, name)) return *format;
+  return InvalidArgument("--log-format '" + std::string(name) + "': expected " +
+                         label_choices(kLogFormatLabels));
 }
 
 std::unique_ptr<spdlog::formatter> make_log_formatter(LogFormat format) {
@@ -115,13 +115,10 @@ std::unique_ptr<spdlog::formatter> make_log_formatter(LogFormat format) {
 }
 
 Status setup_logging(LogFormat format, std::string_view level) {
-  static constexpr std::array<std::string_view, 7> kLevels = {"trace", "debug",    "info", "warn",
-                                                              "error", "critical", "off"};
-  bool known = false;
-  for (std::string_view l : kLevels) known = known || l == level;
+  const auto known = label_value(kLogLevelLabels, level);
   if (!known) {
-    return InvalidArgument("--log-level '" + std::string(level) +
-                           "': expected trace, debug, info, warn, error, critical or off");
+    return InvalidArgument("--log-level '" + std::string(level) + "': expected " +
+                           label_choices(kLogLevelLabels));
   }
   // JSON lines are for machines: no colour codes in them.
   std::shared_ptr<spdlog::sinks::sink> sink;
@@ -132,7 +129,7 @@ Status setup_logging(LogFormat format, std::string_view level) {
   }
   auto logger = std::make_shared<spdlog::logger>("locus", std::move(sink));
   logger->set_formatter(make_log_formatter(format));
-  logger->set_level(spdlog::level::from_str(std::string(level)));
+  logger->set_level(*known);
   spdlog::set_default_logger(std::move(logger));
   return Status::Ok();
 }

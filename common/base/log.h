@@ -5,17 +5,31 @@
 // "[job j0001 frame 3 band 7]" prefix in text.
 #pragma once
 
+#include <spdlog/common.h>
 #include <spdlog/formatter.h>
 
 #include <memory>
 #include <string>
 #include <string_view>
 
+#include "common/base/labels.h"
 #include "common/base/status.h"
 
 namespace locus {
 
 enum class LogFormat { kText, kJson };
+// The names of --log-format and --log-level, for parsing, messages and
+// --help of every process.
+inline constexpr Labels<LogFormat, 2> kLogFormatLabels = {
+    {{LogFormat::kText, "text"}, {LogFormat::kJson, "json"}}};
+inline constexpr Labels<spdlog::level::level_enum, 7> kLogLevelLabels = {
+    {{spdlog::level::trace, "trace"},
+     {spdlog::level::debug, "debug"},
+     {spdlog::level::info, "info"},
+     {spdlog::level::warn, "warn"},
+     {spdlog::level::err, "error"},
+     {spdlog::level::critical, "critical"},
+     {spdlog::level::off, "off"}}};
 // "text" or "json"; otherwise InvalidArgument naming the flag.
 Result<LogFormat> parse_log_format(std::string_view name);
 

@@ -5,6 +5,7 @@
 #include <glm/glm.hpp>
 #include <limits>
 #include <utility>
+#include <vector>
 
 namespace locus {
 
@@ -52,6 +53,21 @@ inline int solve_quadratic(double a, double b, double c, double* t0, double* t1)
 inline Vec3 any_perpendicular(const Vec3& n) {
   const Vec3 a = glm::abs(n.x) < 0.6 ? Vec3(1, 0, 0) : (glm::abs(n.y) < 0.6 ? Vec3(0, 1, 0) : Vec3(0, 0, 1));
   return glm::normalize(glm::cross(n, a));
+}
+
+// Newell's method: twice the area vector of a polygon, exact for planar
+// polygons of any shape (convex or not) and a best fit for slightly bent
+// ones. Unnormalised: its length says whether the polygon has an area.
+inline Vec3 newell_vector(const std::vector<Vec3>& v) {
+  Vec3 n(0.0);
+  for (size_t i = 0; i < v.size(); ++i) {
+    const Vec3& p = v[i];
+    const Vec3& q = v[(i + 1) % v.size()];
+    n.x += (p.y - q.y) * (p.z + q.z);
+    n.y += (p.z - q.z) * (p.x + q.x);
+    n.z += (p.x - q.x) * (p.y + q.y);
+  }
+  return n;
 }
 
 }  // namespace locus

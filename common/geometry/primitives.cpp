@@ -270,14 +270,7 @@ std::vector<Vec3> polygon_outline(const PolygonPrim& p) {
 }
 
 Vec3 newell_normal(const std::vector<Vec3>& pts) {
-  Vec3 n(0.0);
-  for (size_t i = 0; i < pts.size(); ++i) {
-    const Vec3& a = pts[i];
-    const Vec3& b = pts[(i + 1) % pts.size()];
-    n.x += (a.y - b.y) * (a.z + b.z);
-    n.y += (a.z - b.z) * (a.x + b.x);
-    n.z += (a.x - b.x) * (a.y + b.y);
-  }
+  const Vec3 n = newell_vector(pts);
   const double len = glm::length(n);
   return len > 0 ? n / len : Vec3(0, 0, 1);
 }

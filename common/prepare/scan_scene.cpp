@@ -42,17 +42,6 @@ std::vector<Vec3> clip_near(const std::vector<Vec3>& poly, const Projector& pr, 
   return out;
 }
 
-Vec3 plane_normal(const std::vector<Vec3>& pts) {
-  Vec3 n(0.0);
-  for (size_t i = 0; i < pts.size(); ++i) {
-    const Vec3& a = pts[i];
-    const Vec3& b = pts[(i + 1) % pts.size()];
-    n += glm::cross(a, b);
-  }
-  const double len = glm::length(n);
-  return len > 0 ? n / len : Vec3(0.0);
-}
-
 }  // namespace
 
 ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
@@ -127,7 +116,7 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
           for (const auto& face : poly.faces) {
             std::vector<Vec3> pts;
             for (int v : face) pts.push_back(poly.vertices[v]);
-            const Vec3 n = plane_normal(pts);
+            const Vec3 n = newell_normal(pts);
             const bool front = glm::dot(n, cam.from - pts[0]) > 0;
             if (front) eye_inside = false;
             // A face turned away from the eye lies behind the polyhedron's

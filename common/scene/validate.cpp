@@ -30,19 +30,6 @@ Overloaded(Ts...) -> Overloaded<Ts...>;
 
 std::string indexed(const char* field, size_t i) { return fmt::format("{}[{}]", field, i); }
 
-// Newell's method: twice the area vector of a polygon, exact for planar
-// polygons of any shape (convex or not) and a best fit for slightly bent ones.
-Vec3 newell_normal(const std::vector<Vec3>& v) {
-  Vec3 n(0.0);
-  for (size_t i = 0; i < v.size(); ++i) {
-    const Vec3& p = v[i];
-    const Vec3& q = v[(i + 1) % v.size()];
-    n.x += (p.y - q.y) * (p.z + q.z);
-    n.y += (p.z - q.z) * (p.x + q.x);
-    n.z += (p.x - q.x) * (p.y + q.y);
-  }
-  return n;
-}
 
 double bbox_diagonal(const std::vector<Vec3>& v) {
   if (v.empty()) return 0.0;
@@ -163,7 +150,7 @@ Problems check(const Polyhedron& p) {
       }
       continue;
     }
-    const Vec3 normal = glm::normalize(newell_normal(loop));
+    const Vec3 normal = glm::normalize(newell_vector(loop));
     const double offset = glm::dot(normal, loop[0]);
     for (int i = 0; i < n; ++i) {
       if (glm::dot(normal, p.vertices[i]) - offset > kPlanarityTolerance * size) {
@@ -294,7 +281,7 @@ bool has_zero_area(const std::vector<Vec3>& vertices) {
     if (!is_finite(v)) return false;
   }
   const double size = bbox_diagonal(vertices);
-  return glm::length(newell_normal(vertices)) <= kAreaTolerance * size * size;
+  return glm::length(newell_vector(vertices)) <= kAreaTolerance * size * size;
 }
 
 Problems check_polygon(const std::vector<Vec3>& vertices) {
@@ -326,7 +313,7 @@ Problems check_polygon(const std::vector<Vec3>& vertices) {
   }
 
   const double size = bbox_diagonal(vertices);
-  const Vec3 n = newell_normal(vertices);
+  const Vec3 n = newell_vector(vertices);
   const double twice_area = glm::length(n);
   if (twice_area <= kAreaTolerance * size * size) {
     out.push_back({"vertices", "are all collinear; the polygon has no area"});
