@@ -121,17 +121,27 @@ class JsonSyntax {
       path_.push_back(key);
       if (!value(depth + 1)) return false;
       path_.pop_back();
-      skip_space();
-      if (pos_ < t_.size() && t_[pos_] == ',') {
-        ++pos_;
-        continue;
-      }
-      if (pos_ < t_.size() && t_[pos_] == '}') {
-        ++pos_;
-        return true;
-      }
-      return fail("expected ',' or '}' after a value in an object");
+      const Next next = after_value('}', "expected ',' or '}' after a value in an object");
+      if (next == Next::kMore) continue;
+      return next == Next::kClosed;
     }
+  }
+
+  // After a member or an element: a ',' (another follows), `close` (the
+  // object or array ends) or an error, reported as `expected`.
+  enum class Next { kMore, kClosed, kFailed };
+  Next after_value(char close, const char* expected) {
+    skip_space();
+    if (pos_ < t_.size() && t_[pos_] == ',') {
+      ++pos_;
+      return Next::kMore;
+    }
+    if (pos_ < t_.size() && t_[pos_] == close) {
+      ++pos_;
+      return Next::kClosed;
+    }
+    fail(expected);
+    return Next::kFailed;
   }
 
   bool array(int depth) {
@@ -145,16 +155,9 @@ class JsonSyntax {
       path_.push_back(fmt::format("[{}]", index));
       if (!value(depth + 1)) return false;
       path_.pop_back();
-      skip_space();
-      if (pos_ < t_.size() && t_[pos_] == ',') {
-        ++pos_;
-        continue;
-      }
-      if (pos_ < t_.size() && t_[pos_] == ']') {
-        ++pos_;
-        return true;
-      }
-      return fail("expected ',' or ']' after a value in an array");
+      const Next next = after_value(']', "expected ',' or ']' after a value in an array");
+      if (next == Next::kMore) continue;
+      return next == Next::kClosed;
     }
   }
 

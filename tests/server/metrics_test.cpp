@@ -15,7 +15,7 @@
 
 #include "server/scheduler.h"
 #include "tests/farm_fixture.h"
-#include "tests/scheduler_doubles.h"
+#include "tests/server/scheduler_doubles.h"
 #include "worker/worker_metrics.h"
 
 namespace locus::farm {
@@ -90,16 +90,7 @@ const std::vector<std::string> kWorkerSeries = {
 };
 
 JobSpec spec(int frames, int bands) {
-  JobSpec s;
-  s.scene_hash = "hash";
-  s.scene_name = "test";
-  s.width = 4;
-  s.height = 8;
-  s.frame_first = 1;
-  s.frame_last = frames;
-  s.bands = bands;
-  s.output = "m_####.png";
-  return s;
+  return test_doubles::job_spec(4, 8, 1, frames, bands, "m_####.png");
 }
 
 // Scheduler events in, series out: what each event counts.

@@ -6,7 +6,7 @@
 
 #include <set>
 
-#include "tests/scheduler_doubles.h"
+#include "tests/server/scheduler_doubles.h"
 
 namespace locus::farm {
 namespace {
@@ -14,16 +14,7 @@ namespace {
 using test_doubles::FakeClock;
 
 JobSpec spec(int w, int h, int first, int last, int bands) {
-  JobSpec s;
-  s.scene_hash = "hash";
-  s.scene_name = "test";
-  s.width = w;
-  s.height = h;
-  s.frame_first = first;
-  s.frame_last = last;
-  s.bands = bands;
-  s.output = "shot_####.png";
-  return s;
+  return test_doubles::job_spec(w, h, first, last, bands);
 }
 
 // The value a test worker writes into pixel (x, y) of frame f.

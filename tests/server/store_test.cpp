@@ -23,7 +23,7 @@
 #include "server/band_files.h"
 #include "server/coordinator.h"
 #include "server/scheduler.h"
-#include "tests/scheduler_doubles.h"
+#include "tests/server/scheduler_doubles.h"
 #include "worker/band_renderer.h"
 
 namespace locus::farm {
@@ -48,15 +48,7 @@ struct TempDir {
 };
 
 JobSpec spec(int w, int h, int first, int last, int bands) {
-  JobSpec s;
-  s.scene_hash = "hash";
-  s.scene_name = "test";
-  s.width = w;
-  s.height = h;
-  s.frame_first = first;
-  s.frame_last = last;
-  s.bands = bands;
-  s.output = "shot_####.exr";
+  JobSpec s = test_doubles::job_spec(w, h, first, last, bands, "shot_####.exr");
   s.render.spp = 2;
   s.render.aa = 3;
   s.render.tess_tol = 0.5;

@@ -1,6 +1,6 @@
 // Test doubles for the Scheduler and the Coordinator without a network,
 // shared by scheduler_test, store_test and metrics_test: a clock the test
-// moves, and a worker's pixels for a leased band.
+// moves, a job's spec, and a worker's pixels for a leased band.
 #pragma once
 
 #include <string>
@@ -16,6 +16,22 @@ struct FakeClock {
   }
   void advance(int ms) { t += Millis(ms); }
 };
+
+// A job of w x h pixels, frames first..last, `bands` bands per frame, as
+// the Scheduler takes it after the coordinator's checks.
+inline JobSpec job_spec(int w, int h, int first, int last, int bands,
+                        const std::string& output = "shot_####.png") {
+  JobSpec s;
+  s.scene_hash = "hash";
+  s.scene_name = "test";
+  s.width = w;
+  s.height = h;
+  s.frame_first = first;
+  s.frame_last = last;
+  s.bands = bands;
+  s.output = output;
+  return s;
+}
 
 // The band's pixels, all 0.5: the right size for its lease.
 inline BandOutput pixels(const std::string& worker, const BandLease& t) {
