@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <ctime>
 #include <cmath>
+#include <ctime>
 #include <sstream>
 #include <thread>
 
@@ -30,8 +30,9 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   const int y1 = std::clamp(band.y1, y0, ps.camera.height);
   BandResult result;
   result.pixels = Image(ps.camera.width, y1 - y0);
-  int threads = params.threads > 0 ? params.threads
-                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  int threads = params.threads > 0
+                    ? params.threads
+                    : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   threads = std::max(1, std::min(threads, y1 - y0));
   std::vector<Stats> stats(threads);
   std::atomic<int> next{y0};
@@ -51,8 +52,8 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
       // Multi-scanning: chunks of rows, so that inside a chunk each
       // boundary sub-scanline is computed once (common/scan/multiscan.h).
       for (int y = next.fetch_add(kMultiscanChunk); y < y1; y = next.fetch_add(kMultiscanChunk)) {
-        multiscan_rows(ps, params, Band{y0, y1}, y, std::min(y1, y + kMultiscanChunk), result.pixels,
-                       stats[id]);
+        multiscan_rows(ps, params, Band{y0, y1}, y, std::min(y1, y + kMultiscanChunk),
+                       result.pixels, stats[id]);
       }
       return;
     }
@@ -71,7 +72,9 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   for (const Stats& s : stats) result.stats += s;
   for (const double c : cpu) result.stats.seconds_render_cpu += c;
   result.stats.geometry_triangles = ps.prims.triangles.size();
-  result.stats.shadow_method = !ps.volumes ? "rays" : ps.volumes->search ? "volumes" : "volumes+rays";
+  result.stats.shadow_method = !ps.volumes          ? "rays"
+                               : ps.volumes->search ? "volumes"
+                                                    : "volumes+rays";
   result.stats.seconds_render =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
@@ -81,7 +84,8 @@ Result<BandResult> render_image(const Scene& scene, const RenderParams& params) 
   const auto start = std::chrono::steady_clock::now();
   auto prepared = prepare_scene(scene, params);
   if (!prepared.ok()) return prepared.status();
-  const double prep = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double prep =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   BandResult r = render_band(**prepared, Band{0, scene.camera.height}, params);
   r.stats.seconds_prepare = prep;
   r.stats.seconds_tessellate = (*prepared)->seconds_tessellate;

@@ -15,9 +15,9 @@ namespace locus::detail {
 }
 }  // namespace locus::detail
 
-#define LOCUS_CHECK(condition)                                                        \
-  do {                                                                                \
-    if (__builtin_expect(!(condition), 0)) {                                          \
-      ::locus::detail::check_failed(__FILE__, __LINE__, #condition);                  \
-    }                                                                                 \
+#define LOCUS_CHECK(condition)                                       \
+  do {                                                               \
+    if (__builtin_expect(!(condition), 0)) {                         \
+      ::locus::detail::check_failed(__FILE__, __LINE__, #condition); \
+    }                                                                \
   } while (false)

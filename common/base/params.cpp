@@ -22,8 +22,9 @@ Status check_render_params(const RenderParams& params) {
                            ": the local method anti-aliases by multi-scanning; use --aa N");
   }
   if (params.method == Method::kRaytrace && params.aa != 0) {
-    return InvalidArgument("--aa " + std::to_string(params.aa) +
-                           ": multi-scanning belongs to --method local; the ray tracer uses --spp N");
+    return InvalidArgument(
+        "--aa " + std::to_string(params.aa) +
+        ": multi-scanning belongs to --method local; the ray tracer uses --spp N");
   }
   if (!(params.tess_tol > 0.0 && std::isfinite(params.tess_tol))) {
     return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
@@ -56,8 +57,7 @@ std::string Stats::to_json() const {
   std::ostringstream o;
   o.precision(9);
   o << "{\n  \"seconds\": {\"prepare\": " << seconds_prepare << ", \"render\": " << seconds_render
-    << ", \"render_cpu\": " << seconds_render_cpu
-    << ", \"tessellate\": " << seconds_tessellate
+    << ", \"render_cpu\": " << seconds_render_cpu << ", \"tessellate\": " << seconds_tessellate
     << "},\n  \"geometry\": {\"triangles\": " << geometry_triangles
     << "},\n  \"rays\": {\"eye\": " << rays_eye << ", \"reflected\": " << rays_reflected
     << ", \"refracted\": " << rays_refracted << ", \"shadow\": " << rays_shadow

@@ -16,8 +16,8 @@ namespace locus {
 enum class Method { kRaytrace, kLocal };
 enum class Boxes { kNone, kEye, kEyeShadow };
 // The names of the CLI's --method and --boxes, and of a job's settings.
-inline constexpr Labels<Method, 2> kMethodLabels = {{{Method::kRaytrace, "raytrace"},
-                                                     {Method::kLocal, "local"}}};
+inline constexpr Labels<Method, 2> kMethodLabels = {
+    {{Method::kRaytrace, "raytrace"}, {Method::kLocal, "local"}}};
 inline constexpr Labels<Boxes, 3> kBoxesLabels = {
     {{Boxes::kNone, "none"}, {Boxes::kEye, "eye"}, {Boxes::kEyeShadow, "eye+shadow"}}};
 
@@ -30,11 +30,11 @@ inline constexpr double kDefaultTessTol = 0.25;
 struct RenderParams {
   Method method = Method::kRaytrace;
   Boxes boxes = Boxes::kEyeShadow;
-  int spp = 1;       // raytrace: spp x spp stratified samples per pixel; 1 = pixel centre
+  int spp = 1;  // raytrace: spp x spp stratified samples per pixel; 1 = pixel centre
   // local: multi-scanning with `aa` sub-scanlines per pixel row (paper
   // §3.3); 0 = point sampling at pixel centres.
   int aa = 0;
-  int threads = 0;   // 0 = all cores
+  int threads = 0;                    // 0 = all cores
   double tess_tol = kDefaultTessTol;  // Bezier surfaces: pixels, > 0
 };
 

@@ -49,13 +49,15 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   bvh_for_rays = params.boxes != Boxes::kNone;
   bvh_for_shadows = params.boxes == Boxes::kEyeShadow;
   if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
-  for (int j = 0; j < static_cast<int>(s.lights.size()); ++j) emission.push_back(light_emission(s, j));
+  for (int j = 0; j < static_cast<int>(s.lights.size()); ++j)
+    emission.push_back(light_emission(s, j));
   ambient = ambient_intensity(s);
   world_scale = scale_of_world(prims.bounds);
   // Secondary rays start this far off the surface: relative to the scene's
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
-  if (params.method == Method::kLocal) scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
+  if (params.method == Method::kLocal)
+    scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
   // The scanline pass finds the shadows of its spans with shadow volumes
   // (paper §3.2 step 2) in configurations II-IV; IV also searches the
   // boxes' volumes for points reached by secondary rays (paper §4.1).

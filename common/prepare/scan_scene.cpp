@@ -103,7 +103,8 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
       }
       case PrimKind::kConvex: {
         const ConvexPrim& c = set.convexes[ref.index];
-        for (size_t k = 0; k < c.faces.size(); ++k) add_face(c.faces[k], c.normals[k], c.offsets[k], i, false);
+        for (size_t k = 0; k < c.faces.size(); ++k)
+          add_face(c.faces[k], c.normals[k], c.offsets[k], i, false);
         break;
       }
       case PrimKind::kSphere:

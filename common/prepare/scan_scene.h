@@ -16,7 +16,7 @@ class PreparedScene;
 // A face as the scanline pass sees it: its plane (world space) for depth,
 // and its outline projected to image coordinates (x right, y down, pixels).
 struct ScanFace {
-  Vec3 normal;          // plane: dot(normal, p) = offset
+  Vec3 normal;  // plane: dot(normal, p) = offset
   double offset = 0;
   int prim = -1;        // index into PrimitiveSet::prims (the surface it belongs to)
   bool curved = false;  // a face of a curved body's bounding polyhedron
