@@ -42,6 +42,94 @@ std::vector<Vec3> clip_near(const std::vector<Vec3>& poly, const Projector& pr, 
   return out;
 }
 
+// One face into the scan scene: clipped at the near plane, projected, its
+// rows' extent and whether it reaches into hither's sphere.
+struct FaceAdder {
+  const CameraFrame& cam;
+  const Projector& pr;
+  ScanScene& scan;
+
+  void add(const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
+           bool curved, bool back = false) {
+    bool clipped = false;
+    const std::vector<Vec3> kept = clip_near(outline, pr, &clipped);
+    if (curved && clipped) scan.trace_everything = true;
+    if (back || kept.size() < 3) return;
+    ScanFace f;
+    f.normal = normal;
+    f.offset = offset;
+    f.prim = prim;
+    f.curved = curved;
+    if (!curved && cam.hither > 0) f.near_hither = reaches_hither(kept, normal, offset);
+    f.ymin = 1e300;
+    f.ymax = -1e300;
+    for (const Vec3& p : kept) {
+      f.outline.push_back(pr.project(p));
+      f.ymin = std::min(f.ymin, f.outline.back().y);
+      f.ymax = std::max(f.ymax, f.outline.back().y);
+    }
+    if (!(f.ymax > f.ymin)) return;  // edge-on in y: crosses no sample line
+    scan.faces.push_back(std::move(f));
+  }
+
+  // Conservative: the plane passes within hither of the eye and the face's
+  // bounding sphere reaches into hither's sphere.
+  bool reaches_hither(const std::vector<Vec3>& kept, const Vec3& normal, double offset) const {
+    Vec3 c(0.0);
+    for (const Vec3& p : kept) c += p;
+    c /= static_cast<double>(kept.size());
+    double r = 0;
+    for (const Vec3& p : kept) r = std::max(r, glm::length(p - c));
+    return std::abs(glm::dot(normal, cam.from) - offset) < cam.hither &&
+           glm::length(c - cam.from) - r < cam.hither;
+  }
+
+  // A curved body's (or CSG object's) bounding polyhedra (paper §3.1,
+  // Fig. 3): their front faces, and the back faces only as far as the near
+  // plane goes.
+  void add_bounding_faces(const Scene& scene, int object, int prim) {
+    for (const Polyhedron& poly : bounding_polyhedra(scene, object)) {
+      // The eye inside the polyhedron: the body may be anywhere along
+      // every eye ray.
+      bool eye_inside = true;
+      for (const auto& face : poly.faces) {
+        std::vector<Vec3> pts;
+        for (int v : face) pts.push_back(poly.vertices[v]);
+        const Vec3 n = newell_normal(pts);
+        const bool front = glm::dot(n, cam.from - pts[0]) > 0;
+        if (front) eye_inside = false;
+        // A face turned away from the eye lies behind the polyhedron's
+        // front faces, whose outlines cover the body's: it is only
+        // checked against the near plane.
+        add(pts, n, glm::dot(n, pts[0]), prim, true, !front);
+      }
+      if (eye_inside) scan.trace_everything = true;
+    }
+  }
+};
+
+// scan.rows[j]: the faces whose y extent holds the sample line y = j + 0.5;
+// with multi-scanning also scan.cover[j]: those meeting some y in [j, j + 1]
+// (one row of margin each way).
+void bucket_rows(ScanScene& scan, int height, bool multiscan) {
+  scan.rows.assign(height, {});
+  for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
+    const ScanFace& face = scan.faces[f];
+    const double lo = std::ceil(face.ymin - 0.5), hi = std::ceil(face.ymax - 0.5);
+    const int j0 = static_cast<int>(std::max(0.0, lo));
+    const int j1 = static_cast<int>(std::min<double>(height, hi));
+    for (int j = j0; j < j1; ++j) scan.rows[j].push_back(f);
+  }
+  if (!multiscan) return;
+  scan.cover.assign(height, {});
+  for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
+    const ScanFace& face = scan.faces[f];
+    const int j0 = static_cast<int>(std::max(0.0, std::floor(face.ymin) - 1));
+    const int j1 = static_cast<int>(std::min<double>(height, std::ceil(face.ymax) + 1));
+    for (int j = j0; j < j1; ++j) scan.cover[j].push_back(f);
+  }
+}
+
 }  // namespace
 
 ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
@@ -52,106 +140,39 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
   // surface lies within hither are traced instead, see local_rows).
   const double z_near = std::max(1e-12, 1e-6 * std::max(cam.hither, ps.eps));
   const Projector pr{cam, z_near};
+  FaceAdder faces{cam, pr, scan};
   const PrimitiveSet& set = ps.prims;
-
-  auto add_face = [&](const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
-                      bool curved, bool back = false) {
-    bool clipped = false;
-    const std::vector<Vec3> kept = clip_near(outline, pr, &clipped);
-    if (curved && clipped) scan.trace_everything = true;
-    if (back || kept.size() < 3) return;
-    ScanFace f;
-    f.normal = normal;
-    f.offset = offset;
-    f.prim = prim;
-    f.curved = curved;
-    if (!curved && cam.hither > 0) {
-      // Conservative: the plane passes within hither of the eye and the
-      // face's bounding sphere reaches into hither's sphere.
-      Vec3 c(0.0);
-      for (const Vec3& p : kept) c += p;
-      c /= static_cast<double>(kept.size());
-      double r = 0;
-      for (const Vec3& p : kept) r = std::max(r, glm::length(p - c));
-      f.near_hither = std::abs(glm::dot(normal, cam.from) - offset) < cam.hither &&
-                      glm::length(c - cam.from) - r < cam.hither;
-    }
-    f.ymin = 1e300;
-    f.ymax = -1e300;
-    for (const Vec3& p : kept) {
-      f.outline.push_back(pr.project(p));
-      f.ymin = std::min(f.ymin, f.outline.back().y);
-      f.ymax = std::max(f.ymax, f.outline.back().y);
-    }
-    if (!(f.ymax > f.ymin)) return;  // edge-on in y: crosses no sample line
-    scan.faces.push_back(std::move(f));
-  };
-
   // Bounding polyhedra are per object; a CSG or quadric object is one prim.
   for (int i = 0; i < static_cast<int>(set.prims.size()); ++i) {
     const PrimRef& ref = set.prims[i];
     switch (ref.kind) {
       case PrimKind::kPolygon: {
         const PolygonPrim& p = set.polygons[ref.index];
-        add_face(polygon_outline(p), p.normal, p.offset, i, false);
+        faces.add(polygon_outline(p), p.normal, p.offset, i, false);
         break;
       }
       case PrimKind::kTriangle: {
         const TrianglePrim& t = set.triangles[ref.index];
-        add_face({t.p0, t.p0 + t.e1, t.p0 + t.e2}, t.normal, glm::dot(t.normal, t.p0), i, false);
+        faces.add({t.p0, t.p0 + t.e1, t.p0 + t.e2}, t.normal, glm::dot(t.normal, t.p0), i, false);
         break;
       }
       case PrimKind::kConvex: {
         const ConvexPrim& c = set.convexes[ref.index];
-        for (size_t k = 0; k < c.faces.size(); ++k)
-          add_face(c.faces[k], c.normals[k], c.offsets[k], i, false);
+        for (size_t k = 0; k < c.faces.size(); ++k) {
+          faces.add(c.faces[k], c.normals[k], c.offsets[k], i, false);
+        }
         break;
       }
       case PrimKind::kSphere:
       case PrimKind::kCone:
-      case PrimKind::kCsg: {
-        for (const Polyhedron& poly : bounding_polyhedra(ps.scene, ref.object)) {
-          // The eye inside the polyhedron: the body may be anywhere along
-          // every eye ray.
-          bool eye_inside = true;
-          for (const auto& face : poly.faces) {
-            std::vector<Vec3> pts;
-            for (int v : face) pts.push_back(poly.vertices[v]);
-            const Vec3 n = newell_normal(pts);
-            const bool front = glm::dot(n, cam.from - pts[0]) > 0;
-            if (front) eye_inside = false;
-            // A face turned away from the eye lies behind the polyhedron's
-            // front faces, whose outlines cover the body's: it is only
-            // checked against the near plane.
-            add_face(pts, n, glm::dot(n, pts[0]), i, true, !front);
-          }
-          if (eye_inside) scan.trace_everything = true;
-        }
+      case PrimKind::kCsg:
+        faces.add_bounding_faces(ps.scene, ref.object, i);
         break;
-      }
     }
   }
-
   scan.any_near_hither = std::any_of(scan.faces.begin(), scan.faces.end(),
                                      [](const ScanFace& f) { return f.near_hither; });
-  // Rows whose sample line y = j + 0.5 lies in [ymin, ymax).
-  scan.rows.assign(cam.height, {});
-  for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
-    const ScanFace& face = scan.faces[f];
-    const double lo = std::ceil(face.ymin - 0.5), hi = std::ceil(face.ymax - 0.5);
-    const int j0 = static_cast<int>(std::max(0.0, lo));
-    const int j1 = static_cast<int>(std::min<double>(cam.height, hi));
-    for (int j = j0; j < j1; ++j) scan.rows[j].push_back(f);
-  }
-  if (multiscan) {
-    scan.cover.assign(cam.height, {});
-    for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
-      const ScanFace& face = scan.faces[f];
-      const int j0 = static_cast<int>(std::max(0.0, std::floor(face.ymin) - 1));
-      const int j1 = static_cast<int>(std::min<double>(cam.height, std::ceil(face.ymax) + 1));
-      for (int j = j0; j < j1; ++j) scan.cover[j].push_back(f);
-    }
-  }
+  bucket_rows(scan, cam.height, multiscan);
   return scan;
 }
 
