@@ -24,7 +24,17 @@ namespace {
 constexpr int kMultiscanChunk = 8;
 }  // namespace
 
-BandResult render_band(const PreparedScene& ps, const Band& band, const RenderParams& params) {
+namespace {
+std::function<void(int)>& row_hook() {
+  static std::function<void(int)> hook;
+  return hook;
+}
+}  // namespace
+
+void set_row_hook_for_test(std::function<void(int row)> hook) { row_hook() = std::move(hook); }
+
+BandResult render_band(const PreparedScene& ps, const Band& band, const RenderParams& params,
+                       const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
   const int y0 = std::clamp(band.y0, 0, ps.camera.height);
   const int y1 = std::clamp(band.y1, y0, ps.camera.height);
@@ -37,6 +47,17 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   std::vector<Stats> stats(threads);
   std::atomic<int> next{y0};
   std::vector<double> cpu(threads, 0.0);
+  const std::function<void(int)>& hook = row_hook();
+  std::atomic<bool> stopped{false};
+  // Before each row: the test hook, then the cancellation flag.
+  auto row_may_start = [&](int row) {
+    if (hook) hook(row);
+    if (cancel && cancel->load(std::memory_order_relaxed)) {
+      stopped.store(true, std::memory_order_relaxed);
+      return false;
+    }
+    return true;
+  };
   auto work = [&](int id) {
     struct CpuClock {
       double& out;
@@ -53,11 +74,13 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
       // boundary sub-scanline is computed once (common/scan/multiscan.h).
       for (int y = next.fetch_add(kMultiscanChunk); y < y1; y = next.fetch_add(kMultiscanChunk)) {
         multiscan_rows(ps, params, Band{y0, y1}, y, std::min(y1, y + kMultiscanChunk),
-                       result.pixels, stats[id]);
+                       result.pixels, stats[id], row_may_start);
+        if (stopped.load(std::memory_order_relaxed)) return;
       }
       return;
     }
     for (int y = next++; y < y1; y = next++) {
+      if (!row_may_start(y)) return;
       if (ps.scan) {
         local_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);
       } else {
@@ -69,6 +92,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   for (int i = 1; i < threads; ++i) pool.emplace_back(work, i);
   work(0);
   for (auto& t : pool) t.join();
+  result.cancelled = stopped.load();
   for (const Stats& s : stats) result.stats += s;
   for (const double c : cpu) result.stats.seconds_render_cpu += c;
   result.stats.geometry_triangles = ps.prims.triangles.size();

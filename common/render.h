@@ -3,7 +3,9 @@
 // (render_band); a whole image is one band (render_image).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -18,12 +20,25 @@ namespace locus {
 struct BandResult {
   Image pixels;  // width x (y1 - y0)
   Stats stats;
+  // The band was cancelled before every row was rendered: its pixels are
+  // incomplete and must not be used.
+  bool cancelled = false;
 };
 
 // Renders rows [band.y0, band.y1). Every pixel depends only on the scene,
 // the parameters and its own coordinates, so a band stitched into a frame is
 // bit-identical to the same rows of an unbanded render.
-BandResult render_band(const PreparedScene& prepared, const Band& band, const RenderParams& params);
+// `cancel`, if given, is checked before every row: once it is set, the band
+// stops within one row per thread and comes back `cancelled` (a band whose
+// lease was taken back frees its worker; issue #23 item 5).
+BandResult render_band(const PreparedScene& prepared, const Band& band, const RenderParams& params,
+                       const std::atomic<bool>* cancel = nullptr);
+
+// Tests only: `hook(row)` runs before each row of every render_band, on the
+// rendering thread (a hang placed inside the renderer, to test what the
+// farm does with a band that never returns). Empty: none. Set it only while
+// nothing renders.
+void set_row_hook_for_test(std::function<void(int row)> hook);
 
 // prepare_scene + render_band over the whole image; stats include prepare time.
 Result<BandResult> render_image(const Scene& scene, const RenderParams& params);

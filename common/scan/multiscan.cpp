@@ -148,7 +148,7 @@ class PixelIntegrator {
 }  // namespace
 
 void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int r0,
-                    int r1, Image& out, Stats& stats) {
+                    int r1, Image& out, Stats& stats, FunctionRef<bool(int)> row_may_start) {
   const CameraFrame& cam = ps.camera;
   const int n = params.aa;
   Tracer tracer(ps, stats);
@@ -163,6 +163,7 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
   };
   std::vector<SubLine> lines(n + 1);
   for (int row = r0; row < r1; ++row) {
+    if (!row_may_start(row)) return;
     // Sub-scanlines k = 0..n of this row; k = 0 is the previous row's k = n.
     if (row == r0) {
       line_at(row * n, lines[0]);

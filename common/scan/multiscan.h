@@ -25,6 +25,7 @@
 // and multiscan_rows (multiscan.cpp) integrates the pieces into pixels.
 #pragma once
 
+#include "common/base/function_ref.h"
 #include "common/base/image.h"
 #include "common/base/params.h"
 #include "common/prepare/prepared.h"
@@ -37,8 +38,9 @@ inline constexpr double kBisectTolerance = 1.0 / 64;
 // Renders pixel rows [r0, r1) of the band into `out` (row - band.y0). A
 // sub-scanline is a function of its y alone, so any split into bands or
 // chunks gives the same pixels; inside [r0, r1) the boundary sub-scanline of
-// two rows is computed once.
+// two rows is computed once. `row_may_start(row)` is asked before each row;
+// false stops there (a band no longer wanted, render_band).
 void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int r0,
-                    int r1, Image& out, Stats& stats);
+                    int r1, Image& out, Stats& stats, FunctionRef<bool(int)> row_may_start);
 
 }  // namespace locus
