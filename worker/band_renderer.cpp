@@ -34,7 +34,7 @@ Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto,
   return Status::Ok();
 }
 
-Result<BandOutput> BandRenderer::render(const BandLease& t) {
+Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bool>* abandon) {
   auto it = scenes_.find(t.scene_hash);
   if (it == scenes_.end()) return FailedPrecondition("scene " + t.scene_hash + " is not held");
   Result<RenderParams> params = to_render_params(t.render, threads_);
@@ -74,7 +74,10 @@ Result<BandOutput> BandRenderer::render(const BandLease& t) {
     prepared_.push_front(Prepared{key, prepared});
     while (prepared_.size() > max_prepared_) prepared_.pop_back();
   }
-  BandResult band = render_band(*prepared, Band{t.y0, t.y1}, *params);
+  BandResult band = render_band(*prepared, Band{t.y0, t.y1}, *params, abandon);
+  if (band.cancelled) {
+    return Status(Code::kCancelled, "band abandoned: its lease was revoked or handed back");
+  }
   BandOutput out;
   out.rgb = std::move(band.pixels.rgb);
   out.stats = band.stats;

@@ -3,6 +3,7 @@
 // that frame's bands, and one band rendered through render_band().
 #pragma once
 
+#include <atomic>
 #include <list>
 #include <map>
 #include <memory>
@@ -33,7 +34,10 @@ class BandRenderer {
   Status add_scene(const std::string& hash, const v1::Scene& scene, const std::string& name);
   // Renders the leased band; its scene must have been added. The returned
   // output carries pixels and stats (ids are the caller's).
-  Result<BandOutput> render(const BandLease& band);
+  // `abandon`, if given, is render_band's cancellation flag: once set (the
+  // lease was revoked or handed back), the band stops within a row and the
+  // result is Cancelled.
+  Result<BandOutput> render(const BandLease& band, const std::atomic<bool>* abandon = nullptr);
 
   size_t scenes_held() const { return scenes_.size(); }
   int prepares() const { return prepares_; }

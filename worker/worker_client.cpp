@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -109,6 +110,9 @@ class WorkerClient::Impl {
   Millis heartbeat_{1000};
   std::string lease_;     // the band in hand
   bool revoked_ = false;  // ... which the coordinator took back
+  // Set with revoked_: the render in hand stops within a row (render_band's
+  // cancellation flag), so a revoked band frees the worker.
+  std::atomic<bool> abandon_{false};
   bool sending_ = false;  // its result is on the way: a revocation now only echoes it
   grpc::ClientContext* poll_ctx_ = nullptr;
   bool outage_ = false;
@@ -211,6 +215,7 @@ int WorkerClient::Impl::run() {
       stopping = stopping_;
       lease_ = resp.task().lease_id();
       revoked_ = false;
+      abandon_ = false;
       sending_ = false;
     }
     // A band that arrived as the worker stops goes straight back.
@@ -256,7 +261,8 @@ void WorkerClient::Impl::heartbeat_loop() {
     for (const std::string& id : resp.revoked_lease_ids()) {
       if (id == lease_ && !revoked_ && !sending_) {
         revoked_ = true;
-        spdlog::info("lease {} revoked (band cancelled or lapsed); its result will be dropped", id);
+        abandon_ = true;
+        spdlog::info("lease {} revoked (band cancelled or lapsed); the band is abandoned", id);
       }
     }
   }
@@ -302,6 +308,7 @@ void WorkerClient::Impl::hand_back() {
     std::lock_guard lk(mu_);
     if (lease_.empty() || sending_ || revoked_) return;
     revoked_ = true;  // whatever the render gives is not sent now
+    abandon_ = true;
     req.set_worker_id(worker_id_);
     req.set_lease_id(lease_);
   }
@@ -342,11 +349,15 @@ void WorkerClient::Impl::handle(const BandLease& t) {
     metrics_.band_ended(*unrendered, -1);
   } else {
     const auto start = SteadyClock::now();
-    auto r = renderer_.render(t);
+    auto r = renderer_.render(t, &abandon_);
     const double seconds = std::chrono::duration<double>(SteadyClock::now() - start).count();
     BandOutput o;
     if (r.ok()) {
       o = std::move(*r);
+    } else if (r.status().code() == Code::kCancelled) {
+      // Revoked or handed back: send() drops it.
+      o.error = r.status().message();
+      spdlog::info("{}", o.error);
     } else {
       o.error = r.status().message();
       spdlog::warn("cannot render the band: {}", o.error);

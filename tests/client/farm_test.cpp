@@ -1,6 +1,8 @@
 // The farm end to end inside one process: a coordinator serving gRPC on
 // 127.0.0.1 (ephemeral port), workers as threads, the CLI's FarmClient.
 // Frames are compared, decoded, with single-process renders.
+#include <atomic>
+
 #include "tests/farm_fixture.h"
 
 namespace locus::farm {
@@ -181,6 +183,46 @@ TEST_F(FarmTest, CancelStopsTheWork) {
   auto watched = client_->watch(job->job_id, [](const JobInfo&) {});
   ASSERT_TRUE(watched.ok());
   EXPECT_EQ(watched->state, JobState::kCancelled);
+}
+
+// A cancelled job's band in the middle of its render is abandoned: the
+// revocation reaches the worker with its next heartbeat and render_band's
+// cancellation flag stops the band within a row, instead of rendering it
+// to the end for nothing (issue #23 item 5). Rows are slowed by the
+// renderer's test hook so that the whole band would take seconds.
+TEST_F(FarmTest, CancelledBandIsAbandonedMidRender) {
+  start(Millis(2000));  // heartbeats every 500 ms
+  add_workers(1);
+  constexpr int kRows = 96;
+  std::atomic<int> rows{0}, after_cancel{0};
+  std::atomic<bool> cancelled{false};
+  set_row_hook_for_test([&](int) {
+    ++rows;
+    if (cancelled.load()) ++after_cancel;
+    std::this_thread::sleep_for(Millis(60));
+  });
+  struct ClearHook {
+    ~ClearHook() { set_row_hook_for_test({}); }
+  } clear_hook;
+  // The ray tracer: no cost preview at submit, which would meet the hook.
+  SubmitRequest r = request(kSpheres, 32, kRows, 1, 1, 1, "abandon_####.png");
+  r.render.method = "raytrace";
+  auto job = client_->submit(r);
+  ASSERT_TRUE(job.ok()) << job.status().message();
+  for (int i = 0; i < 1000 && rows.load() < 5; ++i) std::this_thread::sleep_for(Millis(10));
+  ASSERT_GE(rows.load(), 5) << "the band never started";
+  cancelled = true;
+  auto c = client_->cancel(job->job_id);
+  ASSERT_TRUE(c.ok()) << c.status().message();
+  // Until the worker's rows stop coming (or the band would have ended).
+  int last = -1;
+  for (int i = 0; i < 100 && rows.load() != last; ++i) {
+    last = rows.load();
+    std::this_thread::sleep_for(Millis(400));
+  }
+  EXPECT_LT(rows.load(), kRows) << "the band was rendered to its end";
+  // A heartbeat (500 ms) and a row: far fewer than the ~90 rows left.
+  EXPECT_LE(after_cancel.load(), 50);
 }
 
 TEST_F(FarmTest, BadSubmissionsGetClearErrorsAndStoreNothing) {
