@@ -109,10 +109,10 @@ class WorkerClient::Impl {
   std::string worker_id_;
   Millis heartbeat_{1000};
   std::string lease_;     // the band in hand
-  bool revoked_ = false;  // ... which the coordinator took back
-  // Set with revoked_: the render in hand stops within a row (render_band's
-  // cancellation flag), so a revoked band frees the worker.
-  std::atomic<bool> abandon_{false};
+  // ... which the coordinator took back (or the worker handed back). Also
+  // render_band's cancellation flag: the render in hand stops within a row,
+  // so a revoked band frees the worker. Written under mu_.
+  std::atomic<bool> revoked_{false};
   bool sending_ = false;  // its result is on the way: a revocation now only echoes it
   grpc::ClientContext* poll_ctx_ = nullptr;
   bool outage_ = false;
@@ -215,7 +215,6 @@ int WorkerClient::Impl::run() {
       stopping = stopping_;
       lease_ = resp.task().lease_id();
       revoked_ = false;
-      abandon_ = false;
       sending_ = false;
     }
     // A band that arrived as the worker stops goes straight back.
@@ -261,7 +260,6 @@ void WorkerClient::Impl::heartbeat_loop() {
     for (const std::string& id : resp.revoked_lease_ids()) {
       if (id == lease_ && !revoked_ && !sending_) {
         revoked_ = true;
-        abandon_ = true;
         spdlog::info("lease {} revoked (band cancelled or lapsed); the band is abandoned", id);
       }
     }
@@ -308,7 +306,6 @@ void WorkerClient::Impl::hand_back() {
     std::lock_guard lk(mu_);
     if (lease_.empty() || sending_ || revoked_) return;
     revoked_ = true;  // whatever the render gives is not sent now
-    abandon_ = true;
     req.set_worker_id(worker_id_);
     req.set_lease_id(lease_);
   }
@@ -349,7 +346,7 @@ void WorkerClient::Impl::handle(const BandLease& t) {
     metrics_.band_ended(*unrendered, -1);
   } else {
     const auto start = SteadyClock::now();
-    auto r = renderer_.render(t, &abandon_);
+    auto r = renderer_.render(t, &revoked_);
     const double seconds = std::chrono::duration<double>(SteadyClock::now() - start).count();
     BandOutput o;
     if (r.ok()) {

@@ -56,12 +56,11 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   // Secondary rays start this far off the surface: relative to the scene's
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
-  if (params.method == Method::kLocal)
-    scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
-  // The scanline pass finds the shadows of its spans with shadow volumes
-  // (paper §3.2 step 2) in configurations II-IV; IV also searches the
-  // boxes' volumes for points reached by secondary rays (paper §4.1).
   if (params.method == Method::kLocal) {
+    scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
+    // The scanline pass finds the shadows of its spans with shadow volumes
+    // (paper §3.2 step 2) in configurations II-IV; IV also searches the
+    // boxes' volumes for points reached by secondary rays (paper §4.1).
     volumes = std::make_shared<const ShadowVolumes>(build_shadow_volumes(*this, bvh_for_shadows));
   }
 }
