@@ -273,6 +273,44 @@ struct HookGuard {
   ~HookGuard() { set_row_hook_for_test({}); }
 };
 
+// Any finite coordinate is a valid scene, however far it projects: a
+// vertex at 1e300 puts outline crossings, rows and pixel columns far beyond
+// int's range (the coordinator's fuzzer found a float-to-int overflow in the
+// scanline pass), and products of such coordinates overflow to inf and NaN.
+// Under UBSan (the ASan subset of tests/run.sh) a conversion out of range
+// fails the test; everywhere the render must finish with finite pixels.
+TEST(RenderExtremeGeometry, FarVerticesRenderInEveryMethod) {
+  for (const double far : {1e9, 1e77, 1e300}) {
+    Material m;
+    m.kd = 0.7;
+    Scene s = one_sphere_scene(m);
+    Material mirror;
+    mirror.ks = 0.8;
+    s.materials.push_back(mirror);
+    // Slivers whose rows in view cross only beyond the image's right and
+    // left edges, and a wall reaching far above it.
+    for (const Polygon& poly : {Polygon{{Vec3(-0.5, -0.5, 0), Vec3(far, 0.5, -1), Vec3(far, 0.6, -1)}},
+                                Polygon{{Vec3(0.5, 0.5, 0), Vec3(-far, -0.5, -1), Vec3(-far, -0.6, -1)}},
+                                Polygon{{Vec3(-2, -2, 0.5), Vec3(2, -2, 0.5), Vec3(0, far, 0.5)}}}) {
+      Object o;
+      o.shape = poly;
+      o.material = 1;
+      s.objects.push_back(o);
+    }
+    for (const RenderParams& p : {RenderParams{Method::kLocal, Boxes::kEyeShadow, 1, 0, 1},
+                                  RenderParams{Method::kLocal, Boxes::kEyeShadow, 1, 4, 1},
+                                  RenderParams{Method::kLocal, Boxes::kNone, 1, 2, 1},
+                                  RenderParams{Method::kRaytrace, Boxes::kEyeShadow, 2, 0, 1}}) {
+      SCOPED_TRACE(::testing::Message() << "far " << far << " method "
+                                        << label_name(kMethodLabels, p.method) << " aa " << p.aa);
+      auto r = render_image(s, p);
+      ASSERT_TRUE(r.ok()) << r.status().message();
+      ASSERT_EQ(r->pixels.width, 33);
+      for (const float v : r->pixels.rgb) ASSERT_TRUE(std::isfinite(v));
+    }
+  }
+}
+
 TEST(RenderCancel, WithoutCancelEveryRowOnceAndTheSamePixels) {
   const Scene s = cancel_scene();
   for (const RenderParams& p : every_row_loop()) {

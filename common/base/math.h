@@ -25,6 +25,18 @@ inline double min_component(const Vec3& v) { return glm::min(v.x, glm::min(v.y, 
 inline bool is_finite(double x) { return x - x == 0.0; }
 inline bool is_finite(const Vec3& v) { return is_finite(v.x) && is_finite(v.y) && is_finite(v.z); }
 
+// floor(x) and ceil(x) as an int clamped to [lo, hi] (lo <= hi), clamped
+// before the conversion: a projected coordinate can lie far beyond int's
+// range (a vertex just in front of the eye, a huge scene), and NaN gives lo.
+inline int clamped_floor(double x, int lo, int hi) {
+  const double f = std::floor(x);
+  return !(f > lo) ? lo : (f >= hi ? hi : static_cast<int>(f));
+}
+inline int clamped_ceil(double x, int lo, int hi) {
+  const double c = std::ceil(x);
+  return !(c > lo) ? lo : (c >= hi ? hi : static_cast<int>(c));
+}
+
 // Apply an affine transform to a point / a direction / a normal.
 inline Vec3 transform_point(const Mat4& m, const Vec3& p) { return Vec3(m * glm::dvec4(p, 1.0)); }
 inline Vec3 transform_vector(const Mat4& m, const Vec3& v) { return Vec3(m * glm::dvec4(v, 0.0)); }

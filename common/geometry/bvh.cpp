@@ -51,8 +51,7 @@ int build_node(BuildCtx& ctx, int begin, int end, int depth) {
   Aabb bin_box[kBins];
   int bin_count[kBins] = {};
   auto bin_of = [&](int prim) {
-    const int b = static_cast<int>(kBins * (ctx.centres[prim][axis] - cbox.lo[axis]) / ext[axis]);
-    return std::clamp(b, 0, kBins - 1);
+    return clamped_floor(kBins * (ctx.centres[prim][axis] - cbox.lo[axis]) / ext[axis], 0, kBins - 1);
   };
   for (int i = begin; i < end; ++i) {
     const int b = bin_of(ctx.bvh.order[i]);

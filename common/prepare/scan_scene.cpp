@@ -115,17 +115,16 @@ void bucket_rows(ScanScene& scan, int height, bool multiscan) {
   scan.rows.assign(height, {});
   for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
     const ScanFace& face = scan.faces[f];
-    const double lo = std::ceil(face.ymin - 0.5), hi = std::ceil(face.ymax - 0.5);
-    const int j0 = static_cast<int>(std::max(0.0, lo));
-    const int j1 = static_cast<int>(std::min<double>(height, hi));
+    const int j0 = clamped_ceil(face.ymin - 0.5, 0, height);
+    const int j1 = clamped_ceil(face.ymax - 0.5, 0, height);
     for (int j = j0; j < j1; ++j) scan.rows[j].push_back(f);
   }
   if (!multiscan) return;
   scan.cover.assign(height, {});
   for (int f = 0; f < static_cast<int>(scan.faces.size()); ++f) {
     const ScanFace& face = scan.faces[f];
-    const int j0 = static_cast<int>(std::max(0.0, std::floor(face.ymin) - 1));
-    const int j1 = static_cast<int>(std::min<double>(height, std::ceil(face.ymax) + 1));
+    const int j0 = clamped_floor(face.ymin, 1, height + 1) - 1;
+    const int j1 = clamped_ceil(face.ymax, -1, height - 1) + 1;
     for (int j = j0; j < j1; ++j) scan.cover[j].push_back(f);
   }
 }

@@ -96,7 +96,7 @@ std::vector<std::vector<std::vector<Vec3>>> cut_receivers(const PreparedScene& p
     const double len = glm::length(d);
     const double rmax = std::max(std::abs(c.base_radius), std::abs(c.apex_radius));
     if (!(len > 0) || !(rmax > 0) || !std::isfinite(len)) continue;
-    const int k = std::min(kMaxParts, static_cast<int>(len / (2.0 * rmax)));
+    const int k = clamped_floor(len / (2.0 * rmax), 0, kMaxParts);
     if (k < 2) continue;
     ReceiverParts& rp = parts[i];
     rp.base = c.base;

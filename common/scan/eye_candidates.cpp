@@ -13,8 +13,7 @@ constexpr double kMargin = 1e-6;
 
 // The pixel columns [a, b] that the x range [lo, hi] meets, within the image.
 std::pair<int, int> columns(double lo, double hi, int width) {
-  return {std::max(0, static_cast<int>(std::floor(lo - kMargin))),
-          std::min(width - 1, static_cast<int>(std::floor(hi + kMargin)))};
+  return {clamped_floor(lo - kMargin, 0, width), clamped_floor(hi + kMargin, -1, width - 1)};
 }
 
 // Adds primitive p to `prims` unless it is there (a body has several faces).
@@ -44,7 +43,7 @@ const std::vector<int>& EyeCandidates::on_line(double x) {
     });
   }
   prims_.clear();
-  const int i = std::clamp(static_cast<int>(std::floor(x)), 0, width_ - 1);
+  const int i = clamped_floor(x, 0, width_ - 1);
   line_.visit(i, [&](int k) {
     const DepthInterval& iv = ivs[k];
     if (iv.xl - kMargin <= x && x <= iv.xr + kMargin) add_unique(prims_, scan_.faces[iv.face].prim);
@@ -54,9 +53,8 @@ const std::vector<int>& EyeCandidates::on_line(double x) {
 }
 
 const std::vector<int>& EyeCandidates::in_square(double x, double y) {
-  const int j = std::clamp(static_cast<int>(std::floor(y)), j0_,
-                           std::min(j1_, static_cast<int>(scan_.cover.size())) - 1);
-  const int i = std::clamp(static_cast<int>(std::floor(x)), 0, width_ - 1);
+  const int j = clamped_floor(y, j0_, std::min(j1_, static_cast<int>(scan_.cover.size())) - 1);
+  const int i = clamped_floor(x, 0, width_ - 1);
   PixelBuckets& row = rows_[j - j0_];
   std::vector<int>& faces = row_faces_[j - j0_];
   if (row.empty()) {

@@ -76,7 +76,7 @@ template <class Direct>
 Color PixelSamples::traced_colour(double x0, double x1, int hit, int j, Direct&& direct) {
   const int material = material_of(hit);
   const double xm = 0.5 * (x0 + x1);
-  const int i = std::min(static_cast<int>(xm), cam_.width - 1);
+  const int i = clamped_floor(xm, 0, cam_.width - 1);
   const double fx = xm - i, fy = y_ - j;
   const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
   Color lo(kInf), hi(-kInf), acc(0.0);

@@ -64,8 +64,8 @@ RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const
     const double num = f.offset - glm::dot(f.normal, eye);
     for (size_t k = 0; k + 1 < xs.size(); k += 2) {
       // Pixel centres i + 0.5 in [xl, xr).
-      const int i0 = static_cast<int>(std::max(0.0, std::ceil(xs[k] - 0.5)));
-      const int i1 = static_cast<int>(std::min<double>(width, std::ceil(xs[k + 1] - 0.5)));
+      const int i0 = clamped_ceil(xs[k] - 0.5, 0, width);
+      const int i1 = clamped_ceil(xs[k + 1] - 0.5, 0, width);
       for (int i = i0; i < i1; ++i) {
         const double a = (2.0 * (i + 0.5) / width - 1.0) * cam.tan_half * cam.aspect;
         const double s = num / (nw + a * nu);

@@ -131,8 +131,8 @@ void SpanShadows::bucket_rest(int light) {
     const Interval& iv = rest[k];
     const double xl = image_x(iv.lo) - kMargin, xh = image_x(iv.hi) + kMargin;
     if (!iv.outside) {
-      const int p0 = std::max(0, static_cast<int>(std::floor(xl)));
-      const int p1 = std::min(w - 1, static_cast<int>(std::floor(xh)));
+      const int p0 = clamped_floor(xl, 0, w);
+      const int p1 = clamped_floor(xh, -1, w - 1);
       for (int i = p0; i <= p1; ++i) fn(i);
       return;
     }
@@ -147,7 +147,7 @@ void SpanShadows::bucket_rest(int light) {
 bool SpanShadows::uncertain(double x0, double x1) {
   const double a0 = image_a(x0), a1 = image_a(x1);
   // A piece lies inside one pixel (figures() cuts at pixel edges).
-  const int i = static_cast<int>(std::floor(x0));
+  const int i = clamped_floor(x0, -1, ps_.camera.width);
   const int pixel = x1 <= i + 1 ? std::min(i, ps_.camera.width - 1) : -1;
   for (int j = 0; j < lights_; ++j) {
     if (!s_->done[j]) compute_light(j);
@@ -165,7 +165,7 @@ bool SpanShadows::uncertain(double x0, double x1) {
 LightStates SpanShadows::states(double x) {
   LightStates st;
   const double a = image_a(x);
-  const int pixel = std::clamp(static_cast<int>(std::floor(x)), 0, ps_.camera.width - 1);
+  const int pixel = clamped_floor(x, 0, ps_.camera.width - 1);
   const ScanFace& f = ps_.scan->faces[face_];
   const CameraFrame& cam = ps_.camera;
   thread_local std::vector<Crossing> crossings;

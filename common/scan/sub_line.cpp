@@ -115,7 +115,7 @@ inline void SubLineBuilder::add_pieces(SubLine& line) {
 inline void SubLineBuilder::index_pixels(SubLine& line) const {
   line.first.assign(cam_.width + 1, static_cast<int>(line.pieces.size()));
   for (int k = static_cast<int>(line.pieces.size()) - 1; k >= 0; --k) {
-    const int i = std::clamp(static_cast<int>(std::floor(line.pieces[k].x0)), 0, cam_.width - 1);
+    const int i = clamped_floor(line.pieces[k].x0, 0, cam_.width - 1);
     line.first[i] = k;
   }
   for (int i = cam_.width - 1; i >= 0; --i)

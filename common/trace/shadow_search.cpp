@@ -121,7 +121,7 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
     if (rp && rp->count > 0) {
       // The slice of the receiver that holds the origin.
       const double s = glm::dot(origin - rp->base, rp->scaled_axis) * rp->count;
-      const int slot = rp->slot + (s > 0 ? std::min(rp->count - 1, static_cast<int>(s)) : 0);
+      const int slot = rp->slot + clamped_floor(s, 0, rp->count - 1);
       cb = lv.part_candidates.data() + lv.part_first[slot];
       ce = lv.part_candidates.data() + lv.part_first[slot + 1];
       db = lv.part_direct.data() + lv.part_first[slot];
