@@ -113,6 +113,70 @@ Result<farm::JobInfo> FarmClient::cancel(const std::string& job_id) {
   return rpc::FromProto(resp.status());
 }
 
+namespace {
+template <class Call>
+Result<farm::JobInfo> job_action(const Status& broken, Call&& call) {
+  if (!broken.ok()) return broken;
+  v1::JobActionResponse resp;
+  if (Status s = call(&resp); !s.ok()) return s;
+  return rpc::FromProto(resp.status());
+}
+}  // namespace
+
+Result<farm::JobInfo> FarmClient::set_priority(const std::string& job_id, int priority,
+                                               bool preempt) {
+  return job_action(impl_->broken, [&](v1::JobActionResponse* resp) {
+    v1::SetPriorityRequest req;
+    req.set_job_id(job_id);
+    req.set_priority(priority);
+    req.set_preempt(preempt);
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx, rpc::kShortCall);
+    return impl_->check(impl_->stub->SetPriority(&ctx, req, resp));
+  });
+}
+
+Result<farm::JobInfo> FarmClient::pause(const std::string& job_id) {
+  return job_action(impl_->broken, [&](v1::JobActionResponse* resp) {
+    v1::JobActionRequest req;
+    req.set_job_id(job_id);
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx, rpc::kShortCall);
+    return impl_->check(impl_->stub->PauseJob(&ctx, req, resp));
+  });
+}
+
+Result<farm::JobInfo> FarmClient::resume(const std::string& job_id) {
+  return job_action(impl_->broken, [&](v1::JobActionResponse* resp) {
+    v1::JobActionRequest req;
+    req.set_job_id(job_id);
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx, rpc::kShortCall);
+    return impl_->check(impl_->stub->ResumeJob(&ctx, req, resp));
+  });
+}
+
+Result<std::vector<farm::HistoryEntry>> FarmClient::events(const std::string& job_id,
+                                                           int64_t after) {
+  if (!impl_->broken.ok()) return impl_->broken;
+  std::vector<farm::HistoryEntry> out;
+  // Pages of the server's cap until one comes back short.
+  for (;;) {
+    v1::ListEventsRequest req;
+    req.set_job_id(job_id);
+    req.set_after_seq(after);
+    v1::ListEventsResponse resp;
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx, rpc::kShortCall);
+    if (Status s = impl_->check(impl_->stub->ListEvents(&ctx, req, &resp)); !s.ok()) return s;
+    for (const v1::JobEvent& e : resp.events()) {
+      out.push_back({e.seq(), e.unix_seconds(), e.frame(), e.band(), e.text()});
+      after = e.seq();
+    }
+    if (resp.events_size() < farm::kMaxEventsPerCall) return out;
+  }
+}
+
 Result<std::vector<farm::WorkerInfo>> FarmClient::workers() {
   if (!impl_->broken.ok()) return impl_->broken;
   v1::ListWorkersResponse resp;

@@ -27,6 +27,11 @@ class FarmClient {
   Result<farm::JobInfo> job(const std::string& job_id);
   Result<std::vector<farm::JobInfo>> jobs();
   Result<farm::JobInfo> cancel(const std::string& job_id);
+  Result<farm::JobInfo> set_priority(const std::string& job_id, int priority, bool preempt);
+  Result<farm::JobInfo> pause(const std::string& job_id);
+  Result<farm::JobInfo> resume(const std::string& job_id);
+  // The job's history after cursor `after` (all of it from 0).
+  Result<std::vector<farm::HistoryEntry>> events(const std::string& job_id, int64_t after);
   Result<std::vector<farm::WorkerInfo>> workers();
   // Follows the job until it ends (re-opening the stream as the server caps
   // its length); `on_update` sees every status. Returns the final status.

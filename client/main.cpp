@@ -6,8 +6,10 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -276,6 +278,9 @@ int run_validate(const std::string& path) {
 struct SubmitArgs {
   JobArgs job;
   bool wait = false;
+  int priority = farm::kDefaultPriority;
+  std::string frame_order;
+  double band_timeout = 0;  // seconds; 0: the coordinator's
 };
 
 int run_submit(const std::string& address, const farm::Credentials& creds, const SubmitArgs& a) {
@@ -283,6 +288,10 @@ int run_submit(const std::string& address, const farm::Credentials& creds, const
   // reaches the coordinator.
   auto job = prepare_job(a.job, true);
   if (!job.ok()) return fail(job.status());
+  job->request.priority = a.priority;
+  job->request.frame_order = a.frame_order;
+  job->request.band_timeout =
+      farm::Millis(static_cast<int64_t>(std::llround(a.band_timeout * 1000)));
   client::FarmClient farm(address, creds);
   auto submitted = farm.submit(job->request);
   if (!submitted.ok()) return fail(submitted.status());
@@ -294,6 +303,9 @@ int run_submit(const std::string& address, const farm::Credentials& creds, const
 
 void print_job(const farm::JobInfo& j) {
   std::printf("job %s: %s\n", j.job_id.c_str(), farm::job_state_name(j.state));
+  std::printf("  owner    %s, priority %d%s\n", j.spec.owner.empty() ? "-" : j.spec.owner.c_str(),
+              j.spec.priority,
+              j.spec.frame_order == farm::FrameOrder::kInOrder ? "" : ", frames first-middle-last");
   std::printf("  scene    %s, %dx%d, frames %d-%d, %d bands per frame\n", j.spec.scene_name.c_str(),
               j.spec.width, j.spec.height, j.spec.frame_first, j.spec.frame_last, j.spec.bands);
   std::printf("  progress %lld/%lld bands, %d/%d frames written, %s elapsed\n",
@@ -308,9 +320,14 @@ void print_job(const farm::JobInfo& j) {
                 static_cast<long long>(j.results_discarded));
   }
   for (const std::string& w : j.quarantined) std::printf("  quarantined worker %s\n", w.c_str());
+  if (j.bands_timed_out > 0) {
+    std::printf("  hung     %lld bands taken back by the band timeout (`locus events %s`)\n",
+                static_cast<long long>(j.bands_timed_out), j.job_id.c_str());
+  }
 }
 
-int run_status(const std::string& address, const farm::Credentials& creds, const std::string& job_id) {
+int run_status(const std::string& address, const farm::Credentials& creds,
+               const std::string& job_id) {
   client::FarmClient farm(address, creds);
   if (!job_id.empty()) {
     auto j = farm.job(job_id);
@@ -324,21 +341,23 @@ int run_status(const std::string& address, const farm::Credentials& creds, const
     std::printf("no jobs\n");
     return 0;
   }
-  std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", "JOB", "STATE", "FRAMES", "BANDS", "ELAPSED",
-              "SCENE");
+  std::printf("%-8s %-10s %-4s %-12s %-13s %-15s %-10s %s\n", "JOB", "STATE", "PRIO", "OWNER",
+              "FRAMES", "BANDS", "ELAPSED", "SCENE");
   for (const farm::JobInfo& j : *jobs) {
     const std::string frames =
         std::to_string(j.frames_done) + "/" + std::to_string(j.spec.frames());
     const std::string bands =
         std::to_string(j.bands_done) + "/" + std::to_string(j.spec.bands_total());
-    std::printf("%-8s %-10s %-13s %-15s %-10s %s\n", j.job_id.c_str(),
-                farm::job_state_name(j.state), frames.c_str(), bands.c_str(),
+    std::printf("%-8s %-10s %-4d %-12s %-13s %-15s %-10s %s\n", j.job_id.c_str(),
+                farm::job_state_name(j.state), j.spec.priority,
+                j.spec.owner.empty() ? "-" : j.spec.owner.c_str(), frames.c_str(), bands.c_str(),
                 client::format_duration(j.seconds_elapsed).c_str(), j.spec.scene_name.c_str());
   }
   return 0;
 }
 
-int run_watch(const std::string& address, const farm::Credentials& creds, const std::string& job_id) {
+int run_watch(const std::string& address, const farm::Credentials& creds,
+              const std::string& job_id) {
   client::FarmClient farm(address, creds);
   client::Progress progress(stdout, isatty(STDOUT_FILENO) != 0);
   auto done = farm.watch(job_id, [&](const farm::JobInfo& j) { progress.update(j); });
@@ -348,7 +367,8 @@ int run_watch(const std::string& address, const farm::Credentials& creds, const 
   return done->state == farm::JobState::kSucceeded ? 0 : 1;
 }
 
-int run_cancel(const std::string& address, const farm::Credentials& creds, const std::string& job_id) {
+int run_cancel(const std::string& address, const farm::Credentials& creds,
+               const std::string& job_id) {
   client::FarmClient farm(address, creds);
   auto j = farm.cancel(job_id);
   if (!j.ok()) return fail(j.status());
@@ -356,6 +376,57 @@ int run_cancel(const std::string& address, const farm::Credentials& creds, const
               farm::job_state_name(j->state), static_cast<long long>(j->bands_done),
               static_cast<long long>(j->spec.bands_total()));
   return 0;
+}
+
+// pause, resume, priority: the job's state afterwards.
+int print_action(const Result<farm::JobInfo>& j) {
+  if (!j.ok()) return fail(j.status());
+  std::printf("job %s: %s, priority %d (%lld/%lld bands done, %lld running)\n", j->job_id.c_str(),
+              farm::job_state_name(j->state), j->spec.priority,
+              static_cast<long long>(j->bands_done), static_cast<long long>(j->spec.bands_total()),
+              static_cast<long long>(j->bands_running));
+  return 0;
+}
+
+std::string format_time(double unix_seconds) {
+  const std::time_t t = static_cast<std::time_t>(unix_seconds);
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char buf[40];
+  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
+  char out[48];
+  std::snprintf(out, sizeof out, "%s.%03d", buf,
+                static_cast<int>((unix_seconds - std::floor(unix_seconds)) * 1000));
+  return out;
+}
+
+struct EventsArgs {
+  int frame = -1;  // -1: every frame
+  int band = -1;
+  bool follow = false;
+};
+
+// Prints the job's history; --follow polls for more until the job ends.
+int run_events(const std::string& address, const farm::Credentials& creds,
+               const std::string& job_id, const EventsArgs& a) {
+  client::FarmClient farm(address, creds);
+  int64_t after = 0;
+  for (;;) {
+    auto events = farm.events(job_id, after);
+    if (!events.ok()) return fail(events.status());
+    for (const farm::HistoryEntry& e : *events) {
+      after = e.seq;
+      if (a.frame >= 0 && e.frame != a.frame && e.frame != -1) continue;
+      if (a.band >= 0 && e.band != a.band) continue;
+      std::printf("%s  %s\n", format_time(e.at).c_str(), e.text.c_str());
+    }
+    std::fflush(stdout);
+    if (!a.follow) return 0;
+    auto j = farm.job(job_id);
+    if (!j.ok()) return fail(j.status());
+    if (farm::is_terminal(j->state) && events->empty()) return 0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
 }
 
 int run_workers(const std::string& address, const farm::Credentials& creds) {
@@ -380,7 +451,8 @@ int run_workers(const std::string& address, const farm::Credentials& creds) {
   return 0;
 }
 
-int run_fetch(const std::string& address, const farm::Credentials& creds, const std::string& job_id, const std::string& dir) {
+int run_fetch(const std::string& address, const farm::Credentials& creds, const std::string& job_id,
+              const std::string& dir) {
   client::FarmClient farm(address, creds);
   auto j = farm.job(job_id);
   if (!j.ok()) return fail(j.status());
@@ -481,6 +553,21 @@ int main(int argc, char** argv) {
   add_job_flags(submit, sa.job);
   add_farm(submit);
   submit->add_flag("--wait", sa.wait, "Follow the job and fetch its frames to the output pattern");
+  submit
+      ->add_option("--priority", sa.priority,
+                   "0..100, higher first (default 50); equal priorities share the workers "
+                   "between users, then between each user's jobs")
+      ->check(CLI::Range(farm::kMinPriority, farm::kMaxPriority));
+  submit
+      ->add_option("--frame-order", sa.frame_order,
+                   "Order of the frames' first leases: " + label_choices(farm::kFrameOrderLabels) +
+                       " (first, middle and last frames first, to check a shot early)")
+      ->check(CLI::IsMember(label_names(farm::kFrameOrderLabels)));
+  submit
+      ->add_option("--band-timeout", sa.band_timeout,
+                   "Seconds a band may stay leased before it is taken back as hung and retried "
+                   "elsewhere (default: the coordinator's --band-timeout)")
+      ->check(CLI::Range(0.0, 7 * 24 * 3600.0));
 
   std::string job_id, dir;
   auto* status = app.add_subcommand("status", "Show one job, or list them all");
@@ -492,6 +579,31 @@ int main(int argc, char** argv) {
   auto* cancel = app.add_subcommand("cancel", "Cancel a job");
   cancel->add_option("job", job_id, "Job id")->required();
   add_farm(cancel);
+  int priority = farm::kDefaultPriority;
+  bool preempt = false;
+  auto* prio = app.add_subcommand("priority", "Change a job's priority (at its next lease)");
+  prio->add_option("job", job_id, "Job id")->required();
+  prio->add_option("priority", priority, "0..100, higher first")
+      ->required()
+      ->check(CLI::Range(farm::kMinPriority, farm::kMaxPriority));
+  prio->add_flag("--preempt", preempt,
+                 "Hand the running bands of jobs of lower priority back now (they render again)");
+  add_farm(prio);
+  auto* pause = app.add_subcommand(
+      "pause", "Pause a job: no new leases; bands in flight finish and are kept");
+  pause->add_option("job", job_id, "Job id")->required();
+  add_farm(pause);
+  auto* resume = app.add_subcommand("resume", "Resume a paused job");
+  resume->add_option("job", job_id, "Job id")->required();
+  add_farm(resume);
+  EventsArgs ea;
+  auto* events = app.add_subcommand(
+      "events", "A job's history: submission, leases and how they ended, frames, actions");
+  events->add_option("job", job_id, "Job id")->required();
+  events->add_option("--frame", ea.frame, "Only this frame's lines (and the job's own)");
+  events->add_option("--band", ea.band, "Only this band's lines");
+  events->add_flag("--follow", ea.follow, "Keep printing new lines until the job ends");
+  add_farm(events);
   auto* workers = app.add_subcommand("workers", "List the farm's workers");
   add_farm(workers);
   auto* fetch = app.add_subcommand("fetch", "Download a job's written frames into a directory");
@@ -526,6 +638,13 @@ int main(int argc, char** argv) {
   if (watch->parsed()) return run_watch(farm_address, creds, job_id);
   if (cancel->parsed()) return run_cancel(farm_address, creds, job_id);
   if (workers->parsed()) return run_workers(farm_address, creds);
+  if (prio->parsed()) {
+    return print_action(
+        client::FarmClient(farm_address, creds).set_priority(job_id, priority, preempt));
+  }
+  if (pause->parsed()) return print_action(client::FarmClient(farm_address, creds).pause(job_id));
+  if (resume->parsed()) return print_action(client::FarmClient(farm_address, creds).resume(job_id));
+  if (events->parsed()) return run_events(farm_address, creds, job_id, ea);
   if (fetch->parsed()) return run_fetch(farm_address, creds, job_id, dir);
   return 1;
 }

@@ -33,7 +33,8 @@ Coordinator::Coordinator(CoordinatorOptions options)
     : options_(std::move(options)),
       scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts,
                                   options_.quarantine_after, options_.speculate_factor,
-                                  options_.speculate_min},
+                                  options_.speculate_min, options_.band_timeout, options_.ageing,
+                                  options_.user_max_running},
                  options_.now),
       metrics_(std::make_unique<CoordinatorMetrics>()) {}
 
@@ -46,7 +47,8 @@ Status Coordinator::start() {
     return FailedPrecondition("--data " + options_.data_dir + ": cannot create: " + ec.message());
   fs::create_directories(output_root(), ec);
   if (ec)
-    return FailedPrecondition("--output-root " + output_root() + ": cannot create: " + ec.message());
+    return FailedPrecondition("--output-root " + output_root() +
+                              ": cannot create: " + ec.message());
   std::lock_guard lk(mu_);
   if (started_) return Status::Ok();
   if (Status s = recover(); !s.ok()) return s;
@@ -383,13 +385,41 @@ std::vector<JobInfo> Coordinator::jobs() {
   return scheduler_.jobs();
 }
 
-Result<JobInfo> Coordinator::cancel(const std::string& job_id) {
+Result<JobInfo> Coordinator::act(const std::string& job_id, const char* what,
+                                 const std::function<Result<JobInfo>()>& call) {
   std::lock_guard lk(mu_);
-  auto r = scheduler_.cancel(job_id);
-  if (r.ok()) spdlog::info("job {}: cancelled", job_id);
+  auto r = call();
+  if (r.ok()) spdlog::info("job {}: {}", job_id, what);
   persist();
   changed_.notify_all();
   return r;
+}
+
+Result<JobInfo> Coordinator::cancel(const std::string& job_id, const std::string& who) {
+  return act(job_id, "cancelled", [&] { return scheduler_.cancel(job_id, who); });
+}
+
+Result<JobInfo> Coordinator::set_priority(const std::string& job_id, int priority, bool preempt,
+                                          const std::string& who) {
+  const std::string what = "priority " + std::to_string(priority) + (preempt ? ", preempting" : "");
+  return act(job_id, what.c_str(),
+             [&] { return scheduler_.set_priority(job_id, priority, preempt, who); });
+}
+
+Result<JobInfo> Coordinator::pause(const std::string& job_id, const std::string& who) {
+  return act(job_id, "paused", [&] { return scheduler_.pause(job_id, who); });
+}
+
+Result<JobInfo> Coordinator::resume(const std::string& job_id, const std::string& who) {
+  return act(job_id, "resumed", [&] { return scheduler_.resume(job_id, who); });
+}
+
+Result<std::vector<HistoryEntry>> Coordinator::events(const std::string& job_id, int64_t after,
+                                                      int limit) {
+  std::lock_guard lk(mu_);
+  if (auto j = scheduler_.job(job_id); !j.ok()) return j.status();
+  if (!store_) return FailedPrecondition("the coordinator has no job store (not started)");
+  return store_->history(job_id, after, limit);
 }
 
 std::vector<WorkerInfo> Coordinator::workers() {

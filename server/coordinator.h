@@ -44,6 +44,9 @@ struct CoordinatorOptions {
   int quarantine_after = 2;
   double speculate_factor = 3.0;
   Millis speculate_min{1000};
+  Millis band_timeout{0};    // --band-timeout; 0: none
+  Millis ageing{60000};      // --ageing
+  int user_max_running = 0;  // --user-max-running; 0: no cap
   // fsync band files, frames and their directory before the store names
   // them (survives a power loss); without it a kill -9 is still survived.
   bool fsync = true;
@@ -91,7 +94,16 @@ class Coordinator {
   Result<JobInfo> submit(const SubmitRequest& request);
   Result<JobInfo> job(const std::string& job_id);
   std::vector<JobInfo> jobs();
-  Result<JobInfo> cancel(const std::string& job_id);
+  // The operators' actions (Scheduler's); `who` names the caller in the
+  // job's history.
+  Result<JobInfo> cancel(const std::string& job_id, const std::string& who = "");
+  Result<JobInfo> set_priority(const std::string& job_id, int priority, bool preempt,
+                               const std::string& who = "");
+  Result<JobInfo> pause(const std::string& job_id, const std::string& who = "");
+  Result<JobInfo> resume(const std::string& job_id, const std::string& who = "");
+  // The job's history after cursor `after`, at most `limit` lines
+  // (`locus events`); NotFound for an unknown job.
+  Result<std::vector<HistoryEntry>> events(const std::string& job_id, int64_t after, int limit);
   std::vector<WorkerInfo> workers();
   // Sends the job's status now, then on each change (throttled), until the
   // job ends, `max` passes, the client cancels or the sink refuses.
@@ -127,7 +139,7 @@ class Coordinator {
   std::string metrics_text();
 
  private:
-  Status recover();          // start(), before the threads
+  Status recover();  // start(), before the threads
   // submit()'s steps under mu_, after check_submission() and the
   // fingerprint (server/submission.h): a retry answered with its first
   // job; the band count and edges; the job stored, then scheduled.
@@ -142,6 +154,9 @@ class Coordinator {
   void drop_unused_scenes();  // mu_ held
   // Hands the Scheduler's events to the store in one transaction; mu_ held.
   Status persist();
+  // An action on one job under mu_: the Scheduler's call, then the store.
+  Result<JobInfo> act(const std::string& job_id, const char* what,
+                      const std::function<Result<JobInfo>()>& call);
 
   CoordinatorOptions options_;
   std::mutex mu_;

@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <memory>
@@ -39,6 +40,8 @@ struct Flags {
   int quarantine_after = 2;
   double speculate_factor = 3.0;
   int speculate_min_ms = 1000;
+  double band_timeout = 0;  // seconds
+  double ageing = 60;       // seconds
   bool no_fsync = false;
   bool equal_bands = false;
   std::string health_address, metrics_address;
@@ -78,6 +81,17 @@ void add_farm_flags(CLI::App& app, Flags& f) {
   app.add_option("--speculate-min-ms", f.speculate_min_ms,
                  "... and only once it has run at least this long")
       ->check(CLI::Range(0, 3600000));
+  app.add_option("--band-timeout", f.band_timeout,
+                 "Seconds a band may stay leased, however alive its worker, before it is taken "
+                 "back as hung and retried elsewhere (a job's --band-timeout overrides; 0: never)")
+      ->check(CLI::Range(0.0, 7 * 24 * 3600.0));
+  app.add_option("--ageing", f.ageing,
+                 "A job with bands waiting gains one priority point per this many seconds since "
+                 "its last lease, so none starves (0: no ageing)")
+      ->check(CLI::Range(0.0, 365 * 24 * 3600.0));
+  app.add_option("--user-max-running", f.options.user_max_running,
+                 "Most bands one user's jobs may run at once (0: no cap)")
+      ->check(CLI::Range(0, 1000000));
   app.add_flag("--no-fsync", f.no_fsync,
                "Do not fsync band and frame files (faster; a crash of the coordinator is still "
                "survived, a power loss may cost finished bands)");
@@ -162,6 +176,8 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
   options.quarantine_after = f.quarantine_after;
   options.speculate_factor = f.speculate_factor;
   options.speculate_min = farm::Millis(f.speculate_min_ms);
+  options.band_timeout = farm::Millis(static_cast<int64_t>(std::llround(f.band_timeout * 1000)));
+  options.ageing = farm::Millis(static_cast<int64_t>(std::llround(f.ageing * 1000)));
   options.fsync = !f.no_fsync;
   options.cost_bands = !f.equal_bands;
   return options;

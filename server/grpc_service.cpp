@@ -17,7 +17,8 @@ namespace {
 std::string_view authorization(const grpc::ServerContext& ctx) {
   const auto& md = ctx.client_metadata();
   auto it = md.find("authorization");
-  return it == md.end() ? std::string_view() : std::string_view(it->second.data(), it->second.size());
+  return it == md.end() ? std::string_view()
+                        : std::string_view(it->second.data(), it->second.size());
 }
 
 // TLS verified a client certificate against --tls-ca.
@@ -137,6 +138,30 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
                  [&] { return h_.CancelJob(*req, resp); });
   }
 
+  grpc::Status SetPriority(grpc::ServerContext* ctx, const v1::SetPriorityRequest* req,
+                           v1::JobActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.SetPriority", *req, resp,
+                 [&] { return h_.SetPriority(*req, resp); });
+  }
+
+  grpc::Status PauseJob(grpc::ServerContext* ctx, const v1::JobActionRequest* req,
+                        v1::JobActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.PauseJob", *req, resp,
+                 [&] { return h_.PauseJob(*req, resp); });
+  }
+
+  grpc::Status ResumeJob(grpc::ServerContext* ctx, const v1::JobActionRequest* req,
+                         v1::JobActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.ResumeJob", *req, resp,
+                 [&] { return h_.ResumeJob(*req, resp); });
+  }
+
+  grpc::Status ListEvents(grpc::ServerContext* ctx, const v1::ListEventsRequest* req,
+                          v1::ListEventsResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.ListEvents", *req, resp,
+                 [&] { return h_.ListEvents(*req, resp); });
+  }
+
   grpc::Status ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest* req,
                            v1::ListWorkersResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.ListWorkers", *req, resp,
@@ -170,7 +195,8 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::Service {
   grpc::Status GetTask(grpc::ServerContext* ctx, const v1::GetTaskRequest* req,
                        v1::GetTaskResponse* resp) override {
     return serve(auth_, m_, *ctx, kWorker, "WorkerService.GetTask", *req, resp, [&] {
-      return h_.GetTask(*req, [ctx] { return ctx->IsCancelled(); }, resp);
+      return h_.GetTask(
+          *req, [ctx] { return ctx->IsCancelled(); }, resp);
     });
   }
 
@@ -217,11 +243,11 @@ Result<int> CoordinatorServer::start(const std::string& address, ServerSecurity 
       text << in.rdbuf();
       return text.str();
     };
-    grpc::SslServerCredentialsOptions ssl(
-        security.tls_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
-                                // Clients may present one; worker calls require one
-                                // (Authenticator::require_worker_certificate).
-                                : GRPC_SSL_REQUEST_CLIENT_CERTIFICATE_AND_VERIFY);
+    grpc::SslServerCredentialsOptions ssl(security.tls_ca.empty()
+                                              ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                              // Clients may present one; worker calls require one
+                                              // (Authenticator::require_worker_certificate).
+                                              : GRPC_SSL_REQUEST_CLIENT_CERTIFICATE_AND_VERIFY);
     grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
     auto cert = read(security.tls_cert, "--tls-cert");
     if (!cert.ok()) return cert.status();

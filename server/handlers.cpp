@@ -73,6 +73,47 @@ Status Handlers::CancelJob(const v1::CancelJobRequest& req, v1::CancelJobRespons
   return Status::Ok();
 }
 
+namespace {
+Status job_action(const std::string& job_id, v1::JobActionResponse* resp,
+                  const std::function<Result<farm::JobInfo>()>& call) {
+  if (Status s = check_id(job_id, "job_id"); !s.ok()) return s;
+  auto r = call();
+  if (!r.ok()) return r.status();
+  *resp->mutable_status() = ToProto(*r);
+  return Status::Ok();
+}
+}  // namespace
+
+Status Handlers::SetPriority(const v1::SetPriorityRequest& req, v1::JobActionResponse* resp) {
+  return job_action(req.job_id(), resp,
+                    [&] { return c_.set_priority(req.job_id(), req.priority(), req.preempt()); });
+}
+
+Status Handlers::PauseJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp) {
+  return job_action(req.job_id(), resp, [&] { return c_.pause(req.job_id()); });
+}
+
+Status Handlers::ResumeJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp) {
+  return job_action(req.job_id(), resp, [&] { return c_.resume(req.job_id()); });
+}
+
+Status Handlers::ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResponse* resp) {
+  if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
+  const int limit =
+      req.limit() > 0 ? std::min(req.limit(), farm::kMaxEventsPerCall) : farm::kMaxEventsPerCall;
+  auto r = c_.events(req.job_id(), std::max<int64_t>(0, req.after_seq()), limit);
+  if (!r.ok()) return r.status();
+  for (const farm::HistoryEntry& e : *r) {
+    v1::JobEvent* p = resp->add_events();
+    p->set_seq(e.seq);
+    p->set_unix_seconds(e.at);
+    p->set_frame(e.frame);
+    p->set_band(e.band);
+    p->set_text(e.text);
+  }
+  return Status::Ok();
+}
+
 Status Handlers::ListWorkers(const v1::ListWorkersRequest&, v1::ListWorkersResponse* resp) {
   for (const farm::WorkerInfo& w : c_.workers()) *resp->add_workers() = ToProto(w);
   return Status::Ok();
@@ -116,8 +157,7 @@ Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* 
   return Status::Ok();
 }
 
-Status Handlers::CompleteBand(const v1::CompleteBandRequest& req,
-                              v1::CompleteBandResponse* resp) {
+Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {
   if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
   if (Status s = check_id(req.lease_id(), "lease_id"); !s.ok()) return s;
   farm::BandOutput output = FromProto(req);

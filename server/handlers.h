@@ -25,6 +25,10 @@ class Handlers {
   Status WatchJob(const v1::WatchJobRequest& req, const farm::CancelledFn& cancelled,
                   const std::function<bool(const v1::JobStatus&)>& write);
   Status CancelJob(const v1::CancelJobRequest& req, v1::CancelJobResponse* resp);
+  Status SetPriority(const v1::SetPriorityRequest& req, v1::JobActionResponse* resp);
+  Status PauseJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp);
+  Status ResumeJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp);
+  Status ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResponse* resp);
   Status ListWorkers(const v1::ListWorkersRequest& req, v1::ListWorkersResponse* resp);
   Status FetchResults(const v1::FetchResultsRequest& req,
                       const std::function<bool(const v1::FileChunk&)>& write);

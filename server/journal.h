@@ -24,9 +24,11 @@ enum class LeaseOutcome {
   kHandedBack,  // the worker gave it back (SIGTERM)
   kDiscarded,   // another lease of the band won the race
   kRevoked,     // the job was cancelled or failed
+  kTimedOut,    // leased longer than the band timeout (a hung band)
+  kPreempted,   // handed back for a job of higher priority (`locus priority --preempt`)
 };
 // The `outcome` column's words and the metrics' `reason` label.
-inline constexpr Labels<LeaseOutcome, 8> kLeaseOutcomeLabels = {
+inline constexpr Labels<LeaseOutcome, 10> kLeaseOutcomeLabels = {
     {{LeaseOutcome::kDone, "done"},
      {LeaseOutcome::kFailed, "failed"},
      {LeaseOutcome::kMalformed, "malformed"},
@@ -34,7 +36,9 @@ inline constexpr Labels<LeaseOutcome, 8> kLeaseOutcomeLabels = {
      {LeaseOutcome::kSilent, "silent"},
      {LeaseOutcome::kHandedBack, "handed back"},
      {LeaseOutcome::kDiscarded, "discarded"},
-     {LeaseOutcome::kRevoked, "revoked"}}};
+     {LeaseOutcome::kRevoked, "revoked"},
+     {LeaseOutcome::kTimedOut, "timed out"},
+     {LeaseOutcome::kPreempted, "preempted"}}};
 // A C string: every name in the table (and the fallback) is a literal.
 inline const char* lease_outcome_name(LeaseOutcome outcome) {
   return label_name(kLeaseOutcomeLabels, outcome).data();
@@ -85,7 +89,7 @@ struct BandDone {
   int band = 0;
   std::string lease_id;
   std::string worker_id;
-  Stats job_stats;  // the job's total after this band
+  Stats job_stats;     // the job's total after this band
   double seconds = 0;  // from the lease to the result (not the store's concern)
 };
 struct FrameWritten {
@@ -96,11 +100,21 @@ struct FrameWritten {
 struct WorkerAdded {
   uint64_t next_worker = 0;  // worker numbers never repeat across runs
 };
+struct PriorityChanged {
+  std::string job_id;
+  int priority = kDefaultPriority;
+};
+// A line of the job's history that no other event words (an operator's
+// action, who did it).
+struct JobNote {
+  std::string job_id;
+  std::string text;
+};
 }  // namespace event
 
-using Event =
-    std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted, event::LeaseEnded,
-                 event::BandDone, event::FrameWritten, event::WorkerAdded>;
+using Event = std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted,
+                           event::LeaseEnded, event::BandDone, event::FrameWritten,
+                           event::WorkerAdded, event::PriorityChanged, event::JobNote>;
 
 // A job as the store remembers it, for Scheduler::restore().
 struct RecoveredJob {

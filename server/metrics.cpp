@@ -5,8 +5,9 @@ namespace locus::farm {
 namespace {
 
 // The outcomes charged to a band: its failures.
-constexpr std::array<LeaseOutcome, 4> kFailures = {LeaseOutcome::kFailed, LeaseOutcome::kMalformed,
-                                                   LeaseOutcome::kLapsed, LeaseOutcome::kSilent};
+constexpr std::array<LeaseOutcome, 5> kFailures = {LeaseOutcome::kFailed, LeaseOutcome::kMalformed,
+                                                   LeaseOutcome::kLapsed, LeaseOutcome::kSilent,
+                                                   LeaseOutcome::kTimedOut};
 
 }  // namespace
 

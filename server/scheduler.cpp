@@ -23,11 +23,17 @@ std::string numbered(const char* prefix, uint64_t n) {
 
 constexpr size_t kDurationsKept = 64;  // per job, for the speculation threshold
 
+std::string format_seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f s", s);
+  return buf;
+}
+
 }  // namespace
 
 bool is_charged(LeaseOutcome o) {
   return o == LeaseOutcome::kFailed || o == LeaseOutcome::kMalformed ||
-         o == LeaseOutcome::kLapsed || o == LeaseOutcome::kSilent;
+         o == LeaseOutcome::kLapsed || o == LeaseOutcome::kSilent || o == LeaseOutcome::kTimedOut;
 }
 
 Scheduler::Scheduler(SchedulerOptions options, NowFn now)
@@ -56,6 +62,7 @@ std::string Scheduler::add_job(JobSpec spec, const std::string& request_id,
   job.record.fingerprint = fingerprint;
   job.record.spec = job.info.spec;
   job.submitted = now_();
+  job.waiting_since = job.submitted;
   job.bands.resize(job.info.spec.bands_total());
   events_.push_back(event::JobAdded{job.record});
   if (!request_id.empty()) requests_[request_id] = id;
@@ -98,6 +105,7 @@ std::string Scheduler::band_name(const Job& job, int job_band) const {
 
 JobInfo Scheduler::snapshot(const Job& job) const {
   JobInfo info = job.info;
+  info.bands_running = job.running;
   const TimePoint end = is_terminal(job.info.state) ? job.finished : now_();
   info.seconds_elapsed = seconds(end - job.submitted);
   return info;
@@ -120,6 +128,7 @@ void Scheduler::drop_leases_of(Job& job) {
     if (it->second.job_id == job.info.job_id) {
       auto w = workers_.find(it->second.worker_id);
       if (w != workers_.end()) w->second.leases.erase(it->first);
+      count_running(job, -1);
       events_.push_back(event::LeaseEnded{it->first, job.info.job_id,
                                           frame_of(job, it->second.job_band),
                                           band_of(job, it->second.job_band), LeaseOutcome::kRevoked,
@@ -148,11 +157,87 @@ void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   ++version_;
 }
 
-Result<JobInfo> Scheduler::cancel(const std::string& job_id) {
+Result<JobInfo> Scheduler::cancel(const std::string& job_id, const std::string& who) {
   Job* job = find_job(job_id);
   if (!job) return NotFound("job '" + job_id + "' is unknown; `locus status` lists the jobs");
+  if (!is_terminal(job->info.state) && !who.empty()) note(*job, "cancelled by " + who);
   end_job(*job, JobState::kCancelled, "");
   return snapshot(*job);
+}
+
+Result<JobInfo> Scheduler::set_priority(const std::string& job_id, int priority, bool preempt,
+                                        const std::string& who) {
+  Job* job = find_job(job_id);
+  if (!job) return NotFound("job '" + job_id + "' is unknown; `locus status` lists the jobs");
+  if (priority < kMinPriority || priority > kMaxPriority) {
+    return InvalidArgument("priority: must be in [" + std::to_string(kMinPriority) + ", " +
+                           std::to_string(kMaxPriority) + "], got " + std::to_string(priority));
+  }
+  if (is_terminal(job->info.state)) {
+    return FailedPrecondition("job " + job_id + " is " + job_state_name(job->info.state) +
+                              ": its priority no longer matters");
+  }
+  const int before = job->info.spec.priority;
+  job->info.spec.priority = priority;
+  job->record.spec.priority = priority;
+  events_.push_back(event::PriorityChanged{job_id, priority});
+  note(*job, "priority " + std::to_string(before) + " -> " + std::to_string(priority) +
+                 (who.empty() ? "" : " by " + who));
+  if (preempt) {
+    // Every running band of a job of lower priority goes back to its queue
+    // (the worker is told at its next heartbeat and abandons it).
+    std::vector<std::string> lower;
+    for (const auto& [id, l] : leases_) {
+      const Job& other = jobs_.at(l.job_id);
+      if (other.info.spec.priority < priority) lower.push_back(id);
+    }
+    for (const std::string& id : lower) {
+      release(id, LeaseOutcome::kPreempted,
+              "preempted for job " + job_id + " (priority " + std::to_string(priority) + ")");
+    }
+  }
+  ++version_;
+  return snapshot(*job);
+}
+
+Result<JobInfo> Scheduler::pause(const std::string& job_id, const std::string& who) {
+  Job* job = find_job(job_id);
+  if (!job) return NotFound("job '" + job_id + "' is unknown; `locus status` lists the jobs");
+  if (job->info.state == JobState::kPaused) return snapshot(*job);
+  if (is_terminal(job->info.state)) {
+    return FailedPrecondition("job " + job_id + " is " + job_state_name(job->info.state) +
+                              " and cannot be paused");
+  }
+  job->info.state = JobState::kPaused;
+  events_.push_back(event::JobStateChanged{job_id, JobState::kPaused, ""});
+  if (!who.empty()) note(*job, "paused by " + who);
+  ++version_;
+  return snapshot(*job);
+}
+
+Result<JobInfo> Scheduler::resume(const std::string& job_id, const std::string& who) {
+  Job* job = find_job(job_id);
+  if (!job) return NotFound("job '" + job_id + "' is unknown; `locus status` lists the jobs");
+  if (job->info.state != JobState::kPaused) {
+    return FailedPrecondition("job " + job_id + " is " + job_state_name(job->info.state) +
+                              ", not paused");
+  }
+  const bool started = job->info.bands_done > 0 || job->running > 0 || !job->failures.empty();
+  job->info.state = started ? JobState::kRunning : JobState::kQueued;
+  job->waiting_since = now_();
+  events_.push_back(event::JobStateChanged{job_id, job->info.state, ""});
+  if (!who.empty()) note(*job, "resumed by " + who);
+  ++version_;
+  return snapshot(*job);
+}
+
+void Scheduler::note(const Job& job, std::string text) {
+  events_.push_back(event::JobNote{job.info.job_id, std::move(text)});
+}
+
+void Scheduler::count_running(Job& job, int delta) {
+  job.running += delta;
+  user_running_[job.info.spec.owner] += delta;
 }
 
 void Scheduler::frame_written(const std::string& job_id, int frame, const Status& status) {
@@ -251,7 +336,8 @@ FarmCounts Scheduler::counts() const {
 
 bool Scheduler::has_queued_bands() const {
   for (const auto& [id, job] : jobs_) {
-    if (!is_terminal(job.info.state) && queued(job)) return true;
+    if (!is_terminal(job.info.state) && job.info.state != JobState::kPaused && queued(job))
+      return true;
   }
   return false;
 }
@@ -291,8 +377,76 @@ int Scheduler::pick_band(Job& job, const std::string& worker_name) {
       return i;
     }
   }
-  if (job.next_fresh < static_cast<int>(job.bands.size())) return job.next_fresh++;
+  if (job.next_fresh < static_cast<int>(job.bands.size())) return fresh_band(job, job.next_fresh++);
   return -1;
+}
+
+int Scheduler::fresh_band(const Job& job, int position) {
+  const JobSpec& s = job.info.spec;
+  if (s.frame_order == FrameOrder::kInOrder) return position;
+  // First, middle, last (distinct; frame indices from 0), then the others
+  // in order: the p-th other frame is p plus the special frames at or
+  // below it.
+  const int n = s.frames();
+  int special[3] = {0, (n - 1) / 2, n - 1};
+  int count = 1;
+  for (int k = 1; k < 3; ++k) {
+    if (special[k] != special[count - 1]) special[count++] = special[k];
+  }
+  const int p = position / s.bands;
+  int frame = p;
+  if (p < count) {
+    frame = special[p];
+  } else {
+    frame = p - count;
+    for (int k = 0; k < count; ++k) {
+      if (frame >= special[k]) ++frame;
+    }
+  }
+  return frame * s.bands + position % s.bands;
+}
+
+double Scheduler::effective_priority(const Job& job, TimePoint now) const {
+  double p = job.info.spec.priority;
+  if (options_.ageing.count() > 0) {
+    p += std::floor(seconds(now - job.waiting_since) /
+                    std::chrono::duration<double>(options_.ageing).count());
+  }
+  return p;
+}
+
+std::vector<Scheduler::Job*> Scheduler::dispatch_order(const std::string& worker_name) {
+  struct Candidate {
+    double priority;
+    int user_running;
+    int job_running;
+    int64_t seq;
+    Job* job;
+  };
+  const TimePoint now = now_();
+  std::vector<Candidate> c;
+  for (const std::string& id : order_) {
+    Job& job = jobs_.at(id);
+    const JobState st = job.info.state;
+    if (is_terminal(st) || st == JobState::kPaused || !queued(job)) continue;
+    // Quarantine holds only while another worker can take the job's bands:
+    // a farm of one keeps going, bounded by the attempt limit.
+    if (quarantined(job, worker_name) && another_worker_for(job, -1, worker_name)) continue;
+    auto u = user_running_.find(job.info.spec.owner);
+    const int user = u == user_running_.end() ? 0 : u->second;
+    if (options_.user_max_running > 0 && user >= options_.user_max_running) continue;
+    c.push_back({effective_priority(job, now), user, job.running, job.record.seq, &job});
+  }
+  std::sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) {
+    if (a.priority != b.priority) return a.priority > b.priority;
+    if (a.user_running != b.user_running) return a.user_running < b.user_running;
+    if (a.job_running != b.job_running) return a.job_running < b.job_running;
+    return a.seq < b.seq;
+  });
+  std::vector<Job*> out;
+  out.reserve(c.size());
+  for (const Candidate& k : c) out.push_back(k.job);
+  return out;
 }
 
 double Scheduler::speculate_after(const Job& job) const {
@@ -313,7 +467,10 @@ const Scheduler::Lease* Scheduler::speculation_candidate(const std::string& work
   for (const auto& [id, l] : leases_) {
     if (l.speculative || l.worker_name == worker_name) continue;
     const Job& job = jobs_.at(l.job_id);
-    if (is_terminal(job.info.state) || quarantined(job, worker_name)) continue;
+    if (is_terminal(job.info.state) || job.info.state == JobState::kPaused ||
+        quarantined(job, worker_name)) {
+      continue;
+    }
     const BandState& state = job.bands[l.job_band];
     if (state.leases != 1 || state.speculated) continue;
     const double after = speculate_after(job);
@@ -367,6 +524,8 @@ Result<std::optional<BandLease>> Scheduler::grant(Job& job, int job_band, Worker
               now + options_.lease, speculative};
   leases_.emplace(id, lease);
   worker.leases.insert(id);
+  count_running(job, +1);
+  job.waiting_since = now;
   if (job.info.state == JobState::kQueued) {
     job.info.state = JobState::kRunning;
     events_.push_back(event::JobStateChanged{job.info.job_id, JobState::kRunning, ""});
@@ -383,14 +542,9 @@ Result<std::optional<BandLease>> Scheduler::next_band(const std::string& worker_
   if (!alive.ok()) return alive;
   Worker& worker = workers_.at(worker_id);
   const std::string& name = worker.info.name;
-  for (const std::string& id : order_) {
-    Job& job = jobs_.at(id);
-    if (is_terminal(job.info.state) || !queued(job)) continue;
-    // Quarantine holds only while another worker can take the job's bands:
-    // a farm of one keeps going, bounded by the attempt limit.
-    if (quarantined(job, name) && another_worker_for(job, -1, name)) continue;
-    const int job_band = pick_band(job, name);
-    if (job_band >= 0) return grant(job, job_band, worker, false);
+  for (Job* job : dispatch_order(name)) {
+    const int job_band = pick_band(*job, name);
+    if (job_band >= 0) return grant(*job, job_band, worker, false);
   }
   if (const Lease* l = speculation_candidate(name)) {
     Job& job = jobs_.at(l->job_id);
@@ -425,6 +579,8 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
   if (w != workers_.end()) w->second.leases.erase(lease_id);
   Job* job = find_job(lease.job_id);
   if (!job) return;
+  count_running(*job, -1);
+  if (outcome == LeaseOutcome::kTimedOut) ++job->info.bands_timed_out;
   const int frame = frame_of(*job, lease.job_band);
   const int band = band_of(*job, lease.job_band);
   BandLogScope log_scope(lease.job_id, frame, band);
@@ -528,6 +684,7 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   }
 
   leases_.erase(it);
+  count_running(job, -1);
   Worker& worker = workers_.at(out.worker_id);
   worker.leases.erase(out.lease_id);
   ++worker.info.bands_done;
@@ -556,8 +713,8 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   if (++job.frame_bands[frame] == s.bands) {
     job.frame_bands.erase(frame);
     outcome.frame =
-        FrameReady{job.info.job_id, frame, frame_path(s.output, frame), s.width, s.height, s.bands,
-                   s.band_edges};
+        FrameReady{job.info.job_id, frame,       frame_path(s.output, frame), s.width, s.height,
+                   s.bands,         s.band_edges};
   }
   ++version_;
   return outcome;
@@ -578,6 +735,27 @@ void Scheduler::expire() {
     for (const std::string& l : held) release(l, LeaseOutcome::kSilent, who);
     workers_.erase(id);
     ++version_;
+  }
+  // A band leased longer than its timeout hangs, however alive its worker:
+  // taken back (charged, as a failure of the band) and leased elsewhere;
+  // the worker hears of it at its next heartbeat and abandons the render.
+  std::vector<std::pair<std::string, std::string>> hung;
+  for (const auto& [id, l] : leases_) {
+    const Job& job = jobs_.at(l.job_id);
+    const Millis limit =
+        job.info.spec.band_timeout.count() > 0 ? job.info.spec.band_timeout : options_.band_timeout;
+    if (limit.count() <= 0 || now - l.granted <= limit) continue;
+    hung.emplace_back(id, "band hung: leased to worker " + l.worker_id + " (" + l.worker_name +
+                              ") for " + format_seconds(seconds(now - l.granted)) +
+                              ", over the band timeout of " +
+                              format_seconds(std::chrono::duration<double>(limit).count()));
+  }
+  for (const auto& [id, why] : hung) {
+    const Lease& l = leases_.at(id);
+    BandLogScope log_scope(l.job_id, frame_of(jobs_.at(l.job_id), l.job_band),
+                           band_of(jobs_.at(l.job_id), l.job_band));
+    spdlog::warn("job {}: {}", l.job_id, why);
+    release(id, LeaseOutcome::kTimedOut, why);
   }
   std::vector<std::string> lapsed;
   for (const auto& [id, l] : leases_) {

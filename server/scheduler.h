@@ -34,6 +34,14 @@ struct SchedulerOptions {
   // when a worker has nothing else to do; 0 turns speculation off.
   double speculate_factor = 3.0;
   Millis speculate_min{1000};
+  // A band leased longer than this is taken back (a hung render whose
+  // worker still heartbeats); a job's own band_timeout overrides it; 0: none.
+  Millis band_timeout{0};
+  // Ageing: a job with bands waiting gains one priority point for each
+  // `ageing` since it last got a lease, so that no job starves; 0: none.
+  Millis ageing{60000};
+  // Most bands one user's jobs may run at once; 0: no cap.
+  int user_max_running = 0;
 };
 
 // The answer to a returned band.
@@ -72,7 +80,15 @@ class Scheduler {
   std::optional<JobRecord> job_for_request(const std::string& request_id) const;
   Result<JobInfo> job(const std::string& job_id) const;
   std::vector<JobInfo> jobs() const;
-  Result<JobInfo> cancel(const std::string& job_id);
+  // The operators' actions; `who` names the caller in the job's history.
+  Result<JobInfo> cancel(const std::string& job_id, const std::string& who = "");
+  // Takes effect at the next lease. `preempt`: running bands of jobs of
+  // lower priority are handed back at once (not charged; they render again).
+  Result<JobInfo> set_priority(const std::string& job_id, int priority, bool preempt,
+                               const std::string& who = "");
+  // No new leases while paused; bands in flight finish and are kept.
+  Result<JobInfo> pause(const std::string& job_id, const std::string& who = "");
+  Result<JobInfo> resume(const std::string& job_id, const std::string& who = "");
   // The caller wrote (or failed to write) a frame handed out as ready.
   void frame_written(const std::string& job_id, int frame, const Status& status);
 
@@ -144,6 +160,8 @@ class Scheduler {
     std::map<int, Failures> failures;            // by job band
     std::map<std::string, int> worker_failures;  // by worker name
     std::deque<double> durations;                // seconds of the last accepted bands
+    int running = 0;                             // live leases
+    TimePoint waiting_since;                     // its last lease, submission or resume (ageing)
   };
   // The coordinator's record of a lease; the worker gets it as a BandLease
   // (make_lease).
@@ -182,6 +200,18 @@ class Scheduler {
   bool another_worker_for(const Job& job, int job_band, const std::string& worker_name) const;
   // The job band the worker should take next in this job, or -1.
   int pick_band(Job& job, const std::string& worker_name);
+  // The job band leased `position`-th among those never leased before
+  // (JobSpec::frame_order), for position < bands.size().
+  static int fresh_band(const Job& job, int position);
+  // The jobs that may lease a band to this worker now, best first:
+  // priority (with ageing), then the fewest running bands of the job's
+  // owner, then of the job, then the oldest.
+  std::vector<Job*> dispatch_order(const std::string& worker_name);
+  double effective_priority(const Job& job, TimePoint now) const;
+  // A lease starts or ends: the running counts of its job and its owner.
+  void count_running(Job& job, int delta);
+  // A line of the job's history (`locus events`).
+  void note(const Job& job, std::string text);
   // A band running far longer than its peers, for a second lease, or null.
   const Lease* speculation_candidate(const std::string& worker_name) const;
   Result<std::optional<BandLease>> grant(Job& job, int job_band, Worker& worker, bool speculative);
@@ -207,6 +237,7 @@ class Scheduler {
   std::map<std::string, std::string> requests_;  // request id -> job id
   std::map<std::string, Lease> leases_;
   std::map<std::string, Worker> workers_;
+  std::map<std::string, int> user_running_;  // live leases by job owner
   std::vector<Event> events_;
   uint64_t next_job_ = 1;
   uint64_t next_worker_ = 1;

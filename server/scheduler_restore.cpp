@@ -70,6 +70,7 @@ Scheduler::Job Scheduler::recovered_job(const RecoveredJob& r, TimePoint now) {
   job.submitted = now - std::chrono::duration_cast<SteadyClock::duration>(
                             std::chrono::duration<double>(std::max(0.0, r.seconds_elapsed)));
   job.finished = now;
+  job.waiting_since = now;
   return job;
 }
 
@@ -106,22 +107,26 @@ void Scheduler::charge_failures(Job& job, const RecoveredJob& r) const {
 }
 
 void Scheduler::queue_unfinished(Job& job) {
-  // Bands up to the last one done or failed go back to the queue (served
-  // first); those after it were never leased, or only under leases the
-  // restart voided, and are fresh.
+  // In the order bands are first leased (fresh_band): those up to the last
+  // one done or failed go back to the queue (served first); those after it
+  // were never leased, or only under leases the restart voided, and are
+  // fresh.
   int64_t done = 0;
   int last_touched = -1;
-  for (int i = 0; i < static_cast<int>(job.bands.size()); ++i) {
+  const int n = static_cast<int>(job.bands.size());
+  for (int k = 0; k < n; ++k) {
+    const int i = fresh_band(job, k);
     if (job.bands[i].phase == BandPhase::kDone) {
       ++done;
-      last_touched = i;
+      last_touched = k;
     } else if (job.failures.count(i)) {
-      last_touched = i;
+      last_touched = k;
     }
   }
   job.info.bands_done = done;
   job.next_fresh = last_touched + 1;
-  for (int i = 0; i < job.next_fresh; ++i) {
+  for (int k = 0; k < job.next_fresh; ++k) {
+    const int i = fresh_band(job, k);
     if (job.bands[i].phase != BandPhase::kDone) job.retry.push_back(i);
   }
 }

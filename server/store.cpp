@@ -1,7 +1,9 @@
 #include "server/store.h"
 
+#include <fmt/format.h>
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <sstream>
@@ -57,6 +59,12 @@ CREATE TABLE IF NOT EXISTS attempts(
   error TEXT NOT NULL DEFAULT '',
   charged INTEGER NOT NULL DEFAULT 0);
 CREATE INDEX IF NOT EXISTS attempts_by_band ON attempts(job_id, frame, band);
+CREATE TABLE IF NOT EXISTS history(
+  seq INTEGER PRIMARY KEY,
+  job_id TEXT NOT NULL, at REAL NOT NULL,
+  frame INTEGER NOT NULL DEFAULT -1, band INTEGER NOT NULL DEFAULT -1,
+  text TEXT NOT NULL);
+CREATE INDEX IF NOT EXISTS history_by_job ON history(job_id, seq);
 CREATE VIEW IF NOT EXISTS leases AS
   SELECT lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at
   FROM attempts WHERE outcome IS NULL;
@@ -198,9 +206,14 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   }
   // Columns added since schema 1 was first written: a store from before
   // them gets them with the defaults (jobs then used).
-  for (const auto& [column, definition] : {std::pair{"aa", "aa INTEGER NOT NULL DEFAULT -1"},
-                                           {"tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"},
-                                           {"band_edges", "band_edges TEXT NOT NULL DEFAULT ''"}}) {
+  for (const auto& [column, definition] :
+       {std::pair{"aa", "aa INTEGER NOT NULL DEFAULT -1"},
+        {"tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"},
+        {"band_edges", "band_edges TEXT NOT NULL DEFAULT ''"},
+        {"priority", "priority INTEGER NOT NULL DEFAULT 50"},
+        {"frame_order", "frame_order TEXT NOT NULL DEFAULT ''"},
+        {"band_timeout_ms", "band_timeout_ms INTEGER NOT NULL DEFAULT 0"},
+        {"owner", "owner TEXT NOT NULL DEFAULT ''"}}) {
     Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info('jobs') WHERE name = ?");
     has.bind(column);
     if (has.step() != SQLITE_ROW) return has.error();
@@ -251,20 +264,33 @@ Status JobStore::apply_one(const Event& e) {
     Statement ins(*this,
                   "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
                   "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
-                  "spp, state, submitted_at, aa, tess_tol, band_edges) "
-                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                  "spp, state, submitted_at, aa, tess_tol, band_edges, priority, frame_order, "
+                  "band_timeout_ms, owner) "
+                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,
-             s.render.aa, s.render.tess_tol, band_edges_text(s.band_edges));
-    return ins.run();
+             s.render.aa, s.render.tess_tol, band_edges_text(s.band_edges), s.priority,
+             std::string(label_name(kFrameOrderLabels, s.frame_order)),
+             static_cast<int64_t>(s.band_timeout.count()), s.owner);
+    if (Status st = ins.run(); !st.ok()) return st;
+    return add_history(
+        r.job_id, -1, -1,
+        fmt::format("submitted{}: {} at {}x{}, frames {}-{}, {} bands per frame, "
+                    "priority {}{}",
+                    s.owner.empty() ? "" : " by " + s.owner, s.scene_name, s.width, s.height,
+                    s.frame_first, s.frame_last, s.bands, s.priority,
+                    s.frame_order == FrameOrder::kInOrder ? "" : ", frames first-middle-last"));
   }
   if (const auto* c = std::get_if<event::JobStateChanged>(&e)) {
     Statement st(*this,
                  "UPDATE jobs SET state = ?, error = ?, finished_at = CASE WHEN ? THEN ? ELSE NULL "
                  "END WHERE id = ?");
     st.bind(job_state_name(c->state), c->error, is_terminal(c->state), now, c->job_id);
-    return st.run();
+    if (Status s = st.run(); !s.ok()) return s;
+    return add_history(c->job_id, -1, -1,
+                       std::string("state ") + job_state_name(c->state) +
+                           (c->error.empty() ? "" : ": " + c->error));
   }
   if (const auto* g = std::get_if<event::LeaseGranted>(&e)) {
     Statement st(*this,
@@ -272,7 +298,14 @@ Status JobStore::apply_one(const Event& e) {
                  "speculative, started_at) VALUES(?,?,?,?,?,?,?,?)");
     st.bind(g->lease_id, g->job_id, g->frame, g->band, g->worker_id, g->worker_name, g->speculative,
             now);
-    return st.run();
+    if (Status s = st.run(); !s.ok()) return s;
+    Statement n(*this, "SELECT COUNT(*) FROM attempts WHERE job_id = ? AND frame = ? AND band = ?");
+    n.bind(g->job_id, g->frame, g->band);
+    const int64_t attempt = n.step() == SQLITE_ROW ? n.integer(0) : 0;
+    return add_history(g->job_id, g->frame, g->band,
+                       fmt::format("lease {}: band {} of frame {} to worker {} ({}), attempt {}{}",
+                                   g->lease_id, g->band, g->frame, g->worker_id, g->worker_name,
+                                   attempt, g->speculative ? ", speculative" : ""));
   }
   if (const auto* l = std::get_if<event::LeaseEnded>(&e)) {
     Statement st(*this,
@@ -280,6 +313,14 @@ Status JobStore::apply_one(const Event& e) {
                  "WHERE lease_id = ? AND outcome IS NULL");
     st.bind(now, lease_outcome_name(l->outcome), l->error, is_charged(l->outcome), l->lease_id);
     if (Status s = st.run(); !s.ok()) return s;
+    if (Status s =
+            add_history(l->job_id, l->frame, l->band,
+                        fmt::format("lease {} {}{}{}", l->lease_id, lease_outcome_name(l->outcome),
+                                    l->error.empty() ? "" : ": " + l->error,
+                                    l->requeued ? "; band back in the queue" : ""));
+        !s.ok()) {
+      return s;
+    }
     if (!is_charged(l->outcome)) return Status::Ok();
     Statement band(*this,
                    "INSERT INTO bands(job_id, frame, band, failures, last_error) VALUES(?,?,?,1,?) "
@@ -301,6 +342,13 @@ Status JobStore::apply_one(const Event& e) {
                       "outcome IS NULL");
     attempt.bind(now, d->lease_id);
     if (Status s = attempt.run(); !s.ok()) return s;
+    if (Status s =
+            add_history(d->job_id, d->frame, d->band,
+                        fmt::format("lease {} done: band {} of frame {} by worker {} in {:.3f} s",
+                                    d->lease_id, d->band, d->frame, d->worker_id, d->seconds));
+        !s.ok()) {
+      return s;
+    }
     Statement stats(*this, "UPDATE jobs SET stats = ? WHERE id = ?");
     stats.bind(encode_stats(d->job_stats), d->job_id);
     return stats.run();
@@ -309,14 +357,47 @@ Status JobStore::apply_one(const Event& e) {
     Statement st(*this,
                  "INSERT OR REPLACE INTO frames(job_id, frame, file, written_at) VALUES(?,?,?,?)");
     st.bind(f->job_id, f->frame, f->file_name, now);
+    if (Status s = st.run(); !s.ok()) return s;
+    return add_history(f->job_id, f->frame, -1,
+                       fmt::format("frame {} written: {}", f->frame, f->file_name));
+  }
+  if (const auto* p = std::get_if<event::PriorityChanged>(&e)) {
+    Statement st(*this, "UPDATE jobs SET priority = ? WHERE id = ?");
+    st.bind(p->priority, p->job_id);
     return st.run();
   }
+  if (const auto* n = std::get_if<event::JobNote>(&e))
+    return add_history(n->job_id, -1, -1, n->text);
   if (const auto* w = std::get_if<event::WorkerAdded>(&e)) {
     Statement st(*this, "INSERT OR REPLACE INTO meta(key, value) VALUES('next_worker', ?)");
     st.bind(std::to_string(w->next_worker));
     return st.run();
   }
   return Status::Ok();
+}
+
+Status JobStore::add_history(const std::string& job_id, int frame, int band,
+                             const std::string& text) {
+  Statement st(*this, "INSERT INTO history(job_id, at, frame, band, text) VALUES(?,?,?,?,?)");
+  st.bind(job_id, wall_now(), frame, band, text);
+  return st.run();
+}
+
+Result<std::vector<HistoryEntry>> JobStore::history(const std::string& job_id, int64_t after,
+                                                    int limit) {
+  Statement st(*this,
+               "SELECT seq, at, frame, band, text FROM history WHERE job_id = ? AND seq > ? "
+               "ORDER BY seq LIMIT ?");
+  st.bind(job_id, after, limit);
+  std::vector<HistoryEntry> out;
+  for (;;) {
+    const int rc = st.step();
+    if (rc == SQLITE_DONE) break;
+    if (rc != SQLITE_ROW) return st.error();
+    out.push_back({st.integer(0), st.real(1), static_cast<int>(st.integer(2)),
+                   static_cast<int>(st.integer(3)), st.text(4)});
+  }
+  return out;
 }
 
 Result<RecoveredState> JobStore::recover() {
@@ -339,7 +420,8 @@ Result<RecoveredState> JobStore::recover() {
       *this,
       "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
-      "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges FROM jobs ORDER BY seq");
+      "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges, priority, "
+      "frame_order, band_timeout_ms, owner FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -379,6 +461,10 @@ Result<RecoveredState> JobStore::recover() {
     j.stats = decode_stats(jobs.text(20));
     s.render.aa = static_cast<int>(jobs.integer(21));
     s.render.tess_tol = jobs.real(22);
+    s.priority = std::clamp(static_cast<int>(jobs.integer(24)), kMinPriority, kMaxPriority);
+    s.frame_order = label_value(kFrameOrderLabels, jobs.text(25)).value_or(FrameOrder::kInOrder);
+    s.band_timeout = Millis(std::max<int64_t>(0, jobs.integer(26)));
+    s.owner = jobs.text(27);
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {

@@ -44,6 +44,10 @@ class JobStore {
   // Drops the scenes no longer in `keep`.
   Status keep_scenes(const std::set<std::string>& keep);
 
+  // The job's history after `after` (a HistoryEntry::seq), oldest first, at
+  // most `limit` lines.
+  Result<std::vector<HistoryEntry>> history(const std::string& job_id, int64_t after, int limit);
+
   // For tests and tools: times a band's result was accepted (0 if never).
   Result<int> band_completions(const std::string& job_id, int frame, int band);
 
@@ -51,6 +55,7 @@ class JobStore {
   explicit JobStore(sqlite3* db) : db_(db) {}
   Status exec(const char* sql);
   Status apply_one(const Event& e);
+  Status add_history(const std::string& job_id, int frame, int band, const std::string& text);
   class Statement;
   sqlite3* db_;
   std::map<std::string, sqlite3_stmt*> cache_;  // by SQL text

@@ -125,6 +125,33 @@ Status check_request_id(const std::string& id) {
   return Status::Ok();
 }
 
+// The longest --band-timeout a job may ask for.
+constexpr Millis kMaxBandTimeout = std::chrono::hours(24 * 7);
+
+// Priority, frame order and band timeout.
+Status check_scheduling(const SubmitRequest& r, JobSpec& spec) {
+  if (r.priority < kMinPriority || r.priority > kMaxPriority) {
+    return InvalidArgument("priority " + std::to_string(r.priority) + ": expected " +
+                           std::to_string(kMinPriority) + ".." + std::to_string(kMaxPriority));
+  }
+  spec.priority = r.priority;
+  if (!r.frame_order.empty()) {
+    auto order = label_value(kFrameOrderLabels, r.frame_order);
+    if (!order) {
+      return InvalidArgument("frame order '" + r.frame_order.substr(0, 64) + "': expected one of " +
+                             label_choices(kFrameOrderLabels));
+    }
+    spec.frame_order = *order;
+  }
+  if (r.band_timeout.count() < 0 || r.band_timeout > kMaxBandTimeout) {
+    return InvalidArgument("band timeout " + std::to_string(r.band_timeout.count()) +
+                           " ms: expected 0 (the coordinator's) up to " +
+                           std::to_string(kMaxBandTimeout.count()) + " ms (7 days)");
+  }
+  spec.band_timeout = r.band_timeout;
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<CheckedSubmission> check_submission(const SubmitRequest& r, const Limits& limits,
@@ -149,8 +176,23 @@ Result<CheckedSubmission> check_submission(const SubmitRequest& r, const Limits&
   spec.output = *pattern;
   if (Status s = check_bands(r.bands, spec); !s.ok()) return s;
   if (Status s = check_request_id(r.request_id); !s.ok()) return s;
+  if (Status s = check_scheduling(r, spec); !s.ok()) return s;
   return job;
 }
+
+namespace {
+// Settings that came later: at their defaults a job keeps the fingerprint
+// it had.
+std::string scheduling_fingerprint(const JobSpec& spec) {
+  std::string out;
+  if (spec.priority != kDefaultPriority) out += "|priority " + std::to_string(spec.priority);
+  if (spec.frame_order != FrameOrder::kInOrder)
+    out += std::string("|order ") + label_name(kFrameOrderLabels, spec.frame_order).data();
+  if (spec.band_timeout.count() > 0)
+    out += "|band-timeout " + std::to_string(spec.band_timeout.count());
+  return out;
+}
+}  // namespace
 
 std::string submission_fingerprint(const SubmitRequest& r, const JobSpec& spec) {
   // The tolerance came later: at its default a job keeps the fingerprint
@@ -162,7 +204,8 @@ std::string submission_fingerprint(const SubmitRequest& r, const JobSpec& spec) 
                       std::to_string(spec.render.spp) + "|" + std::to_string(r.width) + "x" +
                       std::to_string(r.height) + "|" + std::to_string(r.frame_first) + "-" +
                       std::to_string(r.frame_last) + "|" + std::to_string(r.bands) + "|" +
-                      r.output + "|" + std::to_string(r.orbit_degrees) + tess_tol);
+                      r.output + "|" + std::to_string(r.orbit_degrees) + tess_tol +
+                      scheduling_fingerprint(spec));
 }
 
 std::vector<int> cost_band_edges(const CheckedSubmission& job) {

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <functional>
 #include <thread>
 
 #include "client/farm_client.h"
@@ -32,7 +33,8 @@ inline const std::string kWorkerToken = "worker-token-for-the-farm-tests";
 inline const std::string kBalls = std::string(LOCUS_SHARED_DIR) + "/spd/s1/balls.nff";
 inline const std::string kSpheres = std::string(LOCUS_SOURCE_DIR) + "/scenes/simple/spheres.json";
 inline const std::string kGlass = std::string(LOCUS_SOURCE_DIR) + "/scenes/paper/a_glass.json";
-inline const std::string kAnim = std::string(LOCUS_SOURCE_DIR) + "/scenes/anim/glass_and_mirror.json";
+inline const std::string kAnim =
+    std::string(LOCUS_SOURCE_DIR) + "/scenes/anim/glass_and_mirror.json";
 inline const std::string kTeapot = std::string(LOCUS_SOURCE_DIR) + "/scenes/teapot.json";
 
 inline fs::path temp_dir() {
@@ -42,7 +44,7 @@ inline fs::path temp_dir() {
 }
 
 inline SubmitRequest request(const std::string& path, int w, int h, int first, int last, int bands,
-                      const std::string& output, double orbit = 0) {
+                             const std::string& output, double orbit = 0) {
   auto scene = load_scene(path);
   EXPECT_TRUE(scene.ok()) << scene.status().message();
   SubmitRequest r;
@@ -103,13 +105,15 @@ class FarmTest : public ::testing::Test {
     client_ = std::make_unique<FarmClient>(address_, client_creds_);
   }
 
-  void add_workers(int n) {
+  // `tweak` adjusts each worker's options before it starts.
+  void add_workers(int n, const std::function<void(WorkerOptions&)>& tweak = {}) {
     for (int i = 0; i < n; ++i) {
       WorkerOptions o;
       o.coordinator = address_;
       o.credentials = worker_creds_;
       o.threads = 1;
       o.poll = Millis(500);
+      if (tweak) tweak(o);
       workers_.push_back(std::make_unique<WorkerClient>(o));
       threads_.emplace_back([w = workers_.back().get()] { w->run(); });
     }

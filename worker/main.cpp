@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -38,6 +39,11 @@ int main(int argc, char** argv) {
   app.add_option("--name", options.name, "Name shown by `locus workers` (default host:pid)");
   app.add_option("--poll-ms", poll_ms, "Longest wait for a band per request")
       ->check(CLI::Range(100, 60000));
+  double abandon_grace = 60;
+  app.add_option("--abandon-grace", abandon_grace,
+                 "Seconds a revoked band's render may take to stop before the worker exits (status "
+                 "3) so that its supervisor restarts it")
+      ->check(CLI::Range(0.0, 24 * 3600.0));
   int slow_band_ms = 0;
   app.add_option("--test-slow-band-ms", slow_band_ms,
                  "Test only: wait this long before rendering each band (a slow worker for the "
@@ -70,6 +76,8 @@ int main(int argc, char** argv) {
     return fail(st.message());
   options.poll = locus::farm::Millis(poll_ms);
   options.slow_band = locus::farm::Millis(slow_band_ms);
+  options.abandon_grace =
+      locus::farm::Millis(static_cast<int64_t>(std::llround(abandon_grace * 1000)));
   auto token = locus::farm::load_token(token_file);
   if (!token.ok()) return fail(token.status().message());
   c.token = *token;

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -57,6 +58,9 @@ class WorkerClient::Impl {
   using BandEnd = WorkerMetrics::BandEnd;
   bool register_worker();
   void heartbeat_loop();
+  // Exits (o_.on_wedged) when a revoked band's render outlives
+  // abandon_grace; mu_ held through `lk`.
+  void check_wedged(std::unique_lock<std::mutex>& lk);
   // Renders the leased band and returns it (or gives it back when stopping).
   void handle(const BandLease& band);
   // Nothing when the scene is at hand; otherwise how the band ended.
@@ -108,11 +112,13 @@ class WorkerClient::Impl {
   bool stopping_ = false;
   std::string worker_id_;
   Millis heartbeat_{1000};
-  std::string lease_;     // the band in hand
+  std::string lease_;  // the band in hand
   // ... which the coordinator took back (or the worker handed back). Also
   // render_band's cancellation flag: the render in hand stops within a row,
   // so a revoked band frees the worker. Written under mu_.
   std::atomic<bool> revoked_{false};
+  TimePoint revoked_at_;  // when the coordinator took it back
+  bool wedged_ = false;   // its render outlived abandon_grace: exiting
   bool sending_ = false;  // its result is on the way: a revocation now only echoes it
   grpc::ClientContext* poll_ctx_ = nullptr;
   bool outage_ = false;
@@ -140,6 +146,9 @@ bool WorkerClient::Impl::register_worker() {
     std::lock_guard lk(mu_);
     worker_id_ = resp.worker_id();
     heartbeat_ = Millis(std::max(50, resp.heartbeat_ms()));
+    // The heartbeat thread waits the period it knew: it takes the new one
+    // now, not after the default (a lease shorter than it would lapse).
+    cv_.notify_all();
   }
   spdlog::info("registered with {} as {} ({}, {} threads per band)", o_.coordinator,
                resp.worker_id(), o_.name, o_.threads);
@@ -237,8 +246,10 @@ int WorkerClient::Impl::run() {
 void WorkerClient::Impl::heartbeat_loop() {
   std::unique_lock lk(mu_);
   while (!stopping_) {
-    cv_.wait_for(lk, heartbeat_, [&] { return stopping_; });
+    const std::string known = worker_id_;
+    cv_.wait_for(lk, heartbeat_, [&] { return stopping_ || worker_id_ != known; });
     if (stopping_ || worker_id_.empty()) continue;
+    check_wedged(lk);
     v1::HeartbeatRequest req;
     req.set_worker_id(worker_id_);
     if (!lease_.empty()) req.add_lease_ids(lease_);
@@ -260,10 +271,32 @@ void WorkerClient::Impl::heartbeat_loop() {
     for (const std::string& id : resp.revoked_lease_ids()) {
       if (id == lease_ && !revoked_ && !sending_) {
         revoked_ = true;
-        spdlog::info("lease {} revoked (band cancelled or lapsed); the band is abandoned", id);
+        revoked_at_ = SteadyClock::now();
+        spdlog::info("lease {} revoked (band cancelled, lapsed or hung); the band is abandoned",
+                     id);
       }
     }
   }
+}
+
+void WorkerClient::Impl::check_wedged(std::unique_lock<std::mutex>& lk) {
+  if (!revoked_ || lease_.empty() || sending_ || wedged_) return;
+  const auto since = SteadyClock::now() - revoked_at_;
+  if (since <= o_.abandon_grace) return;
+  wedged_ = true;
+  const std::string lease = lease_;
+  lk.unlock();
+  spdlog::critical(
+      "the render of lease {} has not returned {:.1f} s after the band was revoked: exiting so "
+      "that the supervisor restarts this worker",
+      lease, std::chrono::duration<double>(since).count());
+  if (o_.on_wedged) {
+    o_.on_wedged();
+  } else {
+    spdlog::shutdown();
+    std::_Exit(3);
+  }
+  lk.lock();
 }
 
 std::optional<WorkerClient::Impl::BandEnd> WorkerClient::Impl::fetch_scene(const BandLease& t) {

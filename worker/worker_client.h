@@ -25,6 +25,12 @@ struct WorkerOptions {
   // Test only (tests/faults/run.sh): wait this long before rendering each
   // band, to play a slow worker.
   Millis slow_band{0};
+  // A render that has not returned this long after its band was revoked
+  // (it ignores the cancellation: a wedged library call) makes the worker
+  // exit, so that its supervisor restarts it instead of it wedging silently.
+  Millis abandon_grace{60000};
+  // What "exit" is: null logs and calls std::_Exit(3); tests replace it.
+  std::function<void()> on_wedged;
   // Called when the worker becomes ready (registered, and its last call
   // reached the coordinator) or stops being ready: the health service's
   // readiness. From the worker's threads.

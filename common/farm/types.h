@@ -68,14 +68,17 @@ struct RenderSettings {
 Result<RenderParams> to_render_params(const RenderSettings& settings, int threads);
 RenderSettings from_render_params(const RenderParams& params);
 
-enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
+// kPaused: `locus pause`; no new leases, bands in flight finish and are
+// kept; `locus resume` makes it queued or running again.
+enum class JobState { kQueued, kRunning, kSucceeded, kFailed, kCancelled, kPaused };
 // The names of `locus status`, the metrics' `state` label and the job
 // store's `state` column (which parses them back).
-inline constexpr Labels<JobState, 5> kJobStateLabels = {{{JobState::kQueued, "queued"},
+inline constexpr Labels<JobState, 6> kJobStateLabels = {{{JobState::kQueued, "queued"},
                                                          {JobState::kRunning, "running"},
                                                          {JobState::kSucceeded, "succeeded"},
                                                          {JobState::kFailed, "failed"},
-                                                         {JobState::kCancelled, "cancelled"}}};
+                                                         {JobState::kCancelled, "cancelled"},
+                                                         {JobState::kPaused, "paused"}}};
 // A C string: every name in the table (and the fallback) is a literal.
 inline const char* job_state_name(JobState state) {
   return label_name(kJobStateLabels, state).data();
@@ -83,6 +86,19 @@ inline const char* job_state_name(JobState state) {
 inline bool is_terminal(JobState s) {
   return s == JobState::kSucceeded || s == JobState::kFailed || s == JobState::kCancelled;
 }
+
+// A job's priority (`locus submit --priority`, `locus priority`): higher
+// first (docs/farm.md "Priorities and fair share").
+inline constexpr int kMinPriority = 0;
+inline constexpr int kMaxPriority = 100;
+inline constexpr int kDefaultPriority = 50;
+
+// The order in which a job's frames are first leased (`--frame-order`):
+// in order, or the first, middle and last frames before the others, so an
+// artist can check a shot before the rest comes in.
+enum class FrameOrder { kInOrder, kFirstMiddleLast };
+inline constexpr Labels<FrameOrder, 2> kFrameOrderLabels = {
+    {{FrameOrder::kInOrder, "in-order"}, {FrameOrder::kFirstMiddleLast, "first-middle-last"}}};
 
 // A validated job as the scheduler sees it. The scene itself lives in the
 // coordinator's scene store under `scene_hash`.
@@ -101,6 +117,14 @@ struct JobSpec {
   // coordinator split by predicted cost (common/farm/band_split.h); empty:
   // equal heights (band_rows(height, bands, i)).
   std::vector<int> band_edges;
+  int priority = kDefaultPriority;
+  FrameOrder frame_order = FrameOrder::kInOrder;
+  // A band leased longer than this is taken back and retried elsewhere;
+  // 0: the coordinator's --band-timeout.
+  Millis band_timeout{0};
+  // The user who submitted it (the name of the client token); empty: a
+  // farm without named tokens, or a job stored before owners existed.
+  std::string owner;
 
   int frames() const { return frame_last - frame_first + 1; }
   int64_t bands_total() const { return static_cast<int64_t>(frames()) * bands; }
@@ -172,6 +196,8 @@ struct JobInfo {
   int64_t results_discarded = 0;   // results that lost a race to another lease of their band
   int64_t speculative_leases = 0;  // second leases of bands running far longer than their peers
   std::vector<std::string> quarantined;  // worker names that get no more bands of this job
+  int64_t bands_timed_out = 0;           // leases taken back by the band timeout (a hung band)
+  int64_t bands_running = 0;             // live leases (a speculated band counts twice)
 };
 
 struct WorkerInfo {
@@ -185,6 +211,17 @@ struct WorkerInfo {
   int64_t bands_done = 0;
   double seconds_since_seen = 0;
 };
+
+// A line of a job's history (`locus events`), as the coordinator's job store keeps it.
+struct HistoryEntry {
+  int64_t seq = 0;  // increasing over the store's life: a cursor for --follow
+  double at = 0;    // Unix seconds
+  int frame = -1;   // the band's, or -1 for the whole job
+  int band = -1;
+  std::string text;
+};
+// The most history lines one ListEvents call returns (the client pages).
+inline constexpr int kMaxEventsPerCall = 10000;
 
 // A frame whose bands are all in their band files, ready to be stitched
 // and written (server/band_files.h).
@@ -201,11 +238,11 @@ struct FrameReady {
 // The state of the farm at one moment (Scheduler::counts()), for the
 // metrics' gauges.
 struct FarmCounts {
-  int64_t bands_queued = 0;       // waiting for a worker
-  int64_t bands_running = 0;      // under a lease (a speculated band counts once)
-  int64_t bands_done = 0;         // of the jobs the coordinator holds
+  int64_t bands_queued = 0;   // waiting for a worker
+  int64_t bands_running = 0;  // under a lease (a speculated band counts once)
+  int64_t bands_done = 0;     // of the jobs the coordinator holds
   std::array<int64_t, kJobStateLabels.size()> jobs{};  // by JobState
-  int64_t workers = 0;            // registered and not dropped
+  int64_t workers = 0;                                 // registered and not dropped
 };
 
 // A submission as the client sends it, before validation.
@@ -220,6 +257,9 @@ struct SubmitRequest {
   int bands = 0;  // 0: default_bands()
   std::string output;
   double orbit_degrees = 0;
+  int priority = kDefaultPriority;
+  std::string frame_order;  // a kFrameOrderLabels name; empty: in order
+  Millis band_timeout{0};   // 0: the coordinator's
   // The client's token for this submission, reused on retries: a second
   // submission with the same id returns the first one's job.
   std::string request_id;
@@ -247,6 +287,5 @@ std::string content_hash(std::string_view bytes);
 // in-process `locus render --workers 0` calls it too.
 Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
                   int frame_last, double orbit_degrees);
-
 
 }  // namespace locus::farm

@@ -81,7 +81,8 @@ Status FromGrpc(const grpc::Status& s, const std::string& peer) {
                        m.find("SSL") != std::string::npos || m.find("ssl") != std::string::npos ||
                        m.find("Socket closed") != std::string::npos;
       return Status(Code::kUnavailable,
-                    "cannot reach the " + peer + " (" + m + "); is it running, and is the address right?" +
+                    "cannot reach the " + peer + " (" + m +
+                        "); is it running, and is the address right?" +
                         (tls ? " If the farm uses TLS, give --tls-ca with the CA that signed its "
                                "certificate (and --tls-cert/--tls-key for mutual TLS)."
                              : ""));
@@ -150,7 +151,8 @@ Result<Connection> connect(const std::string& address, const farm::Credentials& 
   conn.token = c.token;
   conn.address = address;
   if (c.tls_cert.empty() != c.tls_key.empty())
-    return InvalidArgument("--tls-cert and --tls-key go together (a client certificate and its key)");
+    return InvalidArgument(
+        "--tls-cert and --tls-key go together (a client certificate and its key)");
   std::shared_ptr<grpc::ChannelCredentials> creds;
   if (!c.tls_ca.empty() || !c.tls_cert.empty()) {
     grpc::SslCredentialsOptions ssl;
@@ -187,7 +189,8 @@ void prepare(grpc::ClientContext& context, const Connection& connection, farm::M
 
 Status check_server_security(const ServerSecurity& s) {
   if (s.tls_cert.empty() != s.tls_key.empty())
-    return InvalidArgument("--tls-cert and --tls-key go together (the server certificate and its key)");
+    return InvalidArgument(
+        "--tls-cert and --tls-key go together (the server certificate and its key)");
   if (!s.tls_ca.empty() && s.tls_cert.empty())
     return InvalidArgument("--tls-ca (mutual TLS) needs --tls-cert and --tls-key as well");
   if (s.tls_cert.empty() && !s.insecure) {
@@ -290,6 +293,8 @@ v1::JobState ToProto(farm::JobState s) {
       return v1::JOB_STATE_FAILED;
     case farm::JobState::kCancelled:
       return v1::JOB_STATE_CANCELLED;
+    case farm::JobState::kPaused:
+      return v1::JOB_STATE_PAUSED;
   }
   return v1::JOB_STATE_UNSPECIFIED;
 }
@@ -304,6 +309,8 @@ farm::JobState FromProto(v1::JobState s) {
       return farm::JobState::kFailed;
     case v1::JOB_STATE_CANCELLED:
       return farm::JobState::kCancelled;
+    case v1::JOB_STATE_PAUSED:
+      return farm::JobState::kPaused;
     default:
       return farm::JobState::kQueued;
   }
@@ -331,6 +338,12 @@ v1::JobStatus ToProto(const farm::JobInfo& j) {
   p.set_results_discarded(j.results_discarded);
   p.set_speculative_leases(j.speculative_leases);
   for (const std::string& w : j.quarantined) p.add_quarantined_workers(w);
+  p.set_priority(j.spec.priority);
+  p.set_owner(j.spec.owner);
+  p.set_frame_order(std::string(label_name(farm::kFrameOrderLabels, j.spec.frame_order)));
+  p.set_band_timeout_ms(j.spec.band_timeout.count());
+  p.set_bands_timed_out(j.bands_timed_out);
+  p.set_bands_running(j.bands_running);
   return p;
 }
 
@@ -354,6 +367,13 @@ farm::JobInfo FromProto(const v1::JobStatus& p) {
   j.results_discarded = p.results_discarded();
   j.speculative_leases = p.speculative_leases();
   j.quarantined.assign(p.quarantined_workers().begin(), p.quarantined_workers().end());
+  j.spec.priority = p.priority();
+  j.spec.owner = p.owner();
+  j.spec.frame_order =
+      label_value(farm::kFrameOrderLabels, p.frame_order()).value_or(farm::FrameOrder::kInOrder);
+  j.spec.band_timeout = farm::Millis(p.band_timeout_ms());
+  j.bands_timed_out = p.bands_timed_out();
+  j.bands_running = p.bands_running();
   return j;
 }
 
@@ -435,6 +455,9 @@ farm::SubmitRequest FromProto(const v1::JobSpec& p) {
   r.bands = p.bands();
   r.output = p.output();
   r.orbit_degrees = p.orbit_degrees();
+  if (p.has_priority()) r.priority = p.priority();
+  r.frame_order = p.frame_order();
+  r.band_timeout = farm::Millis(p.band_timeout_ms());
   return r;
 }
 
@@ -450,6 +473,9 @@ v1::JobSpec ToProto(const farm::SubmitRequest& r) {
   p.set_bands(r.bands);
   p.set_output(r.output);
   p.set_orbit_degrees(r.orbit_degrees);
+  p.set_priority(r.priority);
+  p.set_frame_order(r.frame_order);
+  p.set_band_timeout_ms(r.band_timeout.count());
   return p;
 }
 

@@ -250,13 +250,15 @@ TEST_F(SchedulerTest, FailedWriteFailsTheJob) {
   EXPECT_NE(s.job(job)->error.find("disk full"), std::string::npos);
 }
 
-TEST_F(SchedulerTest, JobsAreServedInSubmissionOrder) {
+TEST_F(SchedulerTest, EqualJobsAreServedByRunningBandsThenSubmissionOrder) {
+  // Fair share (docs/farm.md "Priorities and fair share"): the job with
+  // fewer running bands first, the older one on a tie.
   const std::string j1 = s.add_job(spec(2, 2, 1, 1, 2));
   const std::string j2 = s.add_job(spec(2, 2, 1, 1, 2));
   const std::string w = s.add_worker("w", 1);
   EXPECT_EQ(lease(w).job_id, j1);
-  EXPECT_EQ(lease(w).job_id, j1);
   EXPECT_EQ(lease(w).job_id, j2);
+  EXPECT_EQ(lease(w).job_id, j1);
   ASSERT_EQ(s.jobs().size(), 2u);
   EXPECT_EQ(s.workers().size(), 1u);
   EXPECT_TRUE(s.workers()[0].busy);
@@ -304,7 +306,8 @@ TEST_F(SchedulerTest, AttemptsGoToDifferentWorkersThenTheJobFailsWithTheError) {
 TEST_F(SchedulerTest, WorkerFailingRepeatedlyIsQuarantinedForThatJob) {
   const std::string j1 = s.add_job(spec(4, 8, 1, 1, 8));
   const std::string bad = s.add_worker("bad-host:1", 1), good = s.add_worker("good-host:2", 1);
-  for (int i = 0; i < 2; ++i) ASSERT_TRUE(s.complete_band(failure(bad, lease(bad), "GPU lost")).ok());
+  for (int i = 0; i < 2; ++i)
+    ASSERT_TRUE(s.complete_band(failure(bad, lease(bad), "GPU lost")).ok());
   EXPECT_EQ(s.job(j1)->quarantined, std::vector<std::string>{"bad-host:1"});
   // No more bands of j1 for it while `good` can take them...
   EXPECT_FALSE(s.next_band(bad)->has_value());

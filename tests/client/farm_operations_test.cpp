@@ -1,0 +1,147 @@
+// The farm operators' actions end to end over loopback gRPC (issue #23):
+// a hung band taken back by the band timeout while its worker heartbeats,
+// and the worker that cannot stop it exiting; pause and resume; a higher
+// priority served first; every step in the job's history (`locus events`).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+
+#include "tests/farm_fixture.h"
+
+namespace locus::farm::testing_farm {
+namespace {
+
+// Lines of the job's history containing `text`.
+int count_events(FarmClient& client, const std::string& job, const std::string& text) {
+  auto events = client.events(job, 0);
+  EXPECT_TRUE(events.ok()) << events.status().message();
+  int n = 0;
+  for (const HistoryEntry& e : events.ok() ? *events : std::vector<HistoryEntry>{}) {
+    n += e.text.find(text) != std::string::npos;
+  }
+  return n;
+}
+
+struct ClearRowHook {
+  ~ClearRowHook() { set_row_hook_for_test({}); }
+};
+
+TEST_F(FarmTest, AHungBandIsTakenBackAndTheWorkerThatCannotStopItExits) {
+  options_.band_timeout = Millis(1000);
+  start(Millis(2000));  // heartbeats every 500 ms keep the hung lease alive
+  // The first row rendered hangs, deaf to the cancellation, until the
+  // worker gives up on it (a wedged library call inside render_band).
+  std::atomic<bool> hung{false}, release{false}, left{false};
+  std::atomic<int> wedged{0};
+  set_row_hook_for_test([&](int) {
+    if (hung.exchange(true)) return;
+    for (int i = 0; i < 3000 && !release.load(); ++i) std::this_thread::sleep_for(Millis(10));
+    left = true;
+  });
+  ClearRowHook clear;
+  // Whatever fails below, the hung render leaves the hook before the
+  // hook and the flags it reads go away.
+  struct Release {
+    std::atomic<bool>& release;
+    std::atomic<bool>& left;
+    ~Release() {
+      release = true;
+      for (int i = 0; i < 3000 && !left.load(); ++i) std::this_thread::sleep_for(Millis(10));
+    }
+  } release_at_end{release, left};
+  add_workers(2, [&](WorkerOptions& o) {
+    o.abandon_grace = Millis(1000);
+    o.on_wedged = [&] {
+      ++wedged;
+      release = true;
+    };
+  });
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 1, 2, "hung_####.png");
+  r.render.method = "raytrace";  // no cost preview at submit, which would meet the hook
+  const auto t0 = SteadyClock::now();
+  const JobInfo job = run(r);
+  expect_identical(job, r);
+  EXPECT_EQ(job.bands_timed_out, 1);
+  // The band timeout took it back, not its lease (the worker heartbeats).
+  EXPECT_EQ(count_events(*client_, job.job_id, "timed out: band hung"), 1);
+  EXPECT_EQ(count_events(*client_, job.job_id, " lapsed"), 0);
+  EXPECT_EQ(count_events(*client_, job.job_id, "attempt 2"), 1);
+  // The hung worker gave up after its grace period, once.
+  for (int i = 0; i < 1000 && wedged.load() == 0; ++i) std::this_thread::sleep_for(Millis(10));
+  EXPECT_EQ(wedged.load(), 1);
+  EXPECT_GE(SteadyClock::now() - t0, Millis(2000));  // timeout 1 s + heartbeat + grace 1 s
+}
+
+TEST_F(FarmTest, APausedJobLeasesNothingUntilResumedAndItsFramesAreUnchanged) {
+  start();
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 2, 2, "paused_####.png");
+  auto job = client_->submit(r);
+  ASSERT_TRUE(job.ok()) << job.status().message();
+  auto paused = client_->pause(job->job_id);
+  ASSERT_TRUE(paused.ok()) << paused.status().message();
+  EXPECT_EQ(paused->state, JobState::kPaused);
+  add_workers(2);
+  std::this_thread::sleep_for(Millis(1500));  // three polls of each worker
+  auto still = client_->job(job->job_id);
+  ASSERT_TRUE(still.ok());
+  EXPECT_EQ(still->state, JobState::kPaused);
+  EXPECT_EQ(still->bands_done, 0);
+  EXPECT_EQ(count_events(*client_, job->job_id, "lease "), 0);
+  auto resumed = client_->resume(job->job_id);
+  ASSERT_TRUE(resumed.ok()) << resumed.status().message();
+  EXPECT_EQ(resumed->state, JobState::kQueued);
+  auto done = client_->watch(job->job_id, [](const JobInfo&) {});
+  ASSERT_TRUE(done.ok());
+  expect_identical(*done, r);
+  EXPECT_EQ(count_events(*client_, job->job_id, "state paused"), 1);
+  EXPECT_EQ(count_events(*client_, job->job_id, "frame 2 written"), 1);
+  // Wrong actions say why.
+  EXPECT_EQ(client_->pause(job->job_id).status().code(), Code::kFailedPrecondition);
+  EXPECT_EQ(client_->resume("j0404").status().code(), Code::kNotFound);
+  EXPECT_EQ(client_->set_priority(job->job_id, 101, false).status().code(), Code::kInvalidArgument);
+}
+
+TEST_F(FarmTest, AHigherPriorityJobSubmittedLaterGetsTheWorkerFirst) {
+  start();
+  SubmitRequest first = request(kSpheres, 32, 24, 1, 2, 2, "low_####.png");
+  auto low = client_->submit(first);
+  ASSERT_TRUE(low.ok()) << low.status().message();
+  SubmitRequest second = request(kSpheres, 32, 24, 1, 1, 2, "high_####.png");
+  second.priority = 90;
+  auto high = client_->submit(second);
+  ASSERT_TRUE(high.ok()) << high.status().message();
+  EXPECT_EQ(high->spec.priority, 90);
+  add_workers(1);
+  auto high_done = client_->watch(high->job_id, [](const JobInfo&) {});
+  ASSERT_TRUE(high_done.ok());
+  expect_identical(*high_done, second);
+  // The one worker rendered both of the later job's bands before any of the
+  // earlier one's: their leases come first in the farm's history.
+  auto low_done = client_->watch(low->job_id, [](const JobInfo&) {});
+  ASSERT_TRUE(low_done.ok());
+  expect_identical(*low_done, first);
+  auto h = client_->events(high->job_id, 0);
+  auto l = client_->events(low->job_id, 0);
+  ASSERT_TRUE(h.ok() && l.ok());
+  int64_t last_high_lease = 0, first_low_lease = INT64_MAX;
+  for (const HistoryEntry& e : *h) {
+    if (e.text.find("lease ") == 0 && e.text.find(" to worker ") != std::string::npos)
+      last_high_lease = std::max(last_high_lease, e.seq);
+  }
+  for (const HistoryEntry& e : *l) {
+    if (e.text.find("lease ") == 0 && e.text.find(" to worker ") != std::string::npos)
+      first_low_lease = std::min(first_low_lease, e.seq);
+  }
+  EXPECT_LT(last_high_lease, first_low_lease);
+  // A bad priority or frame order is refused at submit, naming it.
+  SubmitRequest bad = request(kSpheres, 32, 24, 1, 1, 1, "bad.png");
+  bad.frame_order = "random";
+  auto refused = client_->submit(bad);
+  EXPECT_EQ(refused.status().code(), Code::kInvalidArgument);
+  EXPECT_NE(refused.status().message().find("frame order 'random'"), std::string::npos)
+      << refused.status().message();
+}
+
+}  // namespace
+}  // namespace locus::farm::testing_farm

@@ -1,0 +1,360 @@
+// The farm operators' scheduling (issue #23) on the Scheduler with a fake
+// clock: priorities, fair share between users and jobs, ageing, the per-user
+// cap, the first-middle-last frame order, pause and resume, preemption, the
+// band timeout; and all of it through the job store and a restart.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <map>
+#include <set>
+
+#include "server/scheduler.h"
+#include "server/store.h"
+#include "tests/server/scheduler_doubles.h"
+
+namespace locus::farm {
+namespace {
+namespace fs = std::filesystem;
+using test_doubles::FakeClock;
+using test_doubles::pixels;
+
+JobSpec spec(int frames, int bands, int priority = kDefaultPriority,
+             const std::string& owner = "") {
+  JobSpec s = test_doubles::job_spec(4, 4, 1, frames, bands);
+  s.priority = priority;
+  s.owner = owner;
+  return s;
+}
+
+class OperationsTest : public ::testing::Test {
+ protected:
+  static SchedulerOptions options() {
+    SchedulerOptions o;
+    o.lease = Millis(10000);
+    o.worker_timeout = Millis(60000);
+    o.speculate_factor = 0;
+    o.ageing = Millis(0);
+    return o;
+  }
+  OperationsTest() : s(options(), clock.fn()) {}
+  explicit OperationsTest(SchedulerOptions o) : s(o, clock.fn()) {}
+
+  std::optional<BandLease> next(const std::string& worker) {
+    auto r = s.next_band(worker);
+    EXPECT_TRUE(r.ok()) << r.status().message();
+    return r.ok() ? *r : std::nullopt;
+  }
+  void done(const std::string& worker, const BandLease& t) {
+    auto r = s.complete_band(pixels(worker, t));
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    ASSERT_TRUE(r->accepted) << r->reason;
+    if (r->frame) s.frame_written(t.job_id, r->frame->frame, Status::Ok());
+  }
+
+  FakeClock clock;
+  Scheduler s;
+};
+
+TEST_F(OperationsTest, EqualJobsShareTheWorkersInsteadOfOneAfterTheOther) {
+  const std::string j1 = s.add_job(spec(4, 1));
+  const std::string j2 = s.add_job(spec(4, 1));
+  const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1);
+  // Every band takes a second on either worker: each job keeps one worker.
+  std::map<std::string, std::vector<int>> finished_at;  // job -> seconds at each band
+  std::optional<BandLease> ta = next(a), tb = next(b);
+  ASSERT_TRUE(ta && tb);
+  EXPECT_NE(ta->job_id, tb->job_id);
+  for (int t = 1; ta || tb; ++t) {
+    clock.advance(1000);
+    for (auto [w, lease] : {std::pair{a, &ta}, std::pair{b, &tb}}) {
+      if (!*lease) continue;
+      done(w, **lease);
+      finished_at[(*lease)->job_id].push_back(t);
+      *lease = next(w);
+    }
+  }
+  EXPECT_EQ(s.job(j1)->state, JobState::kSucceeded);
+  EXPECT_EQ(s.job(j2)->state, JobState::kSucceeded);
+  // Within one band-time of each other, not one after the other.
+  EXPECT_LE(std::abs(finished_at[j1].back() - finished_at[j2].back()), 1);
+}
+
+TEST_F(OperationsTest, TheOlderOfTwoEqualJobsLeadsAndAHigherPriorityJobTakesTheNextWorker) {
+  const std::string j1 = s.add_job(spec(4, 2));
+  const std::string j2 = s.add_job(spec(4, 2));
+  const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1), c = s.add_worker("c", 1);
+  EXPECT_EQ(next(a)->job_id, j1);  // equal, none running: the older first
+  EXPECT_EQ(next(b)->job_id, j2);  // j1 runs one: j2
+  const std::string urgent = s.add_job(spec(1, 2, 90));
+  EXPECT_EQ(next(c)->job_id, urgent);
+  EXPECT_EQ(next(c)->job_id, urgent);  // both of its bands before any of the others
+  EXPECT_EQ(next(c)->job_id, j1);
+  EXPECT_EQ(s.job(urgent)->bands_running, 2);
+}
+
+TEST_F(OperationsTest, TwoUsersShareAFarmAlthoughOneSubmittedTenJobs) {
+  std::set<std::string> many;
+  for (int i = 0; i < 10; ++i) many.insert(s.add_job(spec(2, 2, kDefaultPriority, "ann")));
+  const std::string one = s.add_job(spec(20, 2, kDefaultPriority, "bob"));
+  const std::string w[2] = {s.add_worker("a", 1), s.add_worker("b", 1)};
+  std::optional<BandLease> held[2];
+  std::map<std::string, int> bands_by_user;
+  for (int round = 0; round < 20; ++round) {
+    for (int k = 0; k < 2; ++k) {
+      if (held[k]) done(w[k], *held[k]);
+      held[k] = next(w[k]);
+      ASSERT_TRUE(held[k]);
+      ++bands_by_user[many.count(held[k]->job_id) ? "ann" : "bob"];
+    }
+  }
+  // One worker each, all along: 20 bands each out of 40.
+  EXPECT_EQ(bands_by_user["ann"], 20);
+  EXPECT_EQ(bands_by_user["bob"], 20);
+  // Ann's bands are spread over her jobs (the fewest running first), and
+  // her oldest jobs finish first.
+  EXPECT_EQ(s.job(*many.begin())->state, JobState::kSucceeded);
+}
+
+TEST_F(OperationsTest, APerUserCapLeavesTheRestOfTheFarmToOthers) {
+  SchedulerOptions o = options();
+  o.user_max_running = 1;
+  Scheduler capped(o, clock.fn());
+  const std::string ann = capped.add_job(spec(4, 1, kDefaultPriority, "ann"));
+  const std::string a = capped.add_worker("a", 1), b = capped.add_worker("b", 1);
+  EXPECT_EQ((*capped.next_band(a))->job_id, ann);
+  EXPECT_FALSE(capped.next_band(b)->has_value());  // ann is at her cap
+  const std::string bob = capped.add_job(spec(1, 1, kDefaultPriority, "bob"));
+  EXPECT_EQ((*capped.next_band(b))->job_id, bob);
+}
+
+TEST_F(OperationsTest, AgeingLetsALowPriorityJobThroughAndItNeverStarves) {
+  SchedulerOptions o = options();
+  o.ageing = Millis(1000);  // one point per second of waiting
+  Scheduler aged(o, clock.fn());
+  const std::string high = aged.add_job(spec(500, 1, 90));
+  const std::string low = aged.add_job(spec(3, 1, 10));
+  const std::string w = aged.add_worker("w", 1);
+  // One band per second on one worker: the low job waits until its 80
+  // points of difference have aged away, then gets a band, then waits again.
+  std::vector<int> low_at;
+  for (int t = 0; t < 200; ++t) {
+    auto lease = *aged.next_band(w);
+    ASSERT_TRUE(lease.has_value());
+    if (lease->job_id == low) low_at.push_back(t);
+    clock.advance(1000);
+    ASSERT_TRUE(aged.complete_band(pixels(w, *lease))->accepted);
+  }
+  // At second t the low job's priority is 10 + t, the high job's 90 + 1
+  // (a second since its last band): the low job passes at t = 82.
+  ASSERT_EQ(low_at.size(), 2u);
+  EXPECT_EQ(low_at[0], 82);
+  EXPECT_EQ(low_at[1] - low_at[0], 82);
+  EXPECT_EQ(aged.job(high)->bands_done, 198);
+}
+
+TEST_F(OperationsTest, FirstMiddleLastLeasesThoseFramesBeforeTheOthers) {
+  JobSpec sp = spec(9, 2);
+  sp.frame_first = 11;
+  sp.frame_last = 19;
+  sp.frame_order = FrameOrder::kFirstMiddleLast;
+  s.add_job(sp);
+  const std::string w = s.add_worker("w", 1);
+  std::vector<int> frames;
+  while (auto t = next(w)) {
+    if (t->band == 0) frames.push_back(t->frame);
+  }
+  EXPECT_EQ(frames, (std::vector<int>{11, 15, 19, 12, 13, 14, 16, 17, 18}));
+  // Two frames and one: each frame once, in that order.
+  for (auto [n, expected] :
+       {std::pair{2, std::vector<int>{1, 2}}, std::pair{1, std::vector<int>{1}}}) {
+    JobSpec small = spec(n, 1);
+    small.frame_order = FrameOrder::kFirstMiddleLast;
+    s.add_job(small);
+    std::vector<int> got;
+    while (auto t = next(w)) got.push_back(t->frame);
+    EXPECT_EQ(got, expected);
+  }
+}
+
+TEST_F(OperationsTest, APausedJobTakesNoLeaseKeepsItsBandsAndFinishesAfterResume) {
+  const std::string job = s.add_job(spec(2, 2));
+  const std::string w = s.add_worker("w", 1);
+  const BandLease in_flight = *next(w);
+  ASSERT_TRUE(s.pause(job, "ann").ok());
+  EXPECT_EQ(s.job(job)->state, JobState::kPaused);
+  clock.advance(5000);
+  EXPECT_FALSE(next(w).has_value());
+  EXPECT_FALSE(s.has_queued_bands());
+  done(w, in_flight);  // a band in flight finishes and is kept
+  EXPECT_EQ(s.job(job)->bands_done, 1);
+  EXPECT_FALSE(next(w).has_value());
+  EXPECT_EQ(s.resume(job, "ann")->state, JobState::kRunning);
+  EXPECT_EQ(s.resume(job).status().code(), Code::kFailedPrecondition);  // not paused
+  int leased = 0;
+  while (auto t = next(w)) {
+    done(w, *t);
+    ++leased;
+  }
+  EXPECT_EQ(leased, 3);
+  EXPECT_EQ(s.job(job)->state, JobState::kSucceeded);
+  EXPECT_EQ(s.pause(job).status().code(), Code::kFailedPrecondition);
+  EXPECT_EQ(s.pause("j0099").status().code(), Code::kNotFound);
+}
+
+TEST_F(OperationsTest, PreemptingHandsLowerBandsBackWithoutChargingThem) {
+  const std::string low = s.add_job(spec(1, 2, 20));
+  const std::string a = s.add_worker("a", 1), b = s.add_worker("b", 1);
+  const BandLease ta = *next(a), tb = *next(b);
+  const std::string high = s.add_job(spec(1, 1, 20));
+  // Raised without --preempt: nothing running moves.
+  ASSERT_TRUE(s.set_priority(high, 80, false, "ann").ok());
+  EXPECT_EQ(s.job(low)->bands_running, 2);
+  ASSERT_TRUE(s.set_priority(high, 90, true, "ann").ok());
+  EXPECT_EQ(s.job(low)->bands_running, 0);
+  // Both workers hear it at their heartbeat; their results are dropped.
+  EXPECT_EQ(*s.heartbeat(a, {ta.lease_id}), std::vector<std::string>{ta.lease_id});
+  EXPECT_FALSE(s.complete_band(pixels(b, tb))->accepted);
+  EXPECT_EQ(next(a)->job_id, high);
+  // The handed-back bands render again, uncharged: three more attempts each.
+  for (int i = 0; i < 2; ++i) {
+    const BandLease t = *next(b);
+    EXPECT_EQ(t.job_id, low);
+    done(b, t);
+  }
+  EXPECT_EQ(s.job(low)->state, JobState::kSucceeded);
+  EXPECT_EQ(s.set_priority(high, 101, false).status().code(), Code::kInvalidArgument);
+}
+
+TEST_F(OperationsTest, AHungBandIsTakenBackAfterTheBandTimeoutThoughItsWorkerHeartbeats) {
+  SchedulerOptions o = options();
+  o.lease = Millis(1000);
+  o.band_timeout = Millis(5000);
+  Scheduler t(o, clock.fn());
+  const std::string job = t.add_job(spec(1, 1));
+  JobSpec patient = spec(1, 1);
+  patient.band_timeout = Millis(60000);  // its own, longer
+  const std::string slow = t.add_job(patient);
+  const std::string hung = t.add_worker("hung", 1), other = t.add_worker("other", 1);
+  const BandLease h = **t.next_band(hung);
+  const BandLease p = **t.next_band(other);
+  ASSERT_EQ(h.job_id, job);
+  ASSERT_EQ(p.job_id, slow);
+  for (int i = 0; i < 5; ++i) {  // the heartbeat renews both leases every 0.9 s
+    clock.advance(900);
+    EXPECT_TRUE(t.heartbeat(hung, {h.lease_id})->empty());
+    EXPECT_TRUE(t.heartbeat(other, {p.lease_id})->empty());
+    t.expire();
+  }
+  EXPECT_EQ(t.job(job)->bands_timed_out, 0);  // 4.5 s: not yet
+  clock.advance(600);                         // 5.1 s after the lease
+  t.expire();
+  EXPECT_EQ(*t.heartbeat(hung, {h.lease_id}), std::vector<std::string>{h.lease_id});
+  EXPECT_TRUE(t.heartbeat(other, {p.lease_id})->empty());  // under its own timeout
+  EXPECT_EQ(t.job(job)->bands_timed_out, 1);
+  // Retried elsewhere; the hung worker's late result is dropped.
+  const BandLease again = **t.next_band(other);
+  EXPECT_EQ(again.job_id, job);
+  EXPECT_FALSE(t.complete_band(pixels(hung, h))->accepted);
+  auto r = t.complete_band(pixels(other, again));
+  ASSERT_TRUE(r->accepted && r->frame);
+  bool said = false;
+  for (const Event& e : t.take_events()) {
+    if (const auto* l = std::get_if<event::LeaseEnded>(&e)) {
+      if (l->outcome == LeaseOutcome::kTimedOut) {
+        said = true;
+        EXPECT_EQ(l->lease_id, h.lease_id);
+        EXPECT_NE(l->error.find("band hung"), std::string::npos) << l->error;
+        EXPECT_NE(l->error.find("band timeout of 5.0 s"), std::string::npos) << l->error;
+      }
+    }
+  }
+  EXPECT_TRUE(said);
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    std::string t = (fs::temp_directory_path() / "locus-ops-test-XXXXXX").string();
+    EXPECT_NE(mkdtemp(t.data()), nullptr);
+    path = t;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+TEST_F(OperationsTest, PrioritiesPausesOrderTimeoutsAndHistorySurviveARestart) {
+  TempDir dir;
+  const std::string db = (dir.path / "locus.db").string();
+  std::string paused, ordered;
+  {
+    auto store = JobStore::open(db);
+    ASSERT_TRUE(store.ok()) << store.status().message();
+    JobSpec sp = spec(5, 1, 70, "ann");
+    sp.frame_order = FrameOrder::kFirstMiddleLast;
+    sp.band_timeout = Millis(30000);
+    ordered = s.add_job(sp);
+    paused = s.add_job(spec(2, 1, 50, "bob"));
+    const std::string w = s.add_worker("host:1", 1);
+    const BandLease first = *next(w);  // frame 1
+    done(w, first);
+    const BandLease second = *next(w);  // frame 3, in flight at the "kill"
+    EXPECT_EQ(second.frame, 3);
+    ASSERT_TRUE(s.pause(paused, "bob").ok());
+    ASSERT_TRUE(s.set_priority(paused, 40, false, "admin").ok());
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  auto store = JobStore::open(db);
+  ASSERT_TRUE(store.ok());
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok()) << state.status().message();
+  Scheduler again(options(), clock.fn());
+  again.restore(*state);
+  auto o = again.job(ordered);
+  EXPECT_EQ(o->spec.priority, 70);
+  EXPECT_EQ(o->spec.owner, "ann");
+  EXPECT_EQ(o->spec.frame_order, FrameOrder::kFirstMiddleLast);
+  EXPECT_EQ(o->spec.band_timeout, Millis(30000));
+  auto p = again.job(paused);
+  EXPECT_EQ(p->state, JobState::kPaused);
+  EXPECT_EQ(p->spec.priority, 40);
+  // The ordered job goes on in its order: frame 3 again (its lease was
+  // voided), then 5, then 2 and 4; the paused job waits.
+  const std::string w = again.add_worker("host:2", 1);
+  std::vector<int> frames;
+  while (auto t = *again.next_band(w)) {
+    EXPECT_EQ(t->job_id, ordered);
+    frames.push_back(t->frame);
+  }
+  EXPECT_EQ(frames, (std::vector<int>{3, 5, 2, 4}));
+  // The history, in order, with who did what.
+  auto h = (*store)->history(paused, 0, 100);
+  ASSERT_TRUE(h.ok()) << h.status().message();
+  std::vector<std::string> lines;
+  for (const HistoryEntry& e : *h) lines.push_back(e.text);
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_NE(lines[0].find("submitted by bob"), std::string::npos) << lines[0];
+  EXPECT_EQ(lines[1], "state paused");
+  EXPECT_EQ(lines[2], "paused by bob");
+  EXPECT_EQ(lines[3], "priority 50 -> 40 by admin");
+  auto ho = (*store)->history(ordered, 0, 100);
+  ASSERT_TRUE(ho.ok());
+  int leases = 0, done_lines = 0;
+  for (const HistoryEntry& e : *ho) {
+    if (e.text.find(": band 0 of frame") != std::string::npos &&
+        e.text.find("attempt 1") != std::string::npos)
+      ++leases;
+    if (e.text.find(" done: band 0 of frame 1") != std::string::npos) ++done_lines;
+  }
+  EXPECT_EQ(leases, 2);
+  EXPECT_EQ(done_lines, 1);
+  // A cursor returns only what came after it.
+  auto after = (*store)->history(ordered, ho->back().seq, 100);
+  ASSERT_TRUE(after.ok());
+  EXPECT_TRUE(after->empty());
+}
+
+}  // namespace
+}  // namespace locus::farm
