@@ -100,7 +100,7 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   farm->token_ = *token;
   rpc::ServerSecurity security;
   security.insecure = true;
-  security.auth = farm::Authenticator::from_tokens({farm->token_}, {farm->token_});
+  security.auth = farm::Authenticator::from_tokens({"local " + farm->token_}, {farm->token_});
   farm->server_ = std::make_unique<rpc::CoordinatorServer>(*farm->coordinator_);
   auto port = farm->server_->start("127.0.0.1:0", std::move(security));
   if (!port.ok()) return port.status();

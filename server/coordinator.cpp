@@ -300,9 +300,10 @@ void Coordinator::write_loop() {
 
 // ---------------------------------------------------------------- clients
 
-Result<JobInfo> Coordinator::submit(const SubmitRequest& r) {
+Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& owner) {
   Result<CheckedSubmission> job = check_submission(r, options_.limits, options_.mesh_root);
   if (!job.ok()) return job.status();
+  job->spec.owner = owner;
   // The scene as the workers will get it, addressed by its content hash.
   auto scene = std::make_shared<v1::Scene>(r.scene);
   std::string bytes;
@@ -385,33 +386,48 @@ std::vector<JobInfo> Coordinator::jobs() {
   return scheduler_.jobs();
 }
 
-Result<JobInfo> Coordinator::act(const std::string& job_id, const char* what,
-                                 const std::function<Result<JobInfo>()>& call) {
+Result<JobInfo> Coordinator::act(const std::string& job_id, const char* what, const Caller& caller,
+                                  const std::function<Result<JobInfo>(const std::string&)>& call) {
   std::lock_guard lk(mu_);
-  auto r = call();
-  if (r.ok()) spdlog::info("job {}: {}", job_id, what);
+  auto job = scheduler_.job(job_id);
+  if (!job.ok()) return job.status();
+  const std::string& owner = job->spec.owner;
+  if (!owner.empty() && !caller.admin && caller.user != owner) {
+    return Status(Code::kPermissionDenied, "job " + job_id + " belongs to " + owner + "; " +
+                            (caller.user.empty() ? "an unnamed user" : caller.user) +
+                            " may not " + what + " it (only its owner or an admin)");
+  }
+  // The history names the caller: the user, "admin NAME" acting on another's job.
+  const std::string who =
+      caller.admin && !caller.user.empty() && caller.user != owner ? "admin " + caller.user
+                                                                    : caller.user;
+  auto r = call(who);
+  if (r.ok()) spdlog::info("job {}: {}{}", job_id, what, who.empty() ? "" : " by " + who);
   persist();
   changed_.notify_all();
   return r;
 }
 
-Result<JobInfo> Coordinator::cancel(const std::string& job_id, const std::string& who) {
-  return act(job_id, "cancelled", [&] { return scheduler_.cancel(job_id, who); });
+Result<JobInfo> Coordinator::cancel(const std::string& job_id, const Caller& caller) {
+  return act(job_id, "cancel", caller,
+             [&](const std::string& who) { return scheduler_.cancel(job_id, who); });
 }
 
 Result<JobInfo> Coordinator::set_priority(const std::string& job_id, int priority, bool preempt,
-                                          const std::string& who) {
-  const std::string what = "priority " + std::to_string(priority) + (preempt ? ", preempting" : "");
-  return act(job_id, what.c_str(),
-             [&] { return scheduler_.set_priority(job_id, priority, preempt, who); });
+                                          const Caller& caller) {
+  return act(job_id, "reprioritise", caller, [&](const std::string& who) {
+    return scheduler_.set_priority(job_id, priority, preempt, who);
+  });
 }
 
-Result<JobInfo> Coordinator::pause(const std::string& job_id, const std::string& who) {
-  return act(job_id, "paused", [&] { return scheduler_.pause(job_id, who); });
+Result<JobInfo> Coordinator::pause(const std::string& job_id, const Caller& caller) {
+  return act(job_id, "pause", caller,
+             [&](const std::string& who) { return scheduler_.pause(job_id, who); });
 }
 
-Result<JobInfo> Coordinator::resume(const std::string& job_id, const std::string& who) {
-  return act(job_id, "resumed", [&] { return scheduler_.resume(job_id, who); });
+Result<JobInfo> Coordinator::resume(const std::string& job_id, const Caller& caller) {
+  return act(job_id, "resume", caller,
+             [&](const std::string& who) { return scheduler_.resume(job_id, who); });
 }
 
 Result<std::vector<HistoryEntry>> Coordinator::events(const std::string& job_id, int64_t after,

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/farm/auth.h"
 #include "common/farm/types.h"
 #include "proto/scene.pb.h"
 #include "server/latency.h"
@@ -91,16 +92,18 @@ class Coordinator {
 
   // ---- ClientService ----
   // InvalidArgument naming the scene and the problem; nothing is stored then.
-  Result<JobInfo> submit(const SubmitRequest& request);
+  // `owner`: the caller's user name (empty: none), recorded with the job.
+  Result<JobInfo> submit(const SubmitRequest& request, const std::string& owner = "");
   Result<JobInfo> job(const std::string& job_id);
   std::vector<JobInfo> jobs();
-  // The operators' actions (Scheduler's); `who` names the caller in the
-  // job's history.
-  Result<JobInfo> cancel(const std::string& job_id, const std::string& who = "");
+  // The operators' actions (the Scheduler's), each allowed to the job's
+  // owner and to admins (PERMISSION_DENIED otherwise; a job without an
+  // owner, to anyone). The caller is named in the job's history.
+  Result<JobInfo> cancel(const std::string& job_id, const Caller& caller = Caller::anyone());
   Result<JobInfo> set_priority(const std::string& job_id, int priority, bool preempt,
-                               const std::string& who = "");
-  Result<JobInfo> pause(const std::string& job_id, const std::string& who = "");
-  Result<JobInfo> resume(const std::string& job_id, const std::string& who = "");
+                               const Caller& caller = Caller::anyone());
+  Result<JobInfo> pause(const std::string& job_id, const Caller& caller = Caller::anyone());
+  Result<JobInfo> resume(const std::string& job_id, const Caller& caller = Caller::anyone());
   // The job's history after cursor `after`, at most `limit` lines
   // (`locus events`); NotFound for an unknown job.
   Result<std::vector<HistoryEntry>> events(const std::string& job_id, int64_t after, int limit);
@@ -155,8 +158,8 @@ class Coordinator {
   // Hands the Scheduler's events to the store in one transaction; mu_ held.
   Status persist();
   // An action on one job under mu_: the Scheduler's call, then the store.
-  Result<JobInfo> act(const std::string& job_id, const char* what,
-                      const std::function<Result<JobInfo>()>& call);
+  Result<JobInfo> act(const std::string& job_id, const char* what, const Caller& caller,
+                      const std::function<Result<JobInfo>(const std::string& who)>& call);
 
   CoordinatorOptions options_;
   std::mutex mu_;

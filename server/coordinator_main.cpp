@@ -49,7 +49,7 @@ struct Flags {
   int drain_ms = 20000;
   farm::CoordinatorOptions options;  // the flags that map one to one
   locus::rpc::ServerSecurity security;
-  std::string client_tokens, worker_tokens;
+  std::string client_tokens, worker_tokens, admin_tokens;
 };
 
 void add_farm_flags(CLI::App& app, Flags& f) {
@@ -106,7 +106,11 @@ void add_security_flags(CLI::App& app, Flags& f) {
   app.add_option("--tls-ca", security.tls_ca,
                  "CA (PEM) for mutual TLS: workers must present a certificate it signed");
   app.add_option("--client-tokens", f.client_tokens,
-                 "File of client tokens (submit, status, watch, cancel, fetch), one per line");
+                 "File of client tokens (submit, status, watch, cancel, fetch), one per line: "
+                 "NAME TOKEN, or a token alone (its user is then token-LINE)");
+  app.add_option("--admin-tokens", f.admin_tokens,
+                 "File of admin tokens, NAME TOKEN per line: clients that may act on any "
+                 "user's job");
   app.add_option("--worker-tokens", f.worker_tokens,
                  "File of worker tokens (take and return bands), one per line");
   app.add_flag("--insecure", security.insecure,
@@ -154,8 +158,10 @@ Status set_up_security(Flags& f) {
   if (f.client_tokens.empty() != f.worker_tokens.empty())
     return locus::InvalidArgument(
         "--client-tokens and --worker-tokens go together (give both files)");
+  if (!f.admin_tokens.empty() && f.client_tokens.empty())
+    return locus::InvalidArgument("--admin-tokens needs --client-tokens and --worker-tokens");
   if (!f.client_tokens.empty()) {
-    auto auth = farm::Authenticator::from_files(f.client_tokens, f.worker_tokens);
+    auto auth = farm::Authenticator::from_files(f.client_tokens, f.worker_tokens, f.admin_tokens);
     if (!auth.ok()) return auth.status();
     f.security.auth = std::move(*auth);
   }

@@ -67,15 +67,23 @@ grpc::Status serve(const farm::Authenticator& auth, farm::CoordinatorMetrics& me
                    const grpc::ServerContext& ctx, farm::Role role, const char* rpc,
                    const google::protobuf::Message& request,
                    const google::protobuf::Message* response, F&& body) {
-  const Status allowed = auth.check(role, authorization(ctx), peer_certificate_verified(ctx), rpc);
-  if (!allowed.ok()) {
+  const Result<farm::Caller> caller =
+      auth.identify(role, authorization(ctx), peer_certificate_verified(ctx), rpc);
+  if (!caller.ok()) {
     metrics.add_bytes(rpc, request.ByteSizeLong(), 0);
-    log_refusal(ctx.peer(), allowed);
-    return ToGrpc(allowed);
+    log_refusal(ctx.peer(), caller.status());
+    return ToGrpc(caller.status());
   }
   grpc::Status status;
   try {
-    status = ToGrpc(body());
+    if constexpr (std::is_invocable_v<F, const farm::Caller&>) {
+      const Status s = body(*caller);
+      // The wrong user's action: logged like a refused token (never the token).
+      if (s.code() == Code::kPermissionDenied) log_refusal(ctx.peer(), s);
+      status = ToGrpc(s);
+    } else {
+      status = ToGrpc(body());
+    }
   } catch (const std::exception& e) {
     spdlog::error("{}: {}", rpc, e.what());
     status = grpc::Status(grpc::StatusCode::INTERNAL, std::string(rpc) + ": " + e.what());
@@ -108,7 +116,7 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
   grpc::Status SubmitJob(grpc::ServerContext* ctx, const v1::SubmitJobRequest* req,
                          v1::SubmitJobResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.SubmitJob", *req, resp,
-                 [&] { return h_.SubmitJob(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.SubmitJob(*req, c, resp); });
   }
 
   grpc::Status GetJob(grpc::ServerContext* ctx, const v1::GetJobRequest* req,
@@ -135,25 +143,25 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
   grpc::Status CancelJob(grpc::ServerContext* ctx, const v1::CancelJobRequest* req,
                          v1::CancelJobResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.CancelJob", *req, resp,
-                 [&] { return h_.CancelJob(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.CancelJob(*req, c, resp); });
   }
 
   grpc::Status SetPriority(grpc::ServerContext* ctx, const v1::SetPriorityRequest* req,
                            v1::JobActionResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.SetPriority", *req, resp,
-                 [&] { return h_.SetPriority(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.SetPriority(*req, c, resp); });
   }
 
   grpc::Status PauseJob(grpc::ServerContext* ctx, const v1::JobActionRequest* req,
                         v1::JobActionResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.PauseJob", *req, resp,
-                 [&] { return h_.PauseJob(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.PauseJob(*req, c, resp); });
   }
 
   grpc::Status ResumeJob(grpc::ServerContext* ctx, const v1::JobActionRequest* req,
                          v1::JobActionResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.ResumeJob", *req, resp,
-                 [&] { return h_.ResumeJob(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.ResumeJob(*req, c, resp); });
   }
 
   grpc::Status ListEvents(grpc::ServerContext* ctx, const v1::ListEventsRequest* req,

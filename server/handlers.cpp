@@ -30,13 +30,14 @@ std::string printable_name(const std::string& name) {
 
 }  // namespace
 
-Status Handlers::SubmitJob(const v1::SubmitJobRequest& req, v1::SubmitJobResponse* resp) {
+Status Handlers::SubmitJob(const v1::SubmitJobRequest& req, const farm::Caller& caller,
+                           v1::SubmitJobResponse* resp) {
   if (req.spec().output().size() > kMaxOutputBytes)
     return InvalidArgument("output: longer than " + std::to_string(kMaxOutputBytes) + " bytes");
   farm::SubmitRequest r = FromProto(req.spec());
   r.scene_name = printable_name(r.scene_name);
   r.request_id = req.request_id();
-  auto job = c_.submit(r);
+  auto job = c_.submit(r, caller.user);
   if (!job.ok()) return job.status();
   resp->set_job_id(job->job_id);
   *resp->mutable_status() = ToProto(*job);
@@ -65,9 +66,10 @@ Status Handlers::WatchJob(const v1::WatchJobRequest& req, const farm::CancelledF
                   [&write](const farm::JobInfo& j) { return write(ToProto(j)); });
 }
 
-Status Handlers::CancelJob(const v1::CancelJobRequest& req, v1::CancelJobResponse* resp) {
+Status Handlers::CancelJob(const v1::CancelJobRequest& req, const farm::Caller& caller,
+                           v1::CancelJobResponse* resp) {
   if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
-  auto r = c_.cancel(req.job_id());
+  auto r = c_.cancel(req.job_id(), caller);
   if (!r.ok()) return r.status();
   *resp->mutable_status() = ToProto(*r);
   return Status::Ok();
@@ -84,17 +86,20 @@ Status job_action(const std::string& job_id, v1::JobActionResponse* resp,
 }
 }  // namespace
 
-Status Handlers::SetPriority(const v1::SetPriorityRequest& req, v1::JobActionResponse* resp) {
+Status Handlers::SetPriority(const v1::SetPriorityRequest& req, const farm::Caller& caller,
+                             v1::JobActionResponse* resp) {
   return job_action(req.job_id(), resp,
-                    [&] { return c_.set_priority(req.job_id(), req.priority(), req.preempt()); });
+                    [&] { return c_.set_priority(req.job_id(), req.priority(), req.preempt(), caller); });
 }
 
-Status Handlers::PauseJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp) {
-  return job_action(req.job_id(), resp, [&] { return c_.pause(req.job_id()); });
+Status Handlers::PauseJob(const v1::JobActionRequest& req, const farm::Caller& caller,
+                          v1::JobActionResponse* resp) {
+  return job_action(req.job_id(), resp, [&] { return c_.pause(req.job_id(), caller); });
 }
 
-Status Handlers::ResumeJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp) {
-  return job_action(req.job_id(), resp, [&] { return c_.resume(req.job_id()); });
+Status Handlers::ResumeJob(const v1::JobActionRequest& req, const farm::Caller& caller,
+                           v1::JobActionResponse* resp) {
+  return job_action(req.job_id(), resp, [&] { return c_.resume(req.job_id(), caller); });
 }
 
 Status Handlers::ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResponse* resp) {

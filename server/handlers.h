@@ -8,6 +8,7 @@
 #include <functional>
 #include <string>
 
+#include "common/farm/auth.h"
 #include "proto/locus.pb.h"
 #include "server/coordinator.h"
 
@@ -18,16 +19,22 @@ class Handlers {
   explicit Handlers(farm::Coordinator& coordinator) : c_(coordinator) {}
 
   // ---- ClientService ----
-  Status SubmitJob(const v1::SubmitJobRequest& req, v1::SubmitJobResponse* resp);
+  Status SubmitJob(const v1::SubmitJobRequest& req, const farm::Caller& caller,
+                   v1::SubmitJobResponse* resp);
   Status GetJob(const v1::GetJobRequest& req, v1::JobStatus* resp);
   Status ListJobs(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp);
   // `write` returns false when the client has gone.
   Status WatchJob(const v1::WatchJobRequest& req, const farm::CancelledFn& cancelled,
                   const std::function<bool(const v1::JobStatus&)>& write);
-  Status CancelJob(const v1::CancelJobRequest& req, v1::CancelJobResponse* resp);
-  Status SetPriority(const v1::SetPriorityRequest& req, v1::JobActionResponse* resp);
-  Status PauseJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp);
-  Status ResumeJob(const v1::JobActionRequest& req, v1::JobActionResponse* resp);
+  Status CancelJob(const v1::CancelJobRequest& req, const farm::Caller& caller,
+                   v1::CancelJobResponse* resp);
+  // The actions on a job: its owner's or an admin's (PERMISSION_DENIED).
+  Status SetPriority(const v1::SetPriorityRequest& req, const farm::Caller& caller,
+                     v1::JobActionResponse* resp);
+  Status PauseJob(const v1::JobActionRequest& req, const farm::Caller& caller,
+                  v1::JobActionResponse* resp);
+  Status ResumeJob(const v1::JobActionRequest& req, const farm::Caller& caller,
+                   v1::JobActionResponse* resp);
   Status ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResponse* resp);
   Status ListWorkers(const v1::ListWorkersRequest& req, v1::ListWorkersResponse* resp);
   Status FetchResults(const v1::FetchResultsRequest& req,

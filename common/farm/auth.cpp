@@ -4,6 +4,7 @@
 #include <openssl/sha.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <spdlog/spdlog.h>
@@ -59,6 +60,53 @@ Result<std::vector<std::string>> read_tokens(const std::string& path, const std:
   return tokens;
 }
 
+// A client or admin line: "NAME TOKEN", or a token alone named
+// `prefix`-LINE. Returns {name, token}.
+std::pair<std::string, std::string> named_line(std::string_view line, int number,
+                                               const char* prefix) {
+  const size_t space = line.find_first_of(" \t");
+  if (space == std::string_view::npos) {
+    return {std::string(prefix) + "-" + std::to_string(number), std::string(line)};
+  }
+  return {std::string(line.substr(0, space)), std::string(trim(line.substr(space + 1)))};
+}
+
+// The lines of a client or admin tokens file (numbered from 1), each
+// checked; the names printable, the tokens as read_tokens' are.
+Result<std::vector<std::string>> read_named(const std::string& path, const std::string& flag) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return FailedPrecondition(flag + " " + path + ": cannot read the file");
+  std::vector<std::string> lines;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const std::string_view t = trim(line);
+    if (t.empty() || t.front() == '#') {
+      lines.emplace_back();  // keeps the numbering of the lines
+      continue;
+    }
+    const auto [name, token] = named_line(t, number, "token");
+    if (!printable(name) || name.size() > 64 || !printable(token) || token.size() > kMaxTokenBytes) {
+      return InvalidArgument(flag + " " + path + ":" + std::to_string(number) +
+                             ": expected NAME TOKEN or a token alone (a name of at most 64 and a "
+                             "token of 1.." +
+                             std::to_string(kMaxTokenBytes) +
+                             " visible ASCII characters, without spaces)");
+    }
+    lines.emplace_back(t);
+  }
+  if (std::all_of(lines.begin(), lines.end(), [](const std::string& l) { return l.empty(); })) {
+    return InvalidArgument(flag + " " + path +
+                           ": holds no token (NAME TOKEN per line; # starts a comment)");
+  }
+  struct stat st {};
+  if (stat(path.c_str(), &st) == 0 && (st.st_mode & (S_IRWXG | S_IRWXO)) != 0) {
+    spdlog::warn("{} {}: readable by other users; chmod 600 it", flag, path);
+  }
+  return lines;
+}
+
 }  // namespace
 
 Result<std::string> load_token(const std::string& token_file) {
@@ -92,45 +140,72 @@ Result<std::string> random_token() {
 }
 
 Result<Authenticator> Authenticator::from_files(const std::string& client_tokens,
-                                                const std::string& worker_tokens) {
-  auto clients = read_tokens(client_tokens, "--client-tokens");
+                                                const std::string& worker_tokens,
+                                                const std::string& admin_tokens) {
+  auto clients = read_named(client_tokens, "--client-tokens");
   if (!clients.ok()) return clients.status();
   auto workers = read_tokens(worker_tokens, "--worker-tokens");
   if (!workers.ok()) return workers.status();
-  return from_tokens(*clients, *workers);
+  std::vector<std::string> admins;
+  if (!admin_tokens.empty()) {
+    auto a = read_named(admin_tokens, "--admin-tokens");
+    if (!a.ok()) return a.status();
+    admins = std::move(*a);
+  }
+  return from_tokens(*clients, *workers, admins);
 }
 
-Authenticator Authenticator::from_tokens(const std::vector<std::string>& client_tokens,
-                                         const std::vector<std::string>& worker_tokens) {
+Authenticator Authenticator::from_tokens(const std::vector<std::string>& client_lines,
+                                         const std::vector<std::string>& worker_tokens,
+                                         const std::vector<std::string>& admin_lines) {
   Authenticator a;
   a.enforcing_ = true;
-  for (const std::string& t : client_tokens) a.add(t, Role::kClient);
+  for (size_t i = 0; i < client_lines.size(); ++i) {
+    if (client_lines[i].empty()) continue;
+    const auto [name, token] = named_line(client_lines[i], static_cast<int>(i) + 1, "token");
+    a.add(token, Role::kClient, name);
+  }
   for (const std::string& t : worker_tokens) a.add(t, Role::kWorker);
+  for (size_t i = 0; i < admin_lines.size(); ++i) {
+    if (admin_lines[i].empty()) continue;
+    const auto [name, token] = named_line(admin_lines[i], static_cast<int>(i) + 1, "admin");
+    a.add(token, Role::kClient, name, true);
+  }
   return a;
 }
 
-void Authenticator::add(std::string_view token, Role role) {
+void Authenticator::add(std::string_view token, Role role, const std::string& user, bool admin) {
   Entry e;
   SHA256(reinterpret_cast<const unsigned char*>(token.data()), token.size(), e.digest.data());
-  for (Entry& have : tokens_) {
-    if (have.digest == e.digest) {
-      (role == Role::kClient ? have.client : have.worker) = true;
-      return;
-    }
+  Entry* have = nullptr;
+  for (Entry& t : tokens_) {
+    if (t.digest == e.digest) have = &t;
   }
-  (role == Role::kClient ? e.client : e.worker) = true;
-  tokens_.push_back(e);
+  if (!have) {
+    tokens_.push_back(e);
+    have = &tokens_.back();
+  }
+  (role == Role::kClient ? have->client : have->worker) = true;
+  // An admin line names the user over a client line of the same token.
+  if (role == Role::kClient && (admin || have->user.empty())) have->user = user;
+  have->admin |= admin;
 }
 
 Status Authenticator::check(Role needed, std::string_view authorization,
                             bool peer_certificate_verified, std::string_view method) const {
+  return identify(needed, authorization, peer_certificate_verified, method).status();
+}
+
+Result<Caller> Authenticator::identify(Role needed, std::string_view authorization,
+                                       bool peer_certificate_verified,
+                                       std::string_view method) const {
   const std::string call(method);
   if (needed == Role::kWorker && worker_certificate_ && !peer_certificate_verified) {
     return Status(Code::kUnauthenticated,
                   call + ": a worker must present a client certificate signed by the "
                          "coordinator's --tls-ca (locus-worker --tls-cert/--tls-key)");
   }
-  if (!enforcing_) return Status::Ok();
+  if (!enforcing_) return Caller::anyone();
   if (authorization.empty()) {
     return Status(Code::kUnauthenticated,
                   call + ": no bearer token (give --token-file FILE or set LOCUS_TOKEN)");
@@ -146,11 +221,13 @@ Status Authenticator::check(Role needed, std::string_view authorization,
   Digest digest;
   SHA256(reinterpret_cast<const unsigned char*>(token.data()), token.size(), digest.data());
   bool known = false, client = false, worker = false;
+  const Entry* match = nullptr;
   for (const Entry& e : tokens_) {
     const bool same = CRYPTO_memcmp(e.digest.data(), digest.data(), digest.size()) == 0;
     known |= same;
     client |= same & e.client;
     worker |= same & e.worker;
+    match = same ? &e : match;
   }
   if (!known) return Status(Code::kUnauthenticated, call + ": the token is not valid here");
   if ((needed == Role::kClient && !client) || (needed == Role::kWorker && !worker)) {
@@ -159,7 +236,7 @@ Status Authenticator::check(Role needed, std::string_view authorization,
                                                " token may not make this call (" +
                                                role_name(needed) + " tokens only)");
   }
-  return Status::Ok();
+  return Caller{match->user, match->admin};
 }
 
 }  // namespace locus::farm

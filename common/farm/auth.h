@@ -25,6 +25,16 @@ inline constexpr Labels<Role, 2> kRoleLabels = {
 // A C string: every name in the table (and the fallback) is a literal.
 inline const char* role_name(Role role) { return label_name(kRoleLabels, role).data(); }
 
+// Who makes a call: the user its client token names (`--client-tokens`
+// lines "NAME TOKEN"), and whether it is an admin (`--admin-tokens`). A farm
+// without tokens treats every caller as an unnamed admin.
+struct Caller {
+  std::string user;
+  bool admin = false;
+  // The coordinator itself, tests, and callers of a farm without tokens.
+  static Caller anyone() { return Caller{"", true}; }
+};
+
 // What a client or worker needs to reach a coordinator (plain strings, so
 // that worker/ and client/ options carry them without gRPC headers).
 struct Credentials {
@@ -48,11 +58,18 @@ class Authenticator {
   // Open: every call allowed (`--insecure` without token files).
   Authenticator() = default;
   // One token per line; empty lines and # comments skipped, surrounding
-  // white space trimmed. A token may be in both files (both roles).
+  // white space trimmed. A token may be in several files (several roles).
+  // Client and admin lines are "NAME TOKEN" or a token alone, whose user is
+  // then named after its line ("token-3" in the client file, "admin-3" in
+  // the admin file); an admin token is also a client token. Worker lines
+  // hold a token only.
   static Result<Authenticator> from_files(const std::string& client_tokens,
-                                          const std::string& worker_tokens);
-  static Authenticator from_tokens(const std::vector<std::string>& client_tokens,
-                                   const std::vector<std::string>& worker_tokens);
+                                          const std::string& worker_tokens,
+                                          const std::string& admin_tokens = "");
+  // The same from lines as the files hold them.
+  static Authenticator from_tokens(const std::vector<std::string>& client_lines,
+                                   const std::vector<std::string>& worker_tokens,
+                                   const std::vector<std::string>& admin_lines = {});
 
   // Worker calls then also need a client certificate that TLS verified
   // against the coordinator's --tls-ca.
@@ -67,6 +84,9 @@ class Authenticator {
   // messages never contain the token.
   Status check(Role needed, std::string_view authorization, bool peer_certificate_verified,
                std::string_view method) const;
+  // check(), and on success who the caller is.
+  Result<Caller> identify(Role needed, std::string_view authorization,
+                          bool peer_certificate_verified, std::string_view method) const;
 
  private:
   using Digest = std::array<uint8_t, 32>;
@@ -74,8 +94,10 @@ class Authenticator {
     Digest digest;
     bool client = false;
     bool worker = false;
+    bool admin = false;
+    std::string user;
   };
-  void add(std::string_view token, Role role);
+  void add(std::string_view token, Role role, const std::string& user = "", bool admin = false);
 
   bool enforcing_ = false;
   bool worker_certificate_ = false;

@@ -143,5 +143,44 @@ TEST_F(FarmTest, AHigherPriorityJobSubmittedLaterGetsTheWorkerFirst) {
       << refused.status().message();
 }
 
+TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
+  server_security_.auth = Authenticator::from_tokens(
+      {"ann ann-token-0123456789", "bob-token-0123456789"}, {kWorkerToken}, {"root root-token-0123456789"});
+  client_creds_.token = "ann-token-0123456789";
+  start();
+  auto as = [&](const std::string& token) {
+    Credentials c;
+    c.token = token;
+    return std::make_unique<FarmClient>(address_, c);
+  };
+  auto bob = as("bob-token-0123456789");  // a token alone: user token-2
+  auto root = as("root-token-0123456789");
+  auto job = client_->submit(request(kSpheres, 32, 24, 1, 3, 2, "owned_####.png"));
+  ASSERT_TRUE(job.ok()) << job.status().message();
+  EXPECT_EQ(job->spec.owner, "ann");
+  for (auto code : {bob->cancel(job->job_id).status(), bob->pause(job->job_id).status(),
+                    bob->set_priority(job->job_id, 90, true).status()}) {
+    EXPECT_EQ(code.code(), Code::kPermissionDenied) << code.message();
+    EXPECT_NE(code.message().find("belongs to ann; token-2 may not"), std::string::npos)
+        << code.message();
+    EXPECT_EQ(code.message().find("token-0123"), std::string::npos) << "the token leaked";
+  }
+  // Reading is open to every client; the owner and an admin may act.
+  EXPECT_EQ(bob->job(job->job_id)->state, JobState::kQueued);
+  EXPECT_TRUE(client_->pause(job->job_id).ok());
+  EXPECT_TRUE(root->set_priority(job->job_id, 70, false).ok());
+  auto cancelled = root->cancel(job->job_id);
+  ASSERT_TRUE(cancelled.ok()) << cancelled.status().message();
+  EXPECT_EQ(cancelled->state, JobState::kCancelled);
+  EXPECT_EQ(count_events(*client_, job->job_id, "paused by ann"), 1);
+  EXPECT_EQ(count_events(*client_, job->job_id, "priority 50 -> 70 by admin root"), 1);
+  EXPECT_EQ(count_events(*client_, job->job_id, "cancelled by admin root"), 1);
+  // Bob's own job is his.
+  auto own = bob->submit(request(kSpheres, 32, 24, 1, 1, 1, "bobs.png"));
+  ASSERT_TRUE(own.ok()) << own.status().message();
+  EXPECT_EQ(own->spec.owner, "token-2");
+  EXPECT_TRUE(bob->cancel(own->job_id).ok());
+}
+
 }  // namespace
 }  // namespace locus::farm::testing_farm

@@ -57,7 +57,7 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
     case kSubmitJob: {
       v1::SubmitJobRequest req;
       v1::SubmitJobResponse resp;
-      if (parse(bytes, kind, ids, &req) && h.SubmitJob(req, &resp).ok()) ids.job = resp.job_id();
+      if (parse(bytes, kind, ids, &req) && h.SubmitJob(req, farm::Caller::anyone(), &resp).ok()) ids.job = resp.job_id();
       break;
     }
     case kGetJob: {
@@ -82,7 +82,7 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
     case kCancelJob: {
       v1::CancelJobRequest req;
       v1::CancelJobResponse resp;
-      if (parse(bytes, kind, ids, &req)) h.CancelJob(req, &resp);
+      if (parse(bytes, kind, ids, &req)) h.CancelJob(req, farm::Caller::anyone(), &resp);
       break;
     }
     case kListWorkers: {

@@ -69,10 +69,11 @@ TEST(Authenticator, WorkerCertificateUnderMutualTls) {
 
 TEST(Authenticator, TokenFiles) {
   const fs::path dir = temp_dir();
-  write_file(dir / "clients", "# people\n\n  alice-token  \r\nbob-token\n");
+  write_file(dir / "clients", "# people\n\n  alice alice-token  \r\nbob-token\n");
+  write_file(dir / "admins", "root\troot-token\nops-token\n");
   write_file(dir / "workers", "worker-token\n");
   write_file(dir / "empty", "# nothing\n\n");
-  write_file(dir / "spaces", "two words\n");
+  write_file(dir / "spaces", "a name and words\n");
   auto auth = Authenticator::from_files((dir / "clients").string(), (dir / "workers").string());
   ASSERT_TRUE(auth.ok()) << auth.status().message();
   EXPECT_TRUE(auth->check(Role::kClient, "Bearer alice-token", false, "x").ok());
@@ -81,6 +82,21 @@ TEST(Authenticator, TokenFiles) {
             Code::kUnauthenticated);
   EXPECT_EQ(auth->check(Role::kClient, "Bearer worker-token", false, "x").code(),
             Code::kPermissionDenied);
+  // Users: named by their line, or after its number; admins from their file.
+  EXPECT_EQ(auth->identify(Role::kClient, "Bearer alice-token", false, "x")->user, "alice");
+  EXPECT_FALSE(auth->identify(Role::kClient, "Bearer alice-token", false, "x")->admin);
+  EXPECT_EQ(auth->identify(Role::kClient, "Bearer bob-token", false, "x")->user, "token-4");
+  auto with_admins = Authenticator::from_files((dir / "clients").string(),
+                                               (dir / "workers").string(), (dir / "admins").string());
+  ASSERT_TRUE(with_admins.ok()) << with_admins.status().message();
+  auto root = with_admins->identify(Role::kClient, "Bearer root-token", false, "x");
+  ASSERT_TRUE(root.ok());
+  EXPECT_EQ(root->user, "root");
+  EXPECT_TRUE(root->admin);
+  EXPECT_EQ(with_admins->identify(Role::kClient, "Bearer ops-token", false, "x")->user, "admin-2");
+  EXPECT_EQ(with_admins->identify(Role::kWorker, "Bearer root-token", false, "x").status().code(),
+            Code::kPermissionDenied);
+  EXPECT_TRUE(Authenticator().identify(Role::kClient, "", false, "x")->admin);  // no tokens
 
   auto empty = Authenticator::from_files((dir / "empty").string(), (dir / "workers").string());
   ASSERT_FALSE(empty.ok());
@@ -97,7 +113,7 @@ TEST(Authenticator, TokenFiles) {
   // Clients: --token-file first, then LOCUS_TOKEN.
   setenv("LOCUS_TOKEN", " from-env \n", 1);
   EXPECT_EQ(*load_token(""), "from-env");
-  EXPECT_EQ(*load_token((dir / "clients").string()), "alice-token");
+  EXPECT_EQ(*load_token((dir / "workers").string()), "worker-token");
   unsetenv("LOCUS_TOKEN");
   EXPECT_EQ(*load_token(""), "");
   EXPECT_FALSE(load_token((dir / "nope").string()).ok());
