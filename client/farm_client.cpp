@@ -49,6 +49,18 @@ class FarmClient::Impl {
   Status broken;
 
   Status check(const grpc::Status& s) const { return rpc::FromGrpc(s, peer); }
+  // A short unary call to an action on a job: the job's status after it.
+  template <class Request>
+  Result<farm::JobInfo> action(grpc::Status (v1::ClientService::Stub::*method)(
+                                   grpc::ClientContext*, const Request&, v1::JobActionResponse*),
+                               const Request& req) const {
+    if (!broken.ok()) return broken;
+    v1::JobActionResponse resp;
+    grpc::ClientContext ctx;
+    prepare(ctx, rpc::kShortCall);
+    if (Status s = check((stub.get()->*method)(&ctx, req, &resp)); !s.ok()) return s;
+    return rpc::FromProto(resp.status());
+  }
   void prepare(grpc::ClientContext& ctx, farm::Millis timeout) const {
     rpc::prepare(ctx, conn, timeout);
   }
@@ -113,47 +125,25 @@ Result<farm::JobInfo> FarmClient::cancel(const std::string& job_id) {
   return rpc::FromProto(resp.status());
 }
 
-namespace {
-template <class Call>
-Result<farm::JobInfo> job_action(const Status& broken, Call&& call) {
-  if (!broken.ok()) return broken;
-  v1::JobActionResponse resp;
-  if (Status s = call(&resp); !s.ok()) return s;
-  return rpc::FromProto(resp.status());
-}
-}  // namespace
-
 Result<farm::JobInfo> FarmClient::set_priority(const std::string& job_id, int priority,
                                                bool preempt) {
-  return job_action(impl_->broken, [&](v1::JobActionResponse* resp) {
-    v1::SetPriorityRequest req;
-    req.set_job_id(job_id);
-    req.set_priority(priority);
-    req.set_preempt(preempt);
-    grpc::ClientContext ctx;
-    impl_->prepare(ctx, rpc::kShortCall);
-    return impl_->check(impl_->stub->SetPriority(&ctx, req, resp));
-  });
+  v1::SetPriorityRequest req;
+  req.set_job_id(job_id);
+  req.set_priority(priority);
+  req.set_preempt(preempt);
+  return impl_->action(&v1::ClientService::Stub::SetPriority, req);
 }
 
 Result<farm::JobInfo> FarmClient::pause(const std::string& job_id) {
-  return job_action(impl_->broken, [&](v1::JobActionResponse* resp) {
-    v1::JobActionRequest req;
-    req.set_job_id(job_id);
-    grpc::ClientContext ctx;
-    impl_->prepare(ctx, rpc::kShortCall);
-    return impl_->check(impl_->stub->PauseJob(&ctx, req, resp));
-  });
+  v1::JobActionRequest req;
+  req.set_job_id(job_id);
+  return impl_->action(&v1::ClientService::Stub::PauseJob, req);
 }
 
 Result<farm::JobInfo> FarmClient::resume(const std::string& job_id) {
-  return job_action(impl_->broken, [&](v1::JobActionResponse* resp) {
-    v1::JobActionRequest req;
-    req.set_job_id(job_id);
-    grpc::ClientContext ctx;
-    impl_->prepare(ctx, rpc::kShortCall);
-    return impl_->check(impl_->stub->ResumeJob(&ctx, req, resp));
-  });
+  v1::JobActionRequest req;
+  req.set_job_id(job_id);
+  return impl_->action(&v1::ClientService::Stub::ResumeJob, req);
 }
 
 Result<std::vector<farm::HistoryEntry>> FarmClient::events(const std::string& job_id,

@@ -415,38 +415,40 @@ double Scheduler::effective_priority(const Job& job, TimePoint now) const {
   return p;
 }
 
-std::vector<Scheduler::Job*> Scheduler::dispatch_order(const std::string& worker_name) {
-  struct Candidate {
+Scheduler::Job* Scheduler::best_job(const std::string& worker_name,
+                                    const std::vector<const Job*>& passed) {
+  struct Key {
     double priority;
     int user_running;
     int job_running;
     int64_t seq;
-    Job* job;
+    bool before(const Key& o) const {
+      if (priority != o.priority) return priority > o.priority;
+      if (user_running != o.user_running) return user_running < o.user_running;
+      if (job_running != o.job_running) return job_running < o.job_running;
+      return seq < o.seq;
+    }
   };
   const TimePoint now = now_();
-  std::vector<Candidate> c;
-  for (const std::string& id : order_) {
-    Job& job = jobs_.at(id);
+  Job* best = nullptr;
+  Key best_key{};
+  for (auto& [id, job] : jobs_) {
     const JobState st = job.info.state;
     if (is_terminal(st) || st == JobState::kPaused || !queued(job)) continue;
+    if (std::find(passed.begin(), passed.end(), &job) != passed.end()) continue;
     // Quarantine holds only while another worker can take the job's bands:
     // a farm of one keeps going, bounded by the attempt limit.
     if (quarantined(job, worker_name) && another_worker_for(job, -1, worker_name)) continue;
     auto u = user_running_.find(job.info.spec.owner);
     const int user = u == user_running_.end() ? 0 : u->second;
     if (options_.user_max_running > 0 && user >= options_.user_max_running) continue;
-    c.push_back({effective_priority(job, now), user, job.running, job.record.seq, &job});
+    const Key key{effective_priority(job, now), user, job.running, job.record.seq};
+    if (!best || key.before(best_key)) {
+      best = &job;
+      best_key = key;
+    }
   }
-  std::sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) {
-    if (a.priority != b.priority) return a.priority > b.priority;
-    if (a.user_running != b.user_running) return a.user_running < b.user_running;
-    if (a.job_running != b.job_running) return a.job_running < b.job_running;
-    return a.seq < b.seq;
-  });
-  std::vector<Job*> out;
-  out.reserve(c.size());
-  for (const Candidate& k : c) out.push_back(k.job);
-  return out;
+  return best;
 }
 
 double Scheduler::speculate_after(const Job& job) const {
@@ -542,9 +544,13 @@ Result<std::optional<BandLease>> Scheduler::next_band(const std::string& worker_
   if (!alive.ok()) return alive;
   Worker& worker = workers_.at(worker_id);
   const std::string& name = worker.info.name;
-  for (Job* job : dispatch_order(name)) {
+  // One pass over the jobs for the best; another only when its queued
+  // bands all wait for other workers (pick_band: none for this one).
+  std::vector<const Job*> passed;
+  while (Job* job = best_job(name, passed)) {
     const int job_band = pick_band(*job, name);
     if (job_band >= 0) return grant(*job, job_band, worker, false);
+    passed.push_back(job);
   }
   if (const Lease* l = speculation_candidate(name)) {
     Job& job = jobs_.at(l->job_id);
@@ -739,33 +745,38 @@ void Scheduler::expire() {
   // A band leased longer than its timeout hangs, however alive its worker:
   // taken back (charged, as a failure of the band) and leased elsewhere;
   // the worker hears of it at its next heartbeat and abandons the render.
-  std::vector<std::pair<std::string, std::string>> hung;
+  // Otherwise a lease past its deadline lapses.
+  struct Ending {
+    std::string lease_id;
+    LeaseOutcome outcome;
+    std::string why;
+  };
+  std::vector<Ending> ending;
   for (const auto& [id, l] : leases_) {
-    const Job& job = jobs_.at(l.job_id);
-    const Millis limit =
-        job.info.spec.band_timeout.count() > 0 ? job.info.spec.band_timeout : options_.band_timeout;
-    if (limit.count() <= 0 || now - l.granted <= limit) continue;
-    hung.emplace_back(id, "band hung: leased to worker " + l.worker_id + " (" + l.worker_name +
-                              ") for " + format_seconds(seconds(now - l.granted)) +
-                              ", over the band timeout of " +
-                              format_seconds(std::chrono::duration<double>(limit).count()));
+    const JobSpec& spec = jobs_.at(l.job_id).info.spec;
+    const Millis limit = spec.band_timeout.count() > 0 ? spec.band_timeout : options_.band_timeout;
+    const std::string who = "worker " + l.worker_id + " (" + l.worker_name + ")";
+    if (limit.count() > 0 && now - l.granted > limit) {
+      ending.push_back({id, LeaseOutcome::kTimedOut,
+                        "band hung: leased to " + who + " for " +
+                            format_seconds(seconds(now - l.granted)) +
+                            ", over the band timeout of " +
+                            format_seconds(std::chrono::duration<double>(limit).count())});
+    } else if (l.deadline < now) {
+      ending.push_back({id, LeaseOutcome::kLapsed, "lease of " + who + " lapsed"});
+    }
   }
-  for (const auto& [id, why] : hung) {
-    const Lease& l = leases_.at(id);
-    BandLogScope log_scope(l.job_id, frame_of(jobs_.at(l.job_id), l.job_band),
-                           band_of(jobs_.at(l.job_id), l.job_band));
-    spdlog::warn("job {}: {}", l.job_id, why);
-    release(id, LeaseOutcome::kTimedOut, why);
-  }
-  std::vector<std::string> lapsed;
-  for (const auto& [id, l] : leases_) {
-    if (l.deadline < now) lapsed.push_back(id);
-  }
-  for (const std::string& id : lapsed) {
-    auto it = leases_.find(id);
+  for (const Ending& e : ending) {
+    // An earlier release may have failed the job and dropped this lease.
+    auto it = leases_.find(e.lease_id);
     if (it == leases_.end()) continue;
-    release(id, LeaseOutcome::kLapsed,
-            "lease of worker " + it->second.worker_id + " (" + it->second.worker_name + ") lapsed");
+    if (e.outcome == LeaseOutcome::kTimedOut) {
+      const Job& job = jobs_.at(it->second.job_id);
+      BandLogScope log_scope(job.info.job_id, frame_of(job, it->second.job_band),
+                             band_of(job, it->second.job_band));
+      spdlog::warn("job {}: {}", job.info.job_id, e.why);
+    }
+    release(e.lease_id, e.outcome, e.why);
   }
 }
 

@@ -203,10 +203,10 @@ class Scheduler {
   // The job band leased `position`-th among those never leased before
   // (JobSpec::frame_order), for position < bands.size().
   static int fresh_band(const Job& job, int position);
-  // The jobs that may lease a band to this worker now, best first:
-  // priority (with ageing), then the fewest running bands of the job's
-  // owner, then of the job, then the oldest.
-  std::vector<Job*> dispatch_order(const std::string& worker_name);
+  // The best job that may lease a band to this worker now, other than
+  // those `passed`: priority (with ageing), then the fewest running bands
+  // of the job's owner, then of the job, then the oldest; null: none.
+  Job* best_job(const std::string& worker_name, const std::vector<const Job*>& passed);
   double effective_priority(const Job& job, TimePoint now) const;
   // A lease starts or ends: the running counts of its job and its owner.
   void count_running(Job& job, int delta);
@@ -232,7 +232,7 @@ class Scheduler {
 
   SchedulerOptions options_;
   NowFn now_;
-  std::vector<std::string> order_;  // job ids, oldest first: dispatch is FIFO by job
+  std::vector<std::string> order_;  // job ids, oldest first: the order jobs() lists them in
   std::map<std::string, Job> jobs_;
   std::map<std::string, std::string> requests_;  // request id -> job id
   std::map<std::string, Lease> leases_;

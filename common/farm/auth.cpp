@@ -2,12 +2,11 @@
 
 #include <openssl/crypto.h>
 #include <openssl/sha.h>
+#include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
-#include <algorithm>
 #include <cstdlib>
 #include <fstream>
-#include <spdlog/spdlog.h>
 
 namespace locus::farm {
 namespace {
@@ -30,36 +29,6 @@ bool printable(std::string_view s) {
   return true;
 }
 
-// The tokens of a file: one per line, # comments and blank lines skipped.
-// `flag` names the file in messages ("--client-tokens").
-Result<std::vector<std::string>> read_tokens(const std::string& path, const std::string& flag) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return FailedPrecondition(flag + " " + path + ": cannot read the file");
-  std::vector<std::string> tokens;
-  std::string line;
-  int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    const std::string_view t = trim(line);
-    if (t.empty() || t.front() == '#') continue;
-    if (!printable(t) || t.size() > kMaxTokenBytes) {
-      return InvalidArgument(flag + " " + path + ":" + std::to_string(number) +
-                             ": a token is 1.." + std::to_string(kMaxTokenBytes) +
-                             " visible ASCII characters without spaces");
-    }
-    tokens.emplace_back(t);
-  }
-  if (tokens.empty()) {
-    return InvalidArgument(flag + " " + path +
-                           ": holds no token (one per line; # starts a comment)");
-  }
-  struct stat st {};
-  if (stat(path.c_str(), &st) == 0 && (st.st_mode & (S_IRWXG | S_IRWXO)) != 0) {
-    spdlog::warn("{} {}: readable by other users; chmod 600 it", flag, path);
-  }
-  return tokens;
-}
-
 // A client or admin line: "NAME TOKEN", or a token alone named
 // `prefix`-LINE. Returns {name, token}.
 std::pair<std::string, std::string> named_line(std::string_view line, int number,
@@ -71,40 +40,58 @@ std::pair<std::string, std::string> named_line(std::string_view line, int number
   return {std::string(line.substr(0, space)), std::string(trim(line.substr(space + 1)))};
 }
 
-// The lines of a client or admin tokens file (numbered from 1), each
-// checked; the names printable, the tokens as read_tokens' are.
-Result<std::vector<std::string>> read_named(const std::string& path, const std::string& flag) {
+// The lines of a token file, trimmed, line k at index k - 1; # comments and
+// blank lines are kept as empty strings (the numbering names unnamed
+// users). Each line is a token, or with `named` "NAME TOKEN" or a token.
+// `flag` names the file in messages ("--client-tokens").
+Result<std::vector<std::string>> read_token_lines(const std::string& path, const std::string& flag,
+                                                  bool named) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return FailedPrecondition(flag + " " + path + ": cannot read the file");
   std::vector<std::string> lines;
+  bool any = false;
   std::string line;
-  int number = 0;
   while (std::getline(in, line)) {
-    ++number;
     const std::string_view t = trim(line);
     if (t.empty() || t.front() == '#') {
-      lines.emplace_back();  // keeps the numbering of the lines
+      lines.emplace_back();
       continue;
     }
-    const auto [name, token] = named_line(t, number, "token");
-    if (!printable(name) || name.size() > 64 || !printable(token) || token.size() > kMaxTokenBytes) {
-      return InvalidArgument(flag + " " + path + ":" + std::to_string(number) +
-                             ": expected NAME TOKEN or a token alone (a name of at most 64 and a "
-                             "token of 1.." +
+    const int number = static_cast<int>(lines.size()) + 1;
+    const auto [name, token] =
+        named ? named_line(t, number, "token") : std::pair{std::string("-"), std::string(t)};
+    if (!printable(name) || name.size() > 64 || !printable(token) ||
+        token.size() > kMaxTokenBytes) {
+      return InvalidArgument(flag + " " + path + ":" + std::to_string(number) + ": " +
+                             (named ? "expected NAME TOKEN or a token alone (a name of at most 64 "
+                                      "and a token of 1.."
+                                    : "a token is 1..") +
                              std::to_string(kMaxTokenBytes) +
-                             " visible ASCII characters, without spaces)");
+                             " visible ASCII characters without spaces" + (named ? ")" : ""));
     }
     lines.emplace_back(t);
+    any = true;
   }
-  if (std::all_of(lines.begin(), lines.end(), [](const std::string& l) { return l.empty(); })) {
-    return InvalidArgument(flag + " " + path +
-                           ": holds no token (NAME TOKEN per line; # starts a comment)");
+  if (!any) {
+    return InvalidArgument(flag + " " + path + ": holds no token (" +
+                           (named ? "NAME TOKEN" : "one") + " per line; # starts a comment)");
   }
   struct stat st {};
   if (stat(path.c_str(), &st) == 0 && (st.st_mode & (S_IRWXG | S_IRWXO)) != 0) {
     spdlog::warn("{} {}: readable by other users; chmod 600 it", flag, path);
   }
   return lines;
+}
+
+// The tokens of a file that holds tokens alone.
+Result<std::vector<std::string>> read_tokens(const std::string& path, const std::string& flag) {
+  auto lines = read_token_lines(path, flag, false);
+  if (!lines.ok()) return lines.status();
+  std::vector<std::string> tokens;
+  for (std::string& l : *lines) {
+    if (!l.empty()) tokens.push_back(std::move(l));
+  }
+  return tokens;
 }
 
 }  // namespace
@@ -142,13 +129,13 @@ Result<std::string> random_token() {
 Result<Authenticator> Authenticator::from_files(const std::string& client_tokens,
                                                 const std::string& worker_tokens,
                                                 const std::string& admin_tokens) {
-  auto clients = read_named(client_tokens, "--client-tokens");
+  auto clients = read_token_lines(client_tokens, "--client-tokens", true);
   if (!clients.ok()) return clients.status();
   auto workers = read_tokens(worker_tokens, "--worker-tokens");
   if (!workers.ok()) return workers.status();
   std::vector<std::string> admins;
   if (!admin_tokens.empty()) {
-    auto a = read_named(admin_tokens, "--admin-tokens");
+    auto a = read_token_lines(admin_tokens, "--admin-tokens", true);
     if (!a.ok()) return a.status();
     admins = std::move(*a);
   }
@@ -202,15 +189,17 @@ Result<Caller> Authenticator::identify(Role needed, std::string_view authorizati
   const std::string call(method);
   if (needed == Role::kWorker && worker_certificate_ && !peer_certificate_verified) {
     return Status(Code::kUnauthenticated,
-                  call + ": a worker must present a client certificate signed by the "
-                         "coordinator's --tls-ca (locus-worker --tls-cert/--tls-key)");
+                  call +
+                      ": a worker must present a client certificate signed by the "
+                      "coordinator's --tls-ca (locus-worker --tls-cert/--tls-key)");
   }
   if (!enforcing_) return Caller::anyone();
   if (authorization.empty()) {
     return Status(Code::kUnauthenticated,
                   call + ": no bearer token (give --token-file FILE or set LOCUS_TOKEN)");
   }
-  if (authorization.size() <= kBearer.size() || authorization.substr(0, kBearer.size()) != kBearer ||
+  if (authorization.size() <= kBearer.size() ||
+      authorization.substr(0, kBearer.size()) != kBearer ||
       authorization.size() - kBearer.size() > kMaxTokenBytes) {
     return Status(Code::kUnauthenticated,
                   call + ": the authorization header is not \"Bearer <token>\"");

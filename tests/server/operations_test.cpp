@@ -18,6 +18,7 @@ namespace {
 namespace fs = std::filesystem;
 using test_doubles::FakeClock;
 using test_doubles::pixels;
+using test_doubles::TempDir;
 
 JobSpec spec(int frames, int bands, int priority = kDefaultPriority,
              const std::string& owner = "") {
@@ -272,18 +273,23 @@ TEST_F(OperationsTest, AHungBandIsTakenBackAfterTheBandTimeoutThoughItsWorkerHea
   EXPECT_TRUE(said);
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "locus-ops-test-XXXXXX").string();
-    EXPECT_NE(mkdtemp(t.data()), nullptr);
-    path = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
+// Two bands hang at once and the first timeout fails the job (one attempt
+// allowed): the second lease went with the job, and expire() goes on.
+TEST_F(OperationsTest, HungBandsThatFailTheirJobEndItOnce) {
+  SchedulerOptions o = options();
+  o.band_timeout = Millis(1000);
+  o.max_attempts = 1;
+  Scheduler t(o, clock.fn());
+  const std::string job = t.add_job(spec(1, 2));
+  const std::string a = t.add_worker("a", 1), b = t.add_worker("b", 1);
+  ASSERT_TRUE(t.next_band(a)->has_value());
+  ASSERT_TRUE(t.next_band(b)->has_value());
+  clock.advance(1500);
+  t.expire();
+  EXPECT_EQ(t.job(job)->state, JobState::kFailed);
+  EXPECT_NE(t.job(job)->error.find("band hung"), std::string::npos) << t.job(job)->error;
+  EXPECT_EQ(t.counts().bands_running, 0);
+}
 
 TEST_F(OperationsTest, PrioritiesPausesOrderTimeoutsAndHistorySurviveARestart) {
   TempDir dir;

@@ -1,8 +1,13 @@
 // Test doubles for the Scheduler and the Coordinator without a network,
-// shared by scheduler_test, store_test and metrics_test: a clock the test
-// moves, a job's spec, and a worker's pixels for a leased band.
+// shared by scheduler_test, store_test, operations_test and metrics_test: a
+// clock the test moves, a job's spec, a worker's pixels for a leased band,
+// and a temporary directory.
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
 #include <string>
 
 #include "common/farm/types.h"
@@ -43,5 +48,19 @@ inline BandOutput pixels(const std::string& worker, const BandLease& t) {
   o.stats.geometry_triangles = 100;  // each band's frame: summed as a maximum
   return o;
 }
+
+// A fresh directory under the system's temporary one, removed with it.
+struct TempDir {
+  std::filesystem::path path;
+  TempDir() {
+    std::string t = (std::filesystem::temp_directory_path() / "locus-store-test-XXXXXX").string();
+    EXPECT_NE(mkdtemp(t.data()), nullptr);
+    path = t;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
 
 }  // namespace locus::farm::test_doubles

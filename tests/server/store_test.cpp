@@ -4,9 +4,8 @@
 // (crash_for_test), the second resuming its jobs.
 #include "server/store.h"
 
-#include <sqlite3.h>
-
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -31,21 +30,9 @@ namespace {
 namespace fs = std::filesystem;
 using test_doubles::FakeClock;
 using test_doubles::pixels;
+using test_doubles::TempDir;
 
 const std::string kSpheres = std::string(LOCUS_SOURCE_DIR) + "/scenes/simple/spheres.json";
-
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "locus-store-test-XXXXXX").string();
-    EXPECT_NE(mkdtemp(t.data()), nullptr);
-    path = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
 
 JobSpec spec(int w, int h, int first, int last, int bands) {
   JobSpec s = test_doubles::job_spec(w, h, first, last, bands, "shot_####.exr");
