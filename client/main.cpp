@@ -281,6 +281,8 @@ struct SubmitArgs {
   int priority = farm::kDefaultPriority;
   std::string frame_order;
   double band_timeout = 0;  // seconds; 0: the coordinator's
+  std::vector<std::string> require;
+  std::vector<std::string> after;
 };
 
 int run_submit(const std::string& address, const farm::Credentials& creds, const SubmitArgs& a) {
@@ -290,6 +292,8 @@ int run_submit(const std::string& address, const farm::Credentials& creds, const
   if (!job.ok()) return fail(job.status());
   job->request.priority = a.priority;
   job->request.frame_order = a.frame_order;
+  job->request.require = a.require;
+  job->request.after = a.after;
   job->request.band_timeout =
       farm::Millis(static_cast<int64_t>(std::llround(a.band_timeout * 1000)));
   client::FarmClient farm(address, creds);
@@ -320,6 +324,10 @@ void print_job(const farm::JobInfo& j) {
                 static_cast<long long>(j.results_discarded));
   }
   for (const std::string& w : j.quarantined) std::printf("  quarantined worker %s\n", w.c_str());
+  if (!j.spec.require.empty())
+    std::printf("  requires workers tagged %s\n", farm::words_text(j.spec.require).c_str());
+  if (!j.spec.after.empty()) std::printf("  after    %s\n", farm::words_text(j.spec.after).c_str());
+  if (!j.waiting.empty()) std::printf("  %s\n", j.waiting.c_str());
   if (j.bands_timed_out > 0) {
     std::printf("  hung     %lld bands taken back by the band timeout (`locus events %s`)\n",
                 static_cast<long long>(j.bands_timed_out), j.job_id.c_str());
@@ -437,16 +445,17 @@ int run_workers(const std::string& address, const farm::Credentials& creds) {
     std::printf("no workers\n");
     return 0;
   }
-  std::printf("%-7s %-24s %-8s %-6s %-22s %-7s %s\n", "WORKER", "NAME", "THREADS", "STATE", "BAND",
-              "BANDS", "SEEN");
+  std::printf("%-7s %-24s %-8s %-6s %-22s %-7s %-12s %s\n", "WORKER", "NAME", "THREADS", "STATE",
+              "BAND", "BANDS", "SEEN", "TAGS");
   for (const farm::WorkerInfo& w : *ws) {
     const std::string band =
         w.busy ? w.job_id + "/f" + std::to_string(w.frame) + "/b" + std::to_string(w.band) : "-";
     char seen[32];
     std::snprintf(seen, sizeof seen, "%.1f s ago", w.seconds_since_seen);
-    std::printf("%-7s %-24s %-8d %-6s %-22s %-7lld %s\n", w.worker_id.c_str(), w.name.c_str(),
+    const std::string tags = w.tags.empty() ? "-" : farm::words_text(w.tags);
+    std::printf("%-7s %-24s %-8d %-6s %-22s %-7lld %-12s %s\n", w.worker_id.c_str(), w.name.c_str(),
                 w.threads, w.busy ? "busy" : "idle", band.c_str(),
-                static_cast<long long>(w.bands_done), seen);
+                static_cast<long long>(w.bands_done), seen, tags.c_str());
   }
   return 0;
 }
@@ -568,6 +577,14 @@ int main(int argc, char** argv) {
                    "Seconds a band may stay leased before it is taken back as hung and retried "
                    "elsewhere (default: the coordinator's --band-timeout)")
       ->check(CLI::Range(0.0, 7 * 24 * 3600.0));
+  submit->add_option("--require", sa.require,
+                     "A worker tag the job needs (repeatable): its bands go only to workers "
+                     "started with --tag for each");
+  submit
+      ->add_option("--after", sa.after,
+                   "Job ids (comma-separated or repeated) this job waits for: it starts when "
+                   "all have succeeded and fails if one fails or is cancelled")
+      ->delimiter(',');
 
   std::string job_id, dir;
   auto* status = app.add_subcommand("status", "Show one job, or list them all");

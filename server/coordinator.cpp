@@ -319,6 +319,7 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   if (auto earlier = scheduler_.job_for_request(r.request_id)) {
     return resubmitted(*earlier, r.request_id, fingerprint);
   }
+  if (Status s = scheduler_.check_after(job->spec.after); !s.ok()) return s;
   if (Status s = cut_into_bands(r.bands, *job); !s.ok()) return s;
   const int max_jobs = options_.limits.max_jobs;
   if (scheduler_.unfinished_jobs() >= static_cast<size_t>(max_jobs)) {
@@ -387,20 +388,21 @@ std::vector<JobInfo> Coordinator::jobs() {
 }
 
 Result<JobInfo> Coordinator::act(const std::string& job_id, const char* what, const Caller& caller,
-                                  const std::function<Result<JobInfo>(const std::string&)>& call) {
+                                 const std::function<Result<JobInfo>(const std::string&)>& call) {
   std::lock_guard lk(mu_);
   auto job = scheduler_.job(job_id);
   if (!job.ok()) return job.status();
   const std::string& owner = job->spec.owner;
   if (!owner.empty() && !caller.admin && caller.user != owner) {
-    return Status(Code::kPermissionDenied, "job " + job_id + " belongs to " + owner + "; " +
-                            (caller.user.empty() ? "an unnamed user" : caller.user) +
-                            " may not " + what + " it (only its owner or an admin)");
+    return Status(Code::kPermissionDenied,
+                  "job " + job_id + " belongs to " + owner + "; " +
+                      (caller.user.empty() ? "an unnamed user" : caller.user) + " may not " + what +
+                      " it (only its owner or an admin)");
   }
   // The history names the caller: the user, "admin NAME" acting on another's job.
-  const std::string who =
-      caller.admin && !caller.user.empty() && caller.user != owner ? "admin " + caller.user
-                                                                    : caller.user;
+  const std::string who = caller.admin && !caller.user.empty() && caller.user != owner
+                              ? "admin " + caller.user
+                              : caller.user;
   auto r = call(who);
   if (r.ok()) spdlog::info("job {}: {}{}", job_id, what, who.empty() ? "" : " by " + who);
   persist();
@@ -526,15 +528,18 @@ Status Coordinator::fetch(const std::string& job_id, const std::vector<int>& fra
 
 // ---------------------------------------------------------------- workers
 
-Registration Coordinator::register_worker(const std::string& name, int threads) {
+Result<Registration> Coordinator::register_worker(const std::string& name, int threads,
+                                                  const std::vector<std::string>& tags) {
+  if (Status s = check_tags(tags, "tag"); !s.ok()) return s;
   std::lock_guard lk(mu_);
   Registration r;
-  r.worker_id =
-      scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200), std::max(1, threads));
+  r.worker_id = scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200),
+                                      std::max(1, threads), tags);
   r.heartbeat = options_.heartbeat;
   r.lease = options_.lease;
   persist();
-  spdlog::info("worker {} registered: {} ({} threads)", r.worker_id, name, threads);
+  spdlog::info("worker {} registered: {} ({} threads{}{})", r.worker_id, name, threads,
+               tags.empty() ? "" : ", tags ", words_text(tags));
   changed_.notify_all();
   return r;
 }

@@ -116,7 +116,9 @@ class Coordinator {
   Status fetch(const std::string& job_id, const std::vector<int>& frames, const ChunkSink& sink);
 
   // ---- WorkerService ----
-  Registration register_worker(const std::string& name, int threads);
+  // InvalidArgument for bad tags (check_tags).
+  Result<Registration> register_worker(const std::string& name, int threads,
+                                       const std::vector<std::string>& tags = {});
   // GetTask, the long poll: the next band leased to the worker as soon as
   // there is one, or nothing once `wait` (capped by max_poll) has passed.
   Result<std::optional<BandLease>> lease_band(const std::string& worker_id, Millis wait,

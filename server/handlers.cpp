@@ -34,6 +34,12 @@ Status Handlers::SubmitJob(const v1::SubmitJobRequest& req, const farm::Caller& 
                            v1::SubmitJobResponse* resp) {
   if (req.spec().output().size() > kMaxOutputBytes)
     return InvalidArgument("output: longer than " + std::to_string(kMaxOutputBytes) + " bytes");
+  // Bounded before the copy: the checks name the limits.
+  if (req.spec().require_size() > static_cast<int>(farm::kMaxTags) ||
+      req.spec().after_size() > static_cast<int>(farm::kMaxAfter)) {
+    return InvalidArgument("require: at most " + std::to_string(farm::kMaxTags) +
+                           " tags; after: at most " + std::to_string(farm::kMaxAfter) + " jobs");
+  }
   farm::SubmitRequest r = FromProto(req.spec());
   r.scene_name = printable_name(r.scene_name);
   r.request_id = req.request_id();
@@ -88,8 +94,9 @@ Status job_action(const std::string& job_id, v1::JobActionResponse* resp,
 
 Status Handlers::SetPriority(const v1::SetPriorityRequest& req, const farm::Caller& caller,
                              v1::JobActionResponse* resp) {
-  return job_action(req.job_id(), resp,
-                    [&] { return c_.set_priority(req.job_id(), req.priority(), req.preempt(), caller); });
+  return job_action(req.job_id(), resp, [&] {
+    return c_.set_priority(req.job_id(), req.priority(), req.preempt(), caller);
+  });
 }
 
 Status Handlers::PauseJob(const v1::JobActionRequest& req, const farm::Caller& caller,
@@ -137,10 +144,14 @@ Status Handlers::FetchResults(const v1::FetchResultsRequest& req,
 Status Handlers::Register(const v1::RegisterRequest& req, const std::string& peer,
                           v1::RegisterResponse* resp) {
   const std::string name = printable_name(req.name().empty() ? peer : req.name());
-  farm::Registration r = c_.register_worker(name, std::clamp(req.threads(), 1, 1024));
-  resp->set_worker_id(r.worker_id);
-  resp->set_heartbeat_ms(static_cast<int32_t>(r.heartbeat.count()));
-  resp->set_lease_ms(static_cast<int32_t>(r.lease.count()));
+  if (req.tags_size() > static_cast<int>(farm::kMaxTags))
+    return InvalidArgument("tags: at most " + std::to_string(farm::kMaxTags));
+  const std::vector<std::string> tags(req.tags().begin(), req.tags().end());
+  auto r = c_.register_worker(name, std::clamp(req.threads(), 1, 1024), tags);
+  if (!r.ok()) return r.status();
+  resp->set_worker_id(r->worker_id);
+  resp->set_heartbeat_ms(static_cast<int32_t>(r->heartbeat.count()));
+  resp->set_lease_ms(static_cast<int32_t>(r->lease.count()));
   return Status::Ok();
 }
 

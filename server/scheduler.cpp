@@ -106,9 +106,27 @@ std::string Scheduler::band_name(const Job& job, int job_band) const {
 JobInfo Scheduler::snapshot(const Job& job) const {
   JobInfo info = job.info;
   info.bands_running = job.running;
+  info.waiting = waiting_reason(job);
   const TimePoint end = is_terminal(job.info.state) ? job.finished : now_();
   info.seconds_elapsed = seconds(end - job.submitted);
   return info;
+}
+
+std::string Scheduler::waiting_reason(const Job& job) const {
+  const JobState st = job.info.state;
+  if (is_terminal(st) || st == JobState::kPaused || job.running > 0) return "";
+  if (const Job* before = waiting_for(job)) {
+    return "waiting for job " + before->info.job_id + " (" + job_state_name(before->info.state) +
+           ")";
+  }
+  const auto& need = job.info.spec.require;
+  if (need.empty()) return "";
+  for (const auto& [id, w] : workers_) {
+    if (carries(w.info, job)) return "";
+  }
+  std::string tags;
+  for (const std::string& t : need) tags += (tags.empty() ? "" : ", ") + t;
+  return "waiting for a worker tagged " + tags + " (none is connected)";
 }
 
 Result<JobInfo> Scheduler::job(const std::string& job_id) const {
@@ -155,6 +173,7 @@ void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   job.durations.clear();
   if (state == JobState::kFailed) spdlog::warn("job {} failed: {}", job.info.job_id, error);
   ++version_;
+  if (state != JobState::kSucceeded) fail_dependents(job);
 }
 
 Result<JobInfo> Scheduler::cancel(const std::string& job_id, const std::string& who) {
@@ -261,12 +280,14 @@ void Scheduler::frame_written(const std::string& job_id, int frame, const Status
 
 // ---------------------------------------------------------------- workers
 
-std::string Scheduler::add_worker(const std::string& name, int threads) {
+std::string Scheduler::add_worker(const std::string& name, int threads,
+                                  const std::vector<std::string>& tags) {
   const std::string id = numbered("w", next_worker_++);
   Worker w;
   w.info.worker_id = id;
   w.info.name = name;
   w.info.threads = threads;
+  w.info.tags = tags;
   w.last_seen = now_();
   workers_.emplace(id, std::move(w));
   events_.push_back(event::WorkerAdded{next_worker_});
@@ -415,8 +436,53 @@ double Scheduler::effective_priority(const Job& job, TimePoint now) const {
   return p;
 }
 
-Scheduler::Job* Scheduler::best_job(const std::string& worker_name,
+bool Scheduler::carries(const WorkerInfo& worker, const Job& job) {
+  for (const std::string& t : job.info.spec.require) {
+    if (std::find(worker.tags.begin(), worker.tags.end(), t) == worker.tags.end()) return false;
+  }
+  return true;
+}
+
+const Scheduler::Job* Scheduler::waiting_for(const Job& job) const {
+  for (const std::string& id : job.info.spec.after) {
+    const Job* before = find_job(id);
+    if (before && before->info.state != JobState::kSucceeded) return before;
+  }
+  return nullptr;
+}
+
+Status Scheduler::check_after(const std::vector<std::string>& after) const {
+  for (const std::string& id : after) {
+    const Job* before = find_job(id);
+    if (!before) {
+      return InvalidArgument("after " + id.substr(0, 64) +
+                             ": no such job; `locus status` lists the jobs");
+    }
+    const JobState st = before->info.state;
+    if (st == JobState::kFailed || st == JobState::kCancelled) {
+      return InvalidArgument("after " + id + ": that job " + job_state_name(st) +
+                             ", so this one could never start");
+    }
+  }
+  return Status::Ok();
+}
+
+void Scheduler::fail_dependents(const Job& job) {
+  const std::string why = "job " + job.info.job_id + ", which it waits for (--after), " +
+                          job_state_name(job.info.state);
+  std::vector<Job*> dependents;
+  for (auto& [id, j] : jobs_) {
+    if (is_terminal(j.info.state)) continue;
+    const auto& after = j.info.spec.after;
+    if (std::find(after.begin(), after.end(), job.info.job_id) != after.end())
+      dependents.push_back(&j);
+  }
+  for (Job* j : dependents) end_job(*j, JobState::kFailed, why);
+}
+
+Scheduler::Job* Scheduler::best_job(const WorkerInfo& worker,
                                     const std::vector<const Job*>& passed) {
+  const std::string& worker_name = worker.name;
   struct Key {
     double priority;
     int user_running;
@@ -436,6 +502,7 @@ Scheduler::Job* Scheduler::best_job(const std::string& worker_name,
     const JobState st = job.info.state;
     if (is_terminal(st) || st == JobState::kPaused || !queued(job)) continue;
     if (std::find(passed.begin(), passed.end(), &job) != passed.end()) continue;
+    if (!carries(worker, job) || waiting_for(job)) continue;
     // Quarantine holds only while another worker can take the job's bands:
     // a farm of one keeps going, bounded by the attempt limit.
     if (quarantined(job, worker_name) && another_worker_for(job, -1, worker_name)) continue;
@@ -461,8 +528,9 @@ double Scheduler::speculate_after(const Job& job) const {
                   std::chrono::duration<double>(options_.speculate_min).count());
 }
 
-const Scheduler::Lease* Scheduler::speculation_candidate(const std::string& worker_name) const {
+const Scheduler::Lease* Scheduler::speculation_candidate(const WorkerInfo& worker) const {
   if (options_.speculate_factor <= 0) return nullptr;
+  const std::string& worker_name = worker.name;
   const TimePoint now = now_();
   const Lease* best = nullptr;
   double best_ratio = 1.0;
@@ -470,7 +538,7 @@ const Scheduler::Lease* Scheduler::speculation_candidate(const std::string& work
     if (l.speculative || l.worker_name == worker_name) continue;
     const Job& job = jobs_.at(l.job_id);
     if (is_terminal(job.info.state) || job.info.state == JobState::kPaused ||
-        quarantined(job, worker_name)) {
+        quarantined(job, worker_name) || !carries(worker, job)) {
       continue;
     }
     const BandState& state = job.bands[l.job_band];
@@ -547,12 +615,12 @@ Result<std::optional<BandLease>> Scheduler::next_band(const std::string& worker_
   // One pass over the jobs for the best; another only when its queued
   // bands all wait for other workers (pick_band: none for this one).
   std::vector<const Job*> passed;
-  while (Job* job = best_job(name, passed)) {
+  while (Job* job = best_job(worker.info, passed)) {
     const int job_band = pick_band(*job, name);
     if (job_band >= 0) return grant(*job, job_band, worker, false);
     passed.push_back(job);
   }
-  if (const Lease* l = speculation_candidate(name)) {
+  if (const Lease* l = speculation_candidate(worker.info)) {
     Job& job = jobs_.at(l->job_id);
     return grant(job, l->job_band, worker, true);
   }

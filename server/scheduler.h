@@ -93,7 +93,12 @@ class Scheduler {
   void frame_written(const std::string& job_id, int frame, const Status& status);
 
   // ---- workers ----
-  std::string add_worker(const std::string& name, int threads);
+  // `tags` (the worker's pools) are checked by the caller.
+  std::string add_worker(const std::string& name, int threads,
+                         const std::vector<std::string>& tags = {});
+  // Dependencies of a new job: OK when every id names a job that has not
+  // failed or been cancelled; InvalidArgument naming the id otherwise.
+  Status check_after(const std::vector<std::string>& after) const;
   // Marks the worker alive; NotFound when it is unknown (or was dropped).
   Status touch(const std::string& worker_id);
   std::vector<WorkerInfo> workers() const;
@@ -191,6 +196,9 @@ class Scheduler {
   Job* find_job(const std::string& id);
   const Job* find_job(const std::string& id) const;
   JobInfo snapshot(const Job& job) const;
+  // JobInfo::waiting: a job it waits for, or the tags no connected worker
+  // carries; empty when it runs, may run, is paused or is over.
+  std::string waiting_reason(const Job& job) const;
   bool queued(const Job& job) const {
     return !job.retry.empty() || job.next_fresh < static_cast<int>(job.bands.size());
   }
@@ -206,14 +214,21 @@ class Scheduler {
   // The best job that may lease a band to this worker now, other than
   // those `passed`: priority (with ageing), then the fewest running bands
   // of the job's owner, then of the job, then the oldest; null: none.
-  Job* best_job(const std::string& worker_name, const std::vector<const Job*>& passed);
+  Job* best_job(const WorkerInfo& worker, const std::vector<const Job*>& passed);
   double effective_priority(const Job& job, TimePoint now) const;
   // A lease starts or ends: the running counts of its job and its owner.
   void count_running(Job& job, int delta);
   // A line of the job's history (`locus events`).
   void note(const Job& job, std::string text);
   // A band running far longer than its peers, for a second lease, or null.
-  const Lease* speculation_candidate(const std::string& worker_name) const;
+  const Lease* speculation_candidate(const WorkerInfo& worker) const;
+  // Whether the worker carries every tag the job requires.
+  static bool carries(const WorkerInfo& worker, const Job& job);
+  // The first job the job waits for that has not succeeded, or null.
+  const Job* waiting_for(const Job& job) const;
+  // Fails the unfinished jobs that wait for `job`, which failed or was
+  // cancelled (and theirs in turn).
+  void fail_dependents(const Job& job);
   Result<std::optional<BandLease>> grant(Job& job, int job_band, Worker& worker, bool speculative);
   // Ends a lease with `outcome`; when no other lease of its band remains,
   // the band is queued again (first, to finish frames early). Charged

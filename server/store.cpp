@@ -213,7 +213,9 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
         {"priority", "priority INTEGER NOT NULL DEFAULT 50"},
         {"frame_order", "frame_order TEXT NOT NULL DEFAULT ''"},
         {"band_timeout_ms", "band_timeout_ms INTEGER NOT NULL DEFAULT 0"},
-        {"owner", "owner TEXT NOT NULL DEFAULT ''"}}) {
+        {"owner", "owner TEXT NOT NULL DEFAULT ''"},
+        {"require_tags", "require_tags TEXT NOT NULL DEFAULT ''"},
+        {"after_jobs", "after_jobs TEXT NOT NULL DEFAULT ''"}}) {
     Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info('jobs') WHERE name = ?");
     has.bind(column);
     if (has.step() != SQLITE_ROW) return has.error();
@@ -265,14 +267,15 @@ Status JobStore::apply_one(const Event& e) {
                   "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
                   "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
                   "spp, state, submitted_at, aa, tess_tol, band_edges, priority, frame_order, "
-                  "band_timeout_ms, owner) "
-                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                  "band_timeout_ms, owner, require_tags, after_jobs) "
+                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,
              s.render.aa, s.render.tess_tol, band_edges_text(s.band_edges), s.priority,
              std::string(label_name(kFrameOrderLabels, s.frame_order)),
-             static_cast<int64_t>(s.band_timeout.count()), s.owner);
+             static_cast<int64_t>(s.band_timeout.count()), s.owner, words_text(s.require),
+             words_text(s.after));
     if (Status st = ins.run(); !st.ok()) return st;
     return add_history(
         r.job_id, -1, -1,
@@ -421,7 +424,7 @@ Result<RecoveredState> JobStore::recover() {
       "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
       "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges, priority, "
-      "frame_order, band_timeout_ms, owner FROM jobs ORDER BY seq");
+      "frame_order, band_timeout_ms, owner, require_tags, after_jobs FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -465,6 +468,8 @@ Result<RecoveredState> JobStore::recover() {
     s.frame_order = label_value(kFrameOrderLabels, jobs.text(25)).value_or(FrameOrder::kInOrder);
     s.band_timeout = Millis(std::max<int64_t>(0, jobs.integer(26)));
     s.owner = jobs.text(27);
+    s.require = words_from_text(jobs.text(28));
+    s.after = words_from_text(jobs.text(29));
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {

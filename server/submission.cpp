@@ -149,6 +149,16 @@ Status check_scheduling(const SubmitRequest& r, JobSpec& spec) {
                            std::to_string(kMaxBandTimeout.count()) + " ms (7 days)");
   }
   spec.band_timeout = r.band_timeout;
+  if (Status s = check_tags(r.require, "require"); !s.ok()) return s;
+  spec.require = r.require;
+  if (r.after.size() > kMaxAfter) {
+    return InvalidArgument("after: at most " + std::to_string(kMaxAfter) + " jobs, got " +
+                           std::to_string(r.after.size()));
+  }
+  for (const std::string& id : r.after) {
+    if (id.empty() || id.size() > 64) return InvalidArgument("after: a job id is 1..64 characters");
+  }
+  spec.after = r.after;
   return Status::Ok();
 }
 
@@ -190,6 +200,8 @@ std::string scheduling_fingerprint(const JobSpec& spec) {
     out += std::string("|order ") + label_name(kFrameOrderLabels, spec.frame_order).data();
   if (spec.band_timeout.count() > 0)
     out += "|band-timeout " + std::to_string(spec.band_timeout.count());
+  if (!spec.require.empty()) out += "|require " + words_text(spec.require);
+  if (!spec.after.empty()) out += "|after " + words_text(spec.after);
   return out;
 }
 }  // namespace

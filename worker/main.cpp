@@ -37,6 +37,9 @@ int main(int argc, char** argv) {
                  "Threads per band (0 = all cores); run one worker per core by default")
       ->check(CLI::Range(0, 1024));
   app.add_option("--name", options.name, "Name shown by `locus workers` (default host:pid)");
+  app.add_option("--tag", options.tags,
+                 "A pool this worker is in (repeatable): jobs submitted with --require TAG go "
+                 "only to workers carrying all their tags");
   app.add_option("--poll-ms", poll_ms, "Longest wait for a band per request")
       ->check(CLI::Range(100, 60000));
   double abandon_grace = 60;

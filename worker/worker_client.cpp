@@ -130,6 +130,7 @@ bool WorkerClient::Impl::register_worker() {
   v1::RegisterRequest req;
   req.set_name(o_.name);
   req.set_threads(o_.threads);
+  for (const std::string& t : o_.tags) req.add_tags(t);
   v1::RegisterResponse resp;
   grpc::ClientContext ctx;
   rpc::prepare(ctx, conn_, rpc::kShortCall);

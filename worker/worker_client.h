@@ -16,12 +16,13 @@
 namespace locus::farm {
 
 struct WorkerOptions {
-  std::string coordinator;  // HOST:PORT
-  Credentials credentials;  // token, TLS files, --insecure
-  std::string mesh_root;    // OBJ files a scene may name; empty: meshes inline only
-  int threads = 1;          // per band
-  std::string name;         // default host:pid
-  Millis poll{10000};       // long-poll wait per GetTask
+  std::string coordinator;        // HOST:PORT
+  Credentials credentials;        // token, TLS files, --insecure
+  std::string mesh_root;          // OBJ files a scene may name; empty: meshes inline only
+  int threads = 1;                // per band
+  std::string name;               // default host:pid
+  std::vector<std::string> tags;  // pools (`--tag`): jobs that require them come here only
+  Millis poll{10000};             // long-poll wait per GetTask
   // Test only (tests/faults/run.sh): wait this long before rendering each
   // band, to play a slow worker.
   Millis slow_band{0};

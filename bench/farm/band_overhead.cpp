@@ -66,7 +66,7 @@ int main() {
     o.data_dir = dir;
     Coordinator c(o);
     if (!c.start().ok()) return 1;
-    const std::string worker = c.register_worker("bench", 1).worker_id;
+    const std::string worker = c.register_worker("bench", 1)->worker_id;
     auto job = c.submit(trivial_job(kW, kH, kFrames, kBands));
     if (!job.ok()) return 1;
     const double t0 = now_s();

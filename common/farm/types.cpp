@@ -1,14 +1,14 @@
 #include "common/farm/types.h"
 
-#include "common/scene/animation.h"
-
 #include <openssl/evp.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
+#include "common/scene/animation.h"
 #include "common/scene/validate.h"
 
 namespace locus::farm {
@@ -71,7 +71,6 @@ Scene frame_scene(const Scene& base, int width, int height, int frame, int frame
   return scene_at_frame(s, frame, Orbit{orbit_degrees, frame_first, frame_last});
 }
 
-
 std::string band_edges_text(const std::vector<int>& edges) {
   std::string out;
   for (size_t i = 0; i < edges.size(); ++i) {
@@ -86,16 +85,20 @@ Result<std::vector<int>> band_edges_from_text(const std::string& text, int heigh
   std::istringstream in(text);
   long long v;
   while (in >> v) {
-    if (v < 0 || v > height) return InvalidArgument("band edges: " + std::to_string(v) + " is outside 0.." + std::to_string(height));
+    if (v < 0 || v > height)
+      return InvalidArgument("band edges: " + std::to_string(v) + " is outside 0.." +
+                             std::to_string(height));
     edges.push_back(static_cast<int>(v));
   }
   if (!in.eof()) return InvalidArgument("band edges: not a list of integers: '" + text + "'");
   if (edges.empty()) return edges;
-  bool ok = static_cast<int>(edges.size()) == bands + 1 && edges.front() == 0 && edges.back() == height;
+  bool ok =
+      static_cast<int>(edges.size()) == bands + 1 && edges.front() == 0 && edges.back() == height;
   for (size_t i = 1; ok && i < edges.size(); ++i) ok = edges[i] > edges[i - 1];
   if (!ok) {
     return InvalidArgument("band edges: expected " + std::to_string(bands + 1) +
-                           " increasing rows from 0 to " + std::to_string(height) + ", got '" + text + "'");
+                           " increasing rows from 0 to " + std::to_string(height) + ", got '" +
+                           text + "'");
   }
   return edges;
 }
@@ -116,6 +119,36 @@ int default_bands(int width, int height, int frames, int workers) {
   const int64_t per_frame = (target + frames - 1) / std::max(frames, 1);
   const int64_t n = std::max<int64_t>(per_frame, min_bands(width, height));
   return static_cast<int>(std::clamp<int64_t>(n, 1, std::max(height, 1)));
+}
+
+Status check_tags(const std::vector<std::string>& tags, const std::string& what) {
+  if (tags.size() > kMaxTags) {
+    return InvalidArgument(what + ": at most " + std::to_string(kMaxTags) + " tags, got " +
+                           std::to_string(tags.size()));
+  }
+  for (const std::string& t : tags) {
+    const bool ok = !t.empty() && t.size() <= 64 && std::all_of(t.begin(), t.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+    });
+    if (!ok) {
+      return InvalidArgument(what + " '" + t.substr(0, 64) +
+                             "': a tag is 1..64 letters, digits, '_', '-' or '.'");
+    }
+  }
+  return Status::Ok();
+}
+
+std::string words_text(const std::vector<std::string>& words) {
+  std::string out;
+  for (const std::string& w : words) out += (out.empty() ? "" : " ") + w;
+  return out;
+}
+
+std::vector<std::string> words_from_text(const std::string& text) {
+  std::istringstream in(text);
+  std::vector<std::string> out;
+  for (std::string w; in >> w;) out.push_back(w);
+  return out;
 }
 
 std::string content_hash(std::string_view bytes) {

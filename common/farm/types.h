@@ -125,6 +125,11 @@ struct JobSpec {
   // The user who submitted it (the name of the client token); empty: a
   // farm without named tokens, or a job stored before owners existed.
   std::string owner;
+  // Pools: the job's bands go only to workers carrying all these tags.
+  std::vector<std::string> require;
+  // Dependencies: the job waits until these jobs have succeeded, and fails
+  // if one of them fails or is cancelled.
+  std::vector<std::string> after;
 
   int frames() const { return frame_last - frame_first + 1; }
   int64_t bands_total() const { return static_cast<int64_t>(frames()) * bands; }
@@ -198,12 +203,16 @@ struct JobInfo {
   std::vector<std::string> quarantined;  // worker names that get no more bands of this job
   int64_t bands_timed_out = 0;           // leases taken back by the band timeout (a hung band)
   int64_t bands_running = 0;             // live leases (a speculated band counts twice)
+  // Why no band of it runs although some wait: "waiting for job j0003
+  // (running)", "waiting for a worker tagged bigmem"; empty otherwise.
+  std::string waiting;
 };
 
 struct WorkerInfo {
   std::string worker_id;
   std::string name;
   int threads = 1;
+  std::vector<std::string> tags;  // `locus-worker --tag`
   bool busy = false;
   std::string job_id;  // of the band in hand
   int frame = 0;
@@ -258,8 +267,10 @@ struct SubmitRequest {
   std::string output;
   double orbit_degrees = 0;
   int priority = kDefaultPriority;
-  std::string frame_order;  // a kFrameOrderLabels name; empty: in order
-  Millis band_timeout{0};   // 0: the coordinator's
+  std::string frame_order;           // a kFrameOrderLabels name; empty: in order
+  Millis band_timeout{0};            // 0: the coordinator's
+  std::vector<std::string> require;  // worker tags
+  std::vector<std::string> after;    // job ids
   // The client's token for this submission, reused on retries: a second
   // submission with the same id returns the first one's job.
   std::string request_id;
@@ -278,6 +289,17 @@ struct FileChunk {
   std::string data;
   bool last = false;
 };
+
+// Worker tags and the tags a job requires: at most kMaxTags each, names of
+// 1..64 letters, digits, '_', '-' and '.'. InvalidArgument naming `what`
+// ("--tag", "require") and the tag.
+inline constexpr size_t kMaxTags = 16;
+// The most jobs one job may wait for (--after).
+inline constexpr size_t kMaxAfter = 64;
+Status check_tags(const std::vector<std::string>& tags, const std::string& what);
+// Tags (or job ids) as one line, "a b c", and back (the job store's columns).
+std::string words_text(const std::vector<std::string>& words);
+std::vector<std::string> words_from_text(const std::string& text);
 
 // Hex SHA-256: scenes are addressed by the hash of their serialized form.
 std::string content_hash(std::string_view bytes);

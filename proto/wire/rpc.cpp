@@ -344,6 +344,9 @@ v1::JobStatus ToProto(const farm::JobInfo& j) {
   p.set_band_timeout_ms(j.spec.band_timeout.count());
   p.set_bands_timed_out(j.bands_timed_out);
   p.set_bands_running(j.bands_running);
+  for (const std::string& t : j.spec.require) p.add_require(t);
+  for (const std::string& a : j.spec.after) p.add_after(a);
+  p.set_waiting(j.waiting);
   return p;
 }
 
@@ -374,6 +377,9 @@ farm::JobInfo FromProto(const v1::JobStatus& p) {
   j.spec.band_timeout = farm::Millis(p.band_timeout_ms());
   j.bands_timed_out = p.bands_timed_out();
   j.bands_running = p.bands_running();
+  j.spec.require.assign(p.require().begin(), p.require().end());
+  j.spec.after.assign(p.after().begin(), p.after().end());
+  j.waiting = p.waiting();
   return j;
 }
 
@@ -388,6 +394,7 @@ v1::WorkerInfo ToProto(const farm::WorkerInfo& w) {
   p.set_band(w.band);
   p.set_bands_done(w.bands_done);
   p.set_seconds_since_seen(w.seconds_since_seen);
+  for (const std::string& t : w.tags) p.add_tags(t);
   return p;
 }
 
@@ -402,6 +409,7 @@ farm::WorkerInfo FromProto(const v1::WorkerInfo& p) {
   w.band = p.band();
   w.bands_done = p.bands_done();
   w.seconds_since_seen = p.seconds_since_seen();
+  w.tags.assign(p.tags().begin(), p.tags().end());
   return w;
 }
 
@@ -458,6 +466,8 @@ farm::SubmitRequest FromProto(const v1::JobSpec& p) {
   if (p.has_priority()) r.priority = p.priority();
   r.frame_order = p.frame_order();
   r.band_timeout = farm::Millis(p.band_timeout_ms());
+  r.require.assign(p.require().begin(), p.require().end());
+  r.after.assign(p.after().begin(), p.after().end());
   return r;
 }
 
@@ -476,6 +486,8 @@ v1::JobSpec ToProto(const farm::SubmitRequest& r) {
   p.set_priority(r.priority);
   p.set_frame_order(r.frame_order);
   p.set_band_timeout_ms(r.band_timeout.count());
+  for (const std::string& t : r.require) p.add_require(t);
+  for (const std::string& a : r.after) p.add_after(a);
   return p;
 }
 

@@ -143,9 +143,84 @@ TEST_F(FarmTest, AHigherPriorityJobSubmittedLaterGetsTheWorkerFirst) {
       << refused.status().message();
 }
 
+// The seq of the first and last history lines of `job` containing `text`.
+std::pair<int64_t, int64_t> event_span(FarmClient& client, const std::string& job,
+                                       const std::string& text) {
+  auto events = client.events(job, 0);
+  EXPECT_TRUE(events.ok()) << events.status().message();
+  std::pair<int64_t, int64_t> span{INT64_MAX, 0};
+  for (const HistoryEntry& e : events.ok() ? *events : std::vector<HistoryEntry>{}) {
+    if (e.text.find(text) == std::string::npos) continue;
+    span.first = std::min(span.first, e.seq);
+    span.second = std::max(span.second, e.seq);
+  }
+  return span;
+}
+
+TEST_F(FarmTest, PoolsAndDependencies) {
+  start();
+  SubmitRequest big = request(kSpheres, 32, 24, 1, 2, 2, "big_####.png");
+  big.require = {"big"};
+  auto first = client_->submit(big);
+  ASSERT_TRUE(first.ok()) << first.status().message();
+  SubmitRequest then = request(kSpheres, 32, 24, 1, 1, 2, "then_####.png");
+  then.after = {first->job_id};
+  auto second = client_->submit(then);
+  ASSERT_TRUE(second.ok()) << second.status().message();
+  add_workers(1);  // untagged: w0001
+  std::this_thread::sleep_for(Millis(1200));
+  auto waiting = client_->job(first->job_id);
+  ASSERT_TRUE(waiting.ok());
+  EXPECT_EQ(waiting->bands_done, 0);
+  EXPECT_EQ(waiting->waiting, "waiting for a worker tagged big (none is connected)");
+  EXPECT_EQ(client_->job(second->job_id)->waiting,
+            "waiting for job " + first->job_id + " (queued)");
+  add_workers(1, [](WorkerOptions& o) { o.tags = {"big"}; });  // w0002
+  auto done = client_->watch(second->job_id, [](const JobInfo&) {});
+  ASSERT_TRUE(done.ok());
+  expect_identical(*client_->job(first->job_id), big);
+  expect_identical(*done, then);
+  // Only the tagged worker rendered the tagged job; the dependent job's
+  // first lease came after the first job's last frame was written.
+  EXPECT_EQ(count_events(*client_, first->job_id, "to worker w0001"), 0);
+  EXPECT_EQ(count_events(*client_, first->job_id, "to worker w0002"), 4);
+  EXPECT_LT(event_span(*client_, first->job_id, " written: ").second,
+            event_span(*client_, second->job_id, " to worker ").first);
+  auto ws = client_->workers();
+  ASSERT_TRUE(ws.ok());
+  ASSERT_EQ(ws->size(), 2u);
+  EXPECT_EQ(ws->at(1).tags, std::vector<std::string>{"big"});
+
+  // A cancelled predecessor fails its dependent, with the reason.
+  SubmitRequest never = request(kSpheres, 32, 24, 1, 1, 1, "never.png");
+  never.require = {"nosuchpool"};
+  auto blocked = client_->submit(never);
+  ASSERT_TRUE(blocked.ok());
+  SubmitRequest after_blocked = request(kSpheres, 32, 24, 1, 1, 1, "after.png");
+  after_blocked.after = {blocked->job_id};
+  auto dependent = client_->submit(after_blocked);
+  ASSERT_TRUE(dependent.ok());
+  ASSERT_TRUE(client_->cancel(blocked->job_id).ok());
+  auto failed = client_->job(dependent->job_id);
+  ASSERT_TRUE(failed.ok());
+  EXPECT_EQ(failed->state, JobState::kFailed);
+  EXPECT_NE(failed->error.find(blocked->job_id), std::string::npos) << failed->error;
+  EXPECT_NE(failed->error.find("cancelled"), std::string::npos) << failed->error;
+  // Unknown or hopeless predecessors and bad tags are refused at submit.
+  after_blocked.after = {"j0999"};
+  EXPECT_EQ(client_->submit(after_blocked).status().code(), Code::kInvalidArgument);
+  after_blocked.after = {blocked->job_id};
+  EXPECT_NE(client_->submit(after_blocked).status().message().find("cancelled"), std::string::npos);
+  SubmitRequest bad_tag = request(kSpheres, 32, 24, 1, 1, 1, "tag.png");
+  bad_tag.require = {"no spaces"};
+  EXPECT_NE(client_->submit(bad_tag).status().message().find("require 'no spaces'"),
+            std::string::npos);
+}
+
 TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
-  server_security_.auth = Authenticator::from_tokens(
-      {"ann ann-token-0123456789", "bob-token-0123456789"}, {kWorkerToken}, {"root root-token-0123456789"});
+  server_security_.auth =
+      Authenticator::from_tokens({"ann ann-token-0123456789", "bob-token-0123456789"},
+                                 {kWorkerToken}, {"root root-token-0123456789"});
   client_creds_.token = "ann-token-0123456789";
   start();
   auto as = [&](const std::string& token) {

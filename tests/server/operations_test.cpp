@@ -273,6 +273,60 @@ TEST_F(OperationsTest, AHungBandIsTakenBackAfterTheBandTimeoutThoughItsWorkerHea
   EXPECT_TRUE(said);
 }
 
+TEST_F(OperationsTest, ATaggedJobGoesOnlyToWorkersCarryingItsTagsAndSaysWhyItWaits) {
+  JobSpec big = spec(1, 2);
+  big.require = {"big", "gpu"};
+  const std::string tagged = s.add_job(big);
+  const std::string plain = s.add_worker("plain", 1);
+  const std::string half = s.add_worker("half", 1, {"big"});
+  EXPECT_FALSE(next(plain).has_value());
+  EXPECT_FALSE(next(half).has_value());
+  EXPECT_EQ(s.job(tagged)->waiting, "waiting for a worker tagged big, gpu (none is connected)");
+  const std::string other = s.add_job(spec(1, 1));
+  EXPECT_EQ(next(plain)->job_id, other);  // the untagged worker still serves the rest
+  const std::string full = s.add_worker("full", 1, {"gpu", "big", "ssd"});
+  EXPECT_EQ(s.job(tagged)->waiting, "");
+  EXPECT_EQ(next(full)->job_id, tagged);
+  EXPECT_EQ(next(full)->job_id, tagged);
+  EXPECT_EQ(s.workers().back().tags, (std::vector<std::string>{"gpu", "big", "ssd"}));
+}
+
+TEST_F(OperationsTest, AJobAfterAnotherStartsWhenItSucceedsAndFailsWhenItIsCancelled) {
+  const std::string first = s.add_job(spec(1, 2));
+  JobSpec then = spec(1, 1);
+  then.after = {first};
+  const std::string second = s.add_job(then);
+  const std::string w = s.add_worker("w", 1);
+  const BandLease a = *next(w), b = *next(w);
+  EXPECT_EQ(a.job_id, first);
+  EXPECT_EQ(b.job_id, first);
+  EXPECT_FALSE(next(w).has_value());  // the second waits, although a worker is free
+  EXPECT_EQ(s.job(second)->waiting, "waiting for job " + first + " (running)");
+  done(w, a);
+  EXPECT_FALSE(next(w).has_value());
+  done(w, b);  // the first job's last frame is written: it succeeded
+  EXPECT_EQ(s.job(first)->state, JobState::kSucceeded);
+  EXPECT_EQ(next(w)->job_id, second);
+
+  const std::string doomed = s.add_job(spec(1, 1));
+  JobSpec after_doomed = spec(1, 1);
+  after_doomed.after = {doomed};
+  const std::string dependent = s.add_job(after_doomed);
+  JobSpec chain = spec(1, 1);
+  chain.after = {dependent};
+  const std::string last = s.add_job(chain);
+  ASSERT_TRUE(s.cancel(doomed, "ann").ok());
+  EXPECT_EQ(s.job(dependent)->state, JobState::kFailed);
+  EXPECT_EQ(s.job(dependent)->error, "job " + doomed + ", which it waits for (--after), cancelled");
+  EXPECT_EQ(s.job(last)->state, JobState::kFailed);  // and so on down the chain
+  EXPECT_NE(s.job(last)->error.find(dependent), std::string::npos);
+  // A new job cannot wait for a job that cannot succeed, or for none.
+  EXPECT_EQ(s.check_after({doomed}).code(), Code::kInvalidArgument);
+  EXPECT_NE(s.check_after({doomed}).message().find("cancelled"), std::string::npos);
+  EXPECT_EQ(s.check_after({"j9999"}).code(), Code::kInvalidArgument);
+  EXPECT_TRUE(s.check_after({first, second}).ok());
+}
+
 // Two bands hang at once and the first timeout fails the job (one attempt
 // allowed): the second lease went with the job, and expire() goes on.
 TEST_F(OperationsTest, HungBandsThatFailTheirJobEndItOnce) {
@@ -302,7 +356,10 @@ TEST_F(OperationsTest, PrioritiesPausesOrderTimeoutsAndHistorySurviveARestart) {
     sp.frame_order = FrameOrder::kFirstMiddleLast;
     sp.band_timeout = Millis(30000);
     ordered = s.add_job(sp);
-    paused = s.add_job(spec(2, 1, 50, "bob"));
+    JobSpec bobs = spec(2, 1, 50, "bob");
+    bobs.require = {"big"};
+    bobs.after = {ordered};
+    paused = s.add_job(bobs);
     const std::string w = s.add_worker("host:1", 1);
     const BandLease first = *next(w);  // frame 1
     done(w, first);
@@ -326,6 +383,8 @@ TEST_F(OperationsTest, PrioritiesPausesOrderTimeoutsAndHistorySurviveARestart) {
   auto p = again.job(paused);
   EXPECT_EQ(p->state, JobState::kPaused);
   EXPECT_EQ(p->spec.priority, 40);
+  EXPECT_EQ(p->spec.require, std::vector<std::string>{"big"});
+  EXPECT_EQ(p->spec.after, std::vector<std::string>{ordered});
   // The ordered job goes on in its order: frame 3 again (its lease was
   // voided), then 5, then 2 and 4; the paused job waits.
   const std::string w = again.add_worker("host:2", 1);

@@ -267,7 +267,7 @@ struct TestWorker {
   BandRenderer renderer{1};
 
   TestWorker(Coordinator& coordinator, const std::string& name)
-      : c(&coordinator), id(coordinator.register_worker(name, 1).worker_id) {}
+      : c(&coordinator), id(coordinator.register_worker(name, 1)->worker_id) {}
 
   std::optional<BandLease> take() {
     auto t = c->lease_band(id, Millis(0), nullptr);

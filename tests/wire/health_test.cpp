@@ -81,7 +81,7 @@ TEST(CoordinatorDrain, RefusesNewWorkAndWaitsForTheBandsInFlight) {
     auto job = c.submit(testing_farm::request(testing_farm::kSpheres, 16, 8, 1, 1, 2, "d.png"));
     ASSERT_TRUE(job.ok()) << job.status().message();
     job_id = job->job_id;
-    const std::string w = c.register_worker("host:1", 1).worker_id;
+    const std::string w = c.register_worker("host:1", 1)->worker_id;
     auto leased = c.lease_band(w, Millis(0), nullptr);
     ASSERT_TRUE(leased.ok() && leased->has_value());
 
