@@ -61,6 +61,20 @@ class FarmClient::Impl {
     if (Status s = check((stub.get()->*method)(&ctx, req, &resp)); !s.ok()) return s;
     return rpc::FromProto(resp.status());
   }
+  // The same for an action on a worker: its name.
+  Result<std::string> worker_action(grpc::Status (v1::ClientService::Stub::*method)(
+                                        grpc::ClientContext*, const v1::WorkerActionRequest&,
+                                        v1::WorkerActionResponse*),
+                                    const std::string& worker) const {
+    if (!broken.ok()) return broken;
+    v1::WorkerActionRequest req;
+    req.set_worker(worker);
+    v1::WorkerActionResponse resp;
+    grpc::ClientContext ctx;
+    prepare(ctx, rpc::kShortCall);
+    if (Status s = check((stub.get()->*method)(&ctx, req, &resp)); !s.ok()) return s;
+    return resp.worker_name();
+  }
   void prepare(grpc::ClientContext& ctx, farm::Millis timeout) const {
     rpc::prepare(ctx, conn, timeout);
   }
@@ -144,6 +158,18 @@ Result<farm::JobInfo> FarmClient::resume(const std::string& job_id) {
   v1::JobActionRequest req;
   req.set_job_id(job_id);
   return impl_->action(&v1::ClientService::Stub::ResumeJob, req);
+}
+
+Result<std::string> FarmClient::drain_worker(const std::string& worker) {
+  return impl_->worker_action(&v1::ClientService::Stub::DrainWorker, worker);
+}
+
+Result<std::string> FarmClient::disable_worker(const std::string& worker) {
+  return impl_->worker_action(&v1::ClientService::Stub::DisableWorker, worker);
+}
+
+Result<std::string> FarmClient::enable_worker(const std::string& worker) {
+  return impl_->worker_action(&v1::ClientService::Stub::EnableWorker, worker);
 }
 
 Result<std::vector<farm::HistoryEntry>> FarmClient::events(const std::string& job_id,

@@ -33,6 +33,10 @@ class FarmClient {
   // The job's history after cursor `after` (all of it from 0).
   Result<std::vector<farm::HistoryEntry>> events(const std::string& job_id, int64_t after);
   Result<std::vector<farm::WorkerInfo>> workers();
+  // Admins only; `worker` is an id or a name. Returns the worker's name.
+  Result<std::string> drain_worker(const std::string& worker);
+  Result<std::string> disable_worker(const std::string& worker);
+  Result<std::string> enable_worker(const std::string& worker);
   // Follows the job until it ends (re-opening the stream as the server caps
   // its length); `on_update` sees every status. Returns the final status.
   Result<farm::JobInfo> watch(const std::string& job_id,

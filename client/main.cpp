@@ -445,7 +445,7 @@ int run_workers(const std::string& address, const farm::Credentials& creds) {
     std::printf("no workers\n");
     return 0;
   }
-  std::printf("%-7s %-24s %-8s %-6s %-22s %-7s %-12s %s\n", "WORKER", "NAME", "THREADS", "STATE",
+  std::printf("%-7s %-24s %-8s %-8s %-22s %-7s %-12s %s\n", "WORKER", "NAME", "THREADS", "STATE",
               "BAND", "BANDS", "SEEN", "TAGS");
   for (const farm::WorkerInfo& w : *ws) {
     const std::string band =
@@ -453,8 +453,8 @@ int run_workers(const std::string& address, const farm::Credentials& creds) {
     char seen[32];
     std::snprintf(seen, sizeof seen, "%.1f s ago", w.seconds_since_seen);
     const std::string tags = w.tags.empty() ? "-" : farm::words_text(w.tags);
-    std::printf("%-7s %-24s %-8d %-6s %-22s %-7lld %-12s %s\n", w.worker_id.c_str(), w.name.c_str(),
-                w.threads, w.busy ? "busy" : "idle", band.c_str(),
+    std::printf("%-7s %-24s %-8d %-8s %-22s %-7lld %-12s %s\n", w.worker_id.c_str(), w.name.c_str(),
+                w.threads, farm::worker_state_name(w), band.c_str(),
                 static_cast<long long>(w.bands_done), seen, tags.c_str());
   }
   return 0;
@@ -621,6 +621,18 @@ int main(int argc, char** argv) {
   events->add_option("--band", ea.band, "Only this band's lines");
   events->add_flag("--follow", ea.follow, "Keep printing new lines until the job ends");
   add_farm(events);
+  std::string worker;
+  auto* drain = app.add_subcommand(
+      "drain", "Admins: a worker finishes its band, takes no more and exits (maintenance)");
+  drain->add_option("worker", worker, "Worker id (w0003) or name (host:pid)")->required();
+  add_farm(drain);
+  auto* disable = app.add_subcommand(
+      "disable", "Admins: keep a worker, by its name, out of every job until `locus enable`");
+  disable->add_option("worker", worker, "Worker id (w0003) or name (host:pid)")->required();
+  add_farm(disable);
+  auto* enable = app.add_subcommand("enable", "Admins: let a disabled worker take bands again");
+  enable->add_option("worker", worker, "Worker id or name")->required();
+  add_farm(enable);
   auto* workers = app.add_subcommand("workers", "List the farm's workers");
   add_farm(workers);
   auto* fetch = app.add_subcommand("fetch", "Download a job's written frames into a directory");
@@ -662,6 +674,17 @@ int main(int argc, char** argv) {
   if (pause->parsed()) return print_action(client::FarmClient(farm_address, creds).pause(job_id));
   if (resume->parsed()) return print_action(client::FarmClient(farm_address, creds).resume(job_id));
   if (events->parsed()) return run_events(farm_address, creds, job_id, ea);
+  for (auto [cmd, state] : {std::pair{drain, "draining"}, std::pair{disable, "disabled"},
+                            std::pair{enable, "enabled"}}) {
+    if (!cmd->parsed()) continue;
+    client::FarmClient farm(farm_address, creds);
+    auto r = cmd == drain     ? farm.drain_worker(worker)
+             : cmd == disable ? farm.disable_worker(worker)
+                              : farm.enable_worker(worker);
+    if (!r.ok()) return fail(r.status());
+    std::printf("worker %s: %s\n", r->c_str(), state);
+    return 0;
+  }
   if (fetch->parsed()) return run_fetch(farm_address, creds, job_id, dir);
   return 1;
 }

@@ -432,6 +432,39 @@ Result<JobInfo> Coordinator::resume(const std::string& job_id, const Caller& cal
              [&](const std::string& who) { return scheduler_.resume(job_id, who); });
 }
 
+namespace {
+Status admin_only(const Caller& caller, const char* what) {
+  if (caller.admin) return Status::Ok();
+  return Status(Code::kPermissionDenied,
+                std::string("only an admin may ") + what + " workers (--admin-tokens); " +
+                    (caller.user.empty() ? "this caller" : caller.user) + " is not one");
+}
+}  // namespace
+
+Result<std::string> Coordinator::drain_worker(const std::string& worker, const Caller& caller) {
+  if (Status s = admin_only(caller, "drain"); !s.ok()) return s;
+  std::lock_guard lk(mu_);
+  auto r = scheduler_.drain_worker(worker);
+  if (!r.ok()) return r.status();
+  changed_.notify_all();  // its long poll, if any, returns at once and says so
+  return r->name;
+}
+
+Result<std::string> Coordinator::set_worker_disabled(const std::string& worker, bool disabled,
+                                                     const Caller& caller) {
+  if (Status s = admin_only(caller, disabled ? "disable" : "enable"); !s.ok()) return s;
+  std::lock_guard lk(mu_);
+  auto r = scheduler_.set_disabled(worker, disabled);
+  persist();
+  changed_.notify_all();
+  return r;
+}
+
+bool Coordinator::worker_draining(const std::string& worker_id) {
+  std::lock_guard lk(mu_);
+  return scheduler_.draining(worker_id);
+}
+
 Result<std::vector<HistoryEntry>> Coordinator::events(const std::string& job_id, int64_t after,
                                                       int limit) {
   std::lock_guard lk(mu_);
@@ -573,7 +606,9 @@ Result<std::optional<BandLease>> Coordinator::lease_band(const std::string& work
       }
       return r;
     }
-    if (SteadyClock::now() >= end) return r;
+    // A drained worker hears of it now (GetTaskResponse.drain), not at the
+    // poll's end.
+    if (SteadyClock::now() >= end || scheduler_.draining(worker_id)) return r;
     changed_.wait_until(lk, std::min(end, SteadyClock::now() + Millis(200)));
     since = SteadyClock::now();
   }

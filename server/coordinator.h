@@ -108,6 +108,13 @@ class Coordinator {
   // (`locus events`); NotFound for an unknown job.
   Result<std::vector<HistoryEntry>> events(const std::string& job_id, int64_t after, int limit);
   std::vector<WorkerInfo> workers();
+  // `locus drain|disable|enable`: admins only (PERMISSION_DENIED). The
+  // worker by id or name; returns its name.
+  Result<std::string> drain_worker(const std::string& worker, const Caller& caller);
+  Result<std::string> set_worker_disabled(const std::string& worker, bool disabled,
+                                          const Caller& caller);
+  // Whether the worker was asked to drain (told in heartbeats and polls).
+  bool worker_draining(const std::string& worker_id);
   // Sends the job's status now, then on each change (throttled), until the
   // job ends, `max` passes, the client cancels or the sink refuses.
   Status watch(const std::string& job_id, Millis max, const CancelledFn& cancelled,

@@ -170,6 +170,24 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
                  [&] { return h_.ListEvents(*req, resp); });
   }
 
+  grpc::Status DrainWorker(grpc::ServerContext* ctx, const v1::WorkerActionRequest* req,
+                           v1::WorkerActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.DrainWorker", *req, resp,
+                 [&](const farm::Caller& c) { return h_.DrainWorker(*req, c, resp); });
+  }
+
+  grpc::Status DisableWorker(grpc::ServerContext* ctx, const v1::WorkerActionRequest* req,
+                             v1::WorkerActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.DisableWorker", *req, resp,
+                 [&](const farm::Caller& c) { return h_.DisableWorker(*req, c, resp); });
+  }
+
+  grpc::Status EnableWorker(grpc::ServerContext* ctx, const v1::WorkerActionRequest* req,
+                            v1::WorkerActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.EnableWorker", *req, resp,
+                 [&](const farm::Caller& c) { return h_.EnableWorker(*req, c, resp); });
+  }
+
   grpc::Status ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest* req,
                            v1::ListWorkersResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.ListWorkers", *req, resp,

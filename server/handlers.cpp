@@ -126,6 +126,36 @@ Status Handlers::ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResp
   return Status::Ok();
 }
 
+namespace {
+Status worker_action(const v1::WorkerActionRequest& req, v1::WorkerActionResponse* resp,
+                     const char* state, const std::function<Result<std::string>()>& call) {
+  if (Status s = check_id(req.worker(), "worker"); !s.ok()) return s;
+  auto r = call();
+  if (!r.ok()) return r.status();
+  resp->set_worker_name(*r);
+  resp->set_state(state);
+  return Status::Ok();
+}
+}  // namespace
+
+Status Handlers::DrainWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
+                             v1::WorkerActionResponse* resp) {
+  return worker_action(req, resp, "draining",
+                       [&] { return c_.drain_worker(req.worker(), caller); });
+}
+
+Status Handlers::DisableWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
+                               v1::WorkerActionResponse* resp) {
+  return worker_action(req, resp, "disabled",
+                       [&] { return c_.set_worker_disabled(req.worker(), true, caller); });
+}
+
+Status Handlers::EnableWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
+                              v1::WorkerActionResponse* resp) {
+  return worker_action(req, resp, "enabled",
+                       [&] { return c_.set_worker_disabled(req.worker(), false, caller); });
+}
+
 Status Handlers::ListWorkers(const v1::ListWorkersRequest&, v1::ListWorkersResponse* resp) {
   for (const farm::WorkerInfo& w : c_.workers()) *resp->add_workers() = ToProto(w);
   return Status::Ok();
@@ -161,6 +191,7 @@ Status Handlers::GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn&
   auto r = c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled);
   if (!r.ok()) return r.status();
   if (r->has_value()) *resp->mutable_task() = ToProto(**r);
+  resp->set_drain(c_.worker_draining(req.worker_id()));
   return Status::Ok();
 }
 
@@ -192,6 +223,7 @@ Status Handlers::Heartbeat(const v1::HeartbeatRequest& req, v1::HeartbeatRespons
   auto r = c_.heartbeat(req.worker_id(), leases);
   if (!r.ok()) return r.status();
   for (const std::string& id : *r) resp->add_revoked_lease_ids(id);
+  resp->set_drain(c_.worker_draining(req.worker_id()));
   return Status::Ok();
 }
 

@@ -37,6 +37,13 @@ class Handlers {
                    v1::JobActionResponse* resp);
   Status ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResponse* resp);
   Status ListWorkers(const v1::ListWorkersRequest& req, v1::ListWorkersResponse* resp);
+  // Admins only.
+  Status DrainWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
+                     v1::WorkerActionResponse* resp);
+  Status DisableWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
+                       v1::WorkerActionResponse* resp);
+  Status EnableWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
+                      v1::WorkerActionResponse* resp);
   Status FetchResults(const v1::FetchResultsRequest& req,
                       const std::function<bool(const v1::FileChunk&)>& write);
 

@@ -104,6 +104,11 @@ struct PriorityChanged {
   std::string job_id;
   int priority = kDefaultPriority;
 };
+// `locus disable` / `locus enable` of a worker name.
+struct WorkerDisabled {
+  std::string name;
+  bool disabled = true;
+};
 // A line of the job's history that no other event words (an operator's
 // action, who did it).
 struct JobNote {
@@ -112,9 +117,10 @@ struct JobNote {
 };
 }  // namespace event
 
-using Event = std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted,
-                           event::LeaseEnded, event::BandDone, event::FrameWritten,
-                           event::WorkerAdded, event::PriorityChanged, event::JobNote>;
+using Event =
+    std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted, event::LeaseEnded,
+                 event::BandDone, event::FrameWritten, event::WorkerAdded, event::PriorityChanged,
+                 event::JobNote, event::WorkerDisabled>;
 
 // A job as the store remembers it, for Scheduler::restore().
 struct RecoveredJob {
@@ -147,7 +153,8 @@ struct RecoveredJob {
 struct RecoveredState {
   std::vector<RecoveredJob> jobs;  // oldest first
   uint64_t next_worker = 1;
-  int64_t leases_voided = 0;  // leases of the previous run, ended at load
+  int64_t leases_voided = 0;                  // leases of the previous run, ended at load
+  std::vector<std::string> disabled_workers;  // names
 };
 
 }  // namespace locus::farm

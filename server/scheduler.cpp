@@ -288,6 +288,7 @@ std::string Scheduler::add_worker(const std::string& name, int threads,
   w.info.name = name;
   w.info.threads = threads;
   w.info.tags = tags;
+  w.info.disabled = disabled_.count(name) > 0;
   w.last_seen = now_();
   workers_.emplace(id, std::move(w));
   events_.push_back(event::WorkerAdded{next_worker_});
@@ -323,6 +324,45 @@ std::vector<WorkerInfo> Scheduler::workers() const {
     out.push_back(std::move(info));
   }
   return out;
+}
+
+Result<WorkerInfo> Scheduler::drain_worker(const std::string& worker) {
+  for (auto& [id, w] : workers_) {
+    if (id != worker && w.info.name != worker) continue;
+    if (!w.info.draining) spdlog::info("worker {} ({}): draining", id, w.info.name);
+    w.info.draining = true;
+    ++version_;
+    WorkerInfo info = w.info;
+    info.busy = !w.leases.empty();
+    return info;
+  }
+  return NotFound("worker '" + worker.substr(0, 200) +
+                  "' is not connected; `locus workers` lists the workers");
+}
+
+Result<std::string> Scheduler::set_disabled(const std::string& worker, bool disabled) {
+  std::string name = disabled_.count(worker) ? worker : "";
+  for (const auto& [id, w] : workers_) {
+    if (id == worker || w.info.name == worker) name = w.info.name;
+  }
+  if (name.empty()) {
+    return NotFound("worker '" + worker.substr(0, 200) + "' is not connected" +
+                    (disabled ? "" : " nor disabled") + "; `locus workers` lists the workers");
+  }
+  if (disabled ? disabled_.insert(name).second : disabled_.erase(name) > 0) {
+    events_.push_back(event::WorkerDisabled{name, disabled});
+    spdlog::info("worker {}: {}", name, disabled ? "disabled" : "enabled");
+  }
+  for (auto& [id, w] : workers_) {
+    if (w.info.name == name) w.info.disabled = disabled;
+  }
+  ++version_;
+  return name;
+}
+
+bool Scheduler::draining(const std::string& worker_id) const {
+  auto it = workers_.find(worker_id);
+  return it != workers_.end() && it->second.info.draining;
 }
 
 std::set<std::string> Scheduler::scenes_in_use() const {
@@ -612,6 +652,8 @@ Result<std::optional<BandLease>> Scheduler::next_band(const std::string& worker_
   if (!alive.ok()) return alive;
   Worker& worker = workers_.at(worker_id);
   const std::string& name = worker.info.name;
+  // A drained or disabled worker gets nothing, not even a speculative copy.
+  if (worker.info.draining || worker.info.disabled) return std::optional<BandLease>();
   // One pass over the jobs for the best; another only when its queued
   // bands all wait for other workers (pick_band: none for this one).
   std::vector<const Job*> passed;

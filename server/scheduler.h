@@ -102,6 +102,15 @@ class Scheduler {
   // Marks the worker alive; NotFound when it is unknown (or was dropped).
   Status touch(const std::string& worker_id);
   std::vector<WorkerInfo> workers() const;
+  // `locus drain`: the connected worker (by id or name) finishes its band,
+  // gets no more and is told to exit. NotFound for an unknown worker.
+  Result<WorkerInfo> drain_worker(const std::string& worker);
+  // `locus disable` / `enable`: the worker of that id or name gets no band
+  // of any job (it stays connected) until enabled, across its reconnects
+  // and a restart. NotFound when no connected or disabled worker has it.
+  Result<std::string> set_disabled(const std::string& worker, bool disabled);
+  // Whether the worker was asked to drain (its heartbeats and polls say so).
+  bool draining(const std::string& worker_id) const;
   size_t worker_count() const { return workers_.size(); }
 
   // Leases the next band to the worker, or nothing when no band waits.
@@ -253,6 +262,7 @@ class Scheduler {
   std::map<std::string, Lease> leases_;
   std::map<std::string, Worker> workers_;
   std::map<std::string, int> user_running_;  // live leases by job owner
+  std::set<std::string> disabled_;           // worker names
   std::vector<Event> events_;
   uint64_t next_job_ = 1;
   uint64_t next_worker_ = 1;

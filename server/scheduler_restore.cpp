@@ -29,6 +29,7 @@ std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
   std::vector<FrameReady> ready;
   const TimePoint now = now_();
   next_worker_ = std::max<uint64_t>(next_worker_, state.next_worker);
+  disabled_.insert(state.disabled_workers.begin(), state.disabled_workers.end());
   for (const RecoveredJob& r : state.jobs) {
     Job job = recovered_job(r, now);
     if (!is_terminal(r.state)) {

@@ -65,6 +65,7 @@ CREATE TABLE IF NOT EXISTS history(
   frame INTEGER NOT NULL DEFAULT -1, band INTEGER NOT NULL DEFAULT -1,
   text TEXT NOT NULL);
 CREATE INDEX IF NOT EXISTS history_by_job ON history(job_id, seq);
+CREATE TABLE IF NOT EXISTS disabled_workers(name TEXT PRIMARY KEY);
 CREATE VIEW IF NOT EXISTS leases AS
   SELECT lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at
   FROM attempts WHERE outcome IS NULL;
@@ -371,6 +372,12 @@ Status JobStore::apply_one(const Event& e) {
   }
   if (const auto* n = std::get_if<event::JobNote>(&e))
     return add_history(n->job_id, -1, -1, n->text);
+  if (const auto* d = std::get_if<event::WorkerDisabled>(&e)) {
+    Statement st(*this, d->disabled ? "INSERT OR IGNORE INTO disabled_workers(name) VALUES(?)"
+                                    : "DELETE FROM disabled_workers WHERE name = ?");
+    st.bind(d->name);
+    return st.run();
+  }
   if (const auto* w = std::get_if<event::WorkerAdded>(&e)) {
     Statement st(*this, "INSERT OR REPLACE INTO meta(key, value) VALUES('next_worker', ?)");
     st.bind(std::to_string(w->next_worker));
@@ -418,6 +425,10 @@ Result<RecoveredState> JobStore::recover() {
     Statement st(*this, "SELECT value FROM meta WHERE key = 'next_worker'");
     if (st.step() == SQLITE_ROW) state.next_worker = std::stoull("0" + st.text(0));
     if (state.next_worker == 0) state.next_worker = 1;
+  }
+  {
+    Statement st(*this, "SELECT name FROM disabled_workers ORDER BY name");
+    while (st.step() == SQLITE_ROW) state.disabled_workers.push_back(st.text(0));
   }
   Statement jobs(
       *this,

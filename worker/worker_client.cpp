@@ -53,6 +53,17 @@ class WorkerClient::Impl {
 
   void hand_back();
   WorkerMetrics& metrics() { return metrics_; }
+  // `locus drain`: like SIGTERM, the band in hand is finished and returned,
+  // then run() returns 0. mu_ held.
+  void drain_locked() {
+    if (stopping_) return;
+    spdlog::info(
+        "drained by the coordinator (`locus drain`): finishing the band in hand, then "
+        "exiting");
+    stopping_ = true;
+    if (poll_ctx_) poll_ctx_->TryCancel();
+    cv_.notify_all();
+  }
 
  private:
   using BandEnd = WorkerMetrics::BandEnd;
@@ -197,6 +208,7 @@ int WorkerClient::Impl::run() {
     {
       std::lock_guard lk(mu_);
       poll_ctx_ = nullptr;
+      if (gs.ok() && resp.drain()) drain_locked();
       if (stopping_ && !resp.has_task()) break;
     }
     if (!gs.ok()) {
@@ -269,6 +281,7 @@ void WorkerClient::Impl::heartbeat_loop() {
       lk.lock();
       continue;
     }
+    if (resp.drain()) drain_locked();
     for (const std::string& id : resp.revoked_lease_ids()) {
       if (id == lease_ && !revoked_ && !sending_) {
         revoked_ = true;

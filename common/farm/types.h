@@ -213,6 +213,8 @@ struct WorkerInfo {
   std::string name;
   int threads = 1;
   std::vector<std::string> tags;  // `locus-worker --tag`
+  bool draining = false;          // `locus drain`: finishes its band, takes no more, exits
+  bool disabled = false;          // `locus disable`: by name, until `locus enable`
   bool busy = false;
   std::string job_id;  // of the band in hand
   int frame = 0;
@@ -231,6 +233,11 @@ struct HistoryEntry {
 };
 // The most history lines one ListEvents call returns (the client pages).
 inline constexpr int kMaxEventsPerCall = 10000;
+
+// The worker's state as `locus workers` and the wire name it.
+inline const char* worker_state_name(const WorkerInfo& w) {
+  return w.disabled ? "disabled" : w.draining ? "draining" : w.busy ? "busy" : "idle";
+}
 
 // A frame whose bands are all in their band files, ready to be stitched
 // and written (server/band_files.h).

@@ -388,7 +388,7 @@ v1::WorkerInfo ToProto(const farm::WorkerInfo& w) {
   p.set_worker_id(w.worker_id);
   p.set_name(w.name);
   p.set_threads(w.threads);
-  p.set_state(w.busy ? "busy" : "idle");
+  p.set_state(farm::worker_state_name(w));
   p.set_job_id(w.job_id);
   p.set_frame(w.frame);
   p.set_band(w.band);
@@ -403,7 +403,9 @@ farm::WorkerInfo FromProto(const v1::WorkerInfo& p) {
   w.worker_id = p.worker_id();
   w.name = p.name();
   w.threads = p.threads();
-  w.busy = p.state() == "busy";
+  w.busy = p.state() == "busy" || !p.job_id().empty();
+  w.draining = p.state() == "draining";
+  w.disabled = p.state() == "disabled";
   w.job_id = p.job_id();
   w.frame = p.frame();
   w.band = p.band();

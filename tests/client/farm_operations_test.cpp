@@ -217,6 +217,43 @@ TEST_F(FarmTest, PoolsAndDependencies) {
             std::string::npos);
 }
 
+TEST_F(FarmTest, AnAdminDrainsAndDisablesWorkersAndOthersMayNot) {
+  server_security_.auth = Authenticator::from_tokens({"ann ann-token-0123456789"}, {kWorkerToken},
+                                                     {"root root-token-0123456789"});
+  client_creds_.token = "ann-token-0123456789";
+  start();
+  Credentials rc;
+  rc.token = "root-token-0123456789";
+  FarmClient root(address_, rc);
+  add_workers(1, [](WorkerOptions& o) { o.name = "alpha"; });
+  add_workers(1, [](WorkerOptions& o) { o.name = "beta"; });
+  for (int i = 0; i < 200 && client_->workers()->size() < 2; ++i)
+    std::this_thread::sleep_for(Millis(10));
+  auto refused = client_->drain_worker("alpha");
+  EXPECT_EQ(refused.status().code(), Code::kPermissionDenied);
+  EXPECT_NE(refused.status().message().find("only an admin may drain"), std::string::npos);
+  EXPECT_EQ(client_->disable_worker("alpha").status().code(), Code::kPermissionDenied);
+  // Disabled: alpha renders none of the job.
+  ASSERT_EQ(*root.disable_worker("alpha"), "alpha");
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 2, 2, "disabled_####.png");
+  const JobInfo job = run(r);
+  expect_identical(job, r);
+  EXPECT_EQ(count_events(*client_, job.job_id, "(alpha)"), 0);
+  EXPECT_EQ(count_events(*client_, job.job_id, "(beta)"), 4);
+  auto ws = client_->workers();
+  ASSERT_TRUE(ws.ok());
+  for (const WorkerInfo& w : *ws) EXPECT_EQ(w.disabled, w.name == "alpha") << w.name;
+  ASSERT_TRUE(root.enable_worker("alpha").ok());
+  // Drained: beta's worker process ends its run() (it would exit 0).
+  ASSERT_TRUE(root.drain_worker("beta").ok());
+  threads_[1].join();
+  threads_[1] = std::thread([] {});
+  const JobInfo after = run(request(kSpheres, 32, 24, 1, 1, 2, "after_drain_####.png"));
+  EXPECT_EQ(after.state, JobState::kSucceeded);
+  EXPECT_EQ(count_events(*client_, after.job_id, "(beta)"), 0);
+  EXPECT_EQ(root.drain_worker("gamma").status().code(), Code::kNotFound);
+}
+
 TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
   server_security_.auth =
       Authenticator::from_tokens({"ann ann-token-0123456789", "bob-token-0123456789"},

@@ -327,6 +327,40 @@ TEST_F(OperationsTest, AJobAfterAnotherStartsWhenItSucceedsAndFailsWhenItIsCance
   EXPECT_TRUE(s.check_after({first, second}).ok());
 }
 
+TEST_F(OperationsTest, DisabledWorkersStayOutByNameAcrossReconnectsAndRestartsDrainedOnesToo) {
+  TempDir dir;
+  const std::string db = (dir.path / "locus.db").string();
+  const std::string job = s.add_job(spec(4, 1));
+  const std::string a = s.add_worker("host:1", 1), b = s.add_worker("host:2", 1);
+  ASSERT_EQ(*s.set_disabled(a, true), "host:1");  // by id: the name is kept
+  EXPECT_FALSE(next(a).has_value());
+  EXPECT_TRUE(s.workers()[0].disabled);
+  const std::string again = s.add_worker("host:1", 1);  // it reconnects
+  EXPECT_FALSE(next(again).has_value());
+  EXPECT_EQ(next(b)->job_id, job);
+  ASSERT_TRUE(s.drain_worker("host:2").ok());  // by name
+  EXPECT_TRUE(s.draining(b));
+  EXPECT_FALSE(next(b).has_value());
+  EXPECT_EQ(s.drain_worker("nobody").status().code(), Code::kNotFound);
+  EXPECT_EQ(s.set_disabled("nobody", true).status().code(), Code::kNotFound);
+  {
+    auto store = JobStore::open(db);
+    ASSERT_TRUE(store.ok());
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  auto store = JobStore::open(db);
+  ASSERT_TRUE(store.ok());
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok());
+  Scheduler restarted(options(), clock.fn());
+  restarted.restore(*state);
+  const std::string back = restarted.add_worker("host:1", 1);
+  EXPECT_FALSE(restarted.next_band(back)->has_value());  // still disabled
+  ASSERT_TRUE(restarted.set_disabled("host:1", false).ok());
+  EXPECT_EQ((*restarted.next_band(back))->job_id, job);
+  EXPECT_FALSE(restarted.workers()[0].disabled);
+}
+
 // Two bands hang at once and the first timeout fails the job (one attempt
 // allowed): the second lease went with the job, and expire() goes on.
 TEST_F(OperationsTest, HungBandsThatFailTheirJobEndItOnce) {
