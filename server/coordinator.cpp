@@ -377,14 +377,28 @@ Result<JobInfo> Coordinator::record_job(const JobSpec& spec, std::shared_ptr<con
   return scheduler_.job(id);
 }
 
-Result<JobInfo> Coordinator::job(const std::string& job_id) {
-  std::lock_guard lk(mu_);
-  return scheduler_.job(job_id);
+Status Coordinator::may_read(const JobInfo& job, const Caller& caller) const {
+  const std::string& owner = job.spec.owner;
+  if (!options_.private_jobs || owner.empty() || caller.admin || caller.user == owner)
+    return Status::Ok();
+  return Status(Code::kPermissionDenied, "job " + job.job_id + " belongs to " + owner +
+                                             "; jobs are private on this farm (--private-jobs)");
 }
 
-std::vector<JobInfo> Coordinator::jobs() {
+Result<JobInfo> Coordinator::job(const std::string& job_id, const Caller& caller) {
   std::lock_guard lk(mu_);
-  return scheduler_.jobs();
+  auto r = scheduler_.job(job_id);
+  if (r.ok()) {
+    if (Status s = may_read(*r, caller); !s.ok()) return s;
+  }
+  return r;
+}
+
+std::vector<JobInfo> Coordinator::jobs(const Caller& caller) {
+  std::lock_guard lk(mu_);
+  std::vector<JobInfo> all = scheduler_.jobs();
+  std::erase_if(all, [&](const JobInfo& j) { return !may_read(j, caller).ok(); });
+  return all;
 }
 
 Result<JobInfo> Coordinator::act(const std::string& job_id, const char* what, const Caller& caller,
@@ -466,9 +480,11 @@ bool Coordinator::worker_draining(const std::string& worker_id) {
 }
 
 Result<std::vector<HistoryEntry>> Coordinator::events(const std::string& job_id, int64_t after,
-                                                      int limit) {
+                                                      int limit, const Caller& caller) {
   std::lock_guard lk(mu_);
-  if (auto j = scheduler_.job(job_id); !j.ok()) return j.status();
+  auto j = scheduler_.job(job_id);
+  if (!j.ok()) return j.status();
+  if (Status s = may_read(*j, caller); !s.ok()) return s;
   if (!store_) return FailedPrecondition("the coordinator has no job store (not started)");
   return store_->history(job_id, after, limit);
 }
@@ -478,8 +494,8 @@ std::vector<WorkerInfo> Coordinator::workers() {
   return scheduler_.workers();
 }
 
-Status Coordinator::watch(const std::string& job_id, Millis max, const CancelledFn& cancelled,
-                          const JobSink& sink) {
+Status Coordinator::watch(const std::string& job_id, const Caller& caller, Millis max,
+                          const CancelledFn& cancelled, const JobSink& sink) {
   const auto end = SteadyClock::now() + std::clamp(max, Millis(0), options_.max_watch);
   std::unique_lock lk(mu_);
   // The version is the whole scheduler's: skip updates that left this job
@@ -488,6 +504,7 @@ Status Coordinator::watch(const std::string& job_id, Millis max, const Cancelled
   for (;;) {
     Result<JobInfo> info = scheduler_.job(job_id);
     if (!info.ok()) return info.status();
+    if (Status s = may_read(*info, caller); !s.ok()) return s;
     const uint64_t seen = scheduler_.version();
     lk.unlock();
     const auto now = std::make_tuple(info->state, info->bands_done, info->frames_done);
@@ -516,13 +533,14 @@ Status Coordinator::watch(const std::string& job_id, Millis max, const Cancelled
   }
 }
 
-Status Coordinator::fetch(const std::string& job_id, const std::vector<int>& frames,
-                          const ChunkSink& sink) {
+Status Coordinator::fetch(const std::string& job_id, const Caller& caller,
+                          const std::vector<int>& frames, const ChunkSink& sink) {
   JobInfo info;
   {
     std::lock_guard lk(mu_);
     auto r = scheduler_.job(job_id);
     if (!r.ok()) return r.status();
+    if (Status s = may_read(*r, caller); !s.ok()) return s;
     info = *r;
   }
   std::vector<int> want = frames.empty() ? info.frames_written : frames;

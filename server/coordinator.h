@@ -54,6 +54,9 @@ struct CoordinatorOptions {
   // Cut frames into bands of equal predicted cost (common/farm/band_split.h)
   // rather than equal height; local method only.
   bool cost_bands = true;
+  // --private-jobs: a job's status, history and frames are its owner's and
+  // admins' only (by default every client reads every job).
+  bool private_jobs = false;
   NowFn now = [] { return SteadyClock::now(); };
 };
 
@@ -94,8 +97,9 @@ class Coordinator {
   // InvalidArgument naming the scene and the problem; nothing is stored then.
   // `owner`: the caller's user name (empty: none), recorded with the job.
   Result<JobInfo> submit(const SubmitRequest& request, const std::string& owner = "");
-  Result<JobInfo> job(const std::string& job_id);
-  std::vector<JobInfo> jobs();
+  // Reading, checked by may_read().
+  Result<JobInfo> job(const std::string& job_id, const Caller& caller = Caller::anyone());
+  std::vector<JobInfo> jobs(const Caller& caller = Caller::anyone());
   // The operators' actions (the Scheduler's), each allowed to the job's
   // owner and to admins (PERMISSION_DENIED otherwise; a job without an
   // owner, to anyone). The caller is named in the job's history.
@@ -106,7 +110,8 @@ class Coordinator {
   Result<JobInfo> resume(const std::string& job_id, const Caller& caller = Caller::anyone());
   // The job's history after cursor `after`, at most `limit` lines
   // (`locus events`); NotFound for an unknown job.
-  Result<std::vector<HistoryEntry>> events(const std::string& job_id, int64_t after, int limit);
+  Result<std::vector<HistoryEntry>> events(const std::string& job_id, int64_t after, int limit,
+                                           const Caller& caller = Caller::anyone());
   std::vector<WorkerInfo> workers();
   // `locus drain|disable|enable`: admins only (PERMISSION_DENIED). The
   // worker by id or name; returns its name.
@@ -117,10 +122,11 @@ class Coordinator {
   bool worker_draining(const std::string& worker_id);
   // Sends the job's status now, then on each change (throttled), until the
   // job ends, `max` passes, the client cancels or the sink refuses.
-  Status watch(const std::string& job_id, Millis max, const CancelledFn& cancelled,
-               const JobSink& sink);
+  Status watch(const std::string& job_id, const Caller& caller, Millis max,
+               const CancelledFn& cancelled, const JobSink& sink);
   // Sends the written frame files; `frames` empty: all written so far.
-  Status fetch(const std::string& job_id, const std::vector<int>& frames, const ChunkSink& sink);
+  Status fetch(const std::string& job_id, const Caller& caller, const std::vector<int>& frames,
+               const ChunkSink& sink);
 
   // ---- WorkerService ----
   // InvalidArgument for bad tags (check_tags).
@@ -166,6 +172,8 @@ class Coordinator {
   void drop_unused_scenes();  // mu_ held
   // Hands the Scheduler's events to the store in one transaction; mu_ held.
   Status persist();
+  // PERMISSION_DENIED when --private-jobs hides the job from the caller.
+  Status may_read(const JobInfo& job, const Caller& caller) const;
   // An action on one job under mu_: the Scheduler's call, then the store.
   Result<JobInfo> act(const std::string& job_id, const char* what, const Caller& caller,
                       const std::function<Result<JobInfo>(const std::string& who)>& call);

@@ -89,6 +89,9 @@ void add_farm_flags(CLI::App& app, Flags& f) {
                  "A job with bands waiting gains one priority point per this many seconds since "
                  "its last lease, so none starves (0: no ageing)")
       ->check(CLI::Range(0.0, 365 * 24 * 3600.0));
+  app.add_flag("--private-jobs", f.options.private_jobs,
+               "A job's status, history and frames are its owner's and admins' only (default: "
+               "every client reads every job)");
   app.add_option("--user-max-running", f.options.user_max_running,
                  "Most bands one user's jobs may run at once (0: no cap)")
       ->check(CLI::Range(0, 1000000));

@@ -122,22 +122,23 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
   grpc::Status GetJob(grpc::ServerContext* ctx, const v1::GetJobRequest* req,
                       v1::JobStatus* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.GetJob", *req, resp,
-                 [&] { return h_.GetJob(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.GetJob(*req, c, resp); });
   }
 
   grpc::Status ListJobs(grpc::ServerContext* ctx, const v1::ListJobsRequest* req,
                         v1::ListJobsResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.ListJobs", *req, resp,
-                 [&] { return h_.ListJobs(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.ListJobs(*req, c, resp); });
   }
 
   grpc::Status WatchJob(grpc::ServerContext* ctx, const v1::WatchJobRequest* req,
                         grpc::ServerWriter<v1::JobStatus>* writer) override {
-    return serve(auth_, m_, *ctx, kClient, "ClientService.WatchJob", *req, nullptr, [&] {
-      return h_.WatchJob(
-          *req, [ctx] { return ctx->IsCancelled(); },
-          counted_writer(m_, "ClientService.WatchJob", writer));
-    });
+    return serve(auth_, m_, *ctx, kClient, "ClientService.WatchJob", *req, nullptr,
+                 [&](const farm::Caller& c) {
+                   return h_.WatchJob(
+                       *req, c, [ctx] { return ctx->IsCancelled(); },
+                       counted_writer(m_, "ClientService.WatchJob", writer));
+                 });
   }
 
   grpc::Status CancelJob(grpc::ServerContext* ctx, const v1::CancelJobRequest* req,
@@ -167,7 +168,7 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
   grpc::Status ListEvents(grpc::ServerContext* ctx, const v1::ListEventsRequest* req,
                           v1::ListEventsResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.ListEvents", *req, resp,
-                 [&] { return h_.ListEvents(*req, resp); });
+                 [&](const farm::Caller& c) { return h_.ListEvents(*req, c, resp); });
   }
 
   grpc::Status DrainWorker(grpc::ServerContext* ctx, const v1::WorkerActionRequest* req,
@@ -196,9 +197,11 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
 
   grpc::Status FetchResults(grpc::ServerContext* ctx, const v1::FetchResultsRequest* req,
                             grpc::ServerWriter<v1::FileChunk>* writer) override {
-    return serve(auth_, m_, *ctx, kClient, "ClientService.FetchResults", *req, nullptr, [&] {
-      return h_.FetchResults(*req, counted_writer(m_, "ClientService.FetchResults", writer));
-    });
+    return serve(auth_, m_, *ctx, kClient, "ClientService.FetchResults", *req, nullptr,
+                 [&](const farm::Caller& c) {
+                   return h_.FetchResults(*req, c,
+                                          counted_writer(m_, "ClientService.FetchResults", writer));
+                 });
   }
 
  private:

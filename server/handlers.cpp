@@ -50,25 +50,28 @@ Status Handlers::SubmitJob(const v1::SubmitJobRequest& req, const farm::Caller& 
   return Status::Ok();
 }
 
-Status Handlers::GetJob(const v1::GetJobRequest& req, v1::JobStatus* resp) {
+Status Handlers::GetJob(const v1::GetJobRequest& req, const farm::Caller& caller,
+                        v1::JobStatus* resp) {
   if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
-  auto r = c_.job(req.job_id());
+  auto r = c_.job(req.job_id(), caller);
   if (!r.ok()) return r.status();
   *resp = ToProto(*r);
   return Status::Ok();
 }
 
-Status Handlers::ListJobs(const v1::ListJobsRequest&, v1::ListJobsResponse* resp) {
-  for (const farm::JobInfo& j : c_.jobs()) *resp->add_jobs() = ToProto(j);
+Status Handlers::ListJobs(const v1::ListJobsRequest&, const farm::Caller& caller,
+                          v1::ListJobsResponse* resp) {
+  for (const farm::JobInfo& j : c_.jobs(caller)) *resp->add_jobs() = ToProto(j);
   return Status::Ok();
 }
 
-Status Handlers::WatchJob(const v1::WatchJobRequest& req, const farm::CancelledFn& cancelled,
+Status Handlers::WatchJob(const v1::WatchJobRequest& req, const farm::Caller& caller,
+                          const farm::CancelledFn& cancelled,
                           const std::function<bool(const v1::JobStatus&)>& write) {
   if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
   const farm::Millis max(req.max_seconds() > 0 ? static_cast<int64_t>(req.max_seconds()) * 1000
                                                : 30000);
-  return c_.watch(req.job_id(), max, cancelled,
+  return c_.watch(req.job_id(), caller, max, cancelled,
                   [&write](const farm::JobInfo& j) { return write(ToProto(j)); });
 }
 
@@ -109,11 +112,12 @@ Status Handlers::ResumeJob(const v1::JobActionRequest& req, const farm::Caller& 
   return job_action(req.job_id(), resp, [&] { return c_.resume(req.job_id(), caller); });
 }
 
-Status Handlers::ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResponse* resp) {
+Status Handlers::ListEvents(const v1::ListEventsRequest& req, const farm::Caller& caller,
+                            v1::ListEventsResponse* resp) {
   if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
   const int limit =
       req.limit() > 0 ? std::min(req.limit(), farm::kMaxEventsPerCall) : farm::kMaxEventsPerCall;
-  auto r = c_.events(req.job_id(), std::max<int64_t>(0, req.after_seq()), limit);
+  auto r = c_.events(req.job_id(), std::max<int64_t>(0, req.after_seq()), limit, caller);
   if (!r.ok()) return r.status();
   for (const farm::HistoryEntry& e : *r) {
     v1::JobEvent* p = resp->add_events();
@@ -161,13 +165,13 @@ Status Handlers::ListWorkers(const v1::ListWorkersRequest&, v1::ListWorkersRespo
   return Status::Ok();
 }
 
-Status Handlers::FetchResults(const v1::FetchResultsRequest& req,
+Status Handlers::FetchResults(const v1::FetchResultsRequest& req, const farm::Caller& caller,
                               const std::function<bool(const v1::FileChunk&)>& write) {
   if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
   if (req.frames_size() > kMaxFetchFrames)
     return InvalidArgument("frames: at most " + std::to_string(kMaxFetchFrames) + " per fetch");
   std::vector<int> frames(req.frames().begin(), req.frames().end());
-  return c_.fetch(req.job_id(), frames,
+  return c_.fetch(req.job_id(), caller, frames,
                   [&write](const farm::FileChunk& c) { return write(ToProto(c)); });
 }
 

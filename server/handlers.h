@@ -21,10 +21,13 @@ class Handlers {
   // ---- ClientService ----
   Status SubmitJob(const v1::SubmitJobRequest& req, const farm::Caller& caller,
                    v1::SubmitJobResponse* resp);
-  Status GetJob(const v1::GetJobRequest& req, v1::JobStatus* resp);
-  Status ListJobs(const v1::ListJobsRequest& req, v1::ListJobsResponse* resp);
+  // Reading: every client's, or with --private-jobs the owner's and admins'.
+  Status GetJob(const v1::GetJobRequest& req, const farm::Caller& caller, v1::JobStatus* resp);
+  Status ListJobs(const v1::ListJobsRequest& req, const farm::Caller& caller,
+                  v1::ListJobsResponse* resp);
   // `write` returns false when the client has gone.
-  Status WatchJob(const v1::WatchJobRequest& req, const farm::CancelledFn& cancelled,
+  Status WatchJob(const v1::WatchJobRequest& req, const farm::Caller& caller,
+                  const farm::CancelledFn& cancelled,
                   const std::function<bool(const v1::JobStatus&)>& write);
   Status CancelJob(const v1::CancelJobRequest& req, const farm::Caller& caller,
                    v1::CancelJobResponse* resp);
@@ -35,7 +38,8 @@ class Handlers {
                   v1::JobActionResponse* resp);
   Status ResumeJob(const v1::JobActionRequest& req, const farm::Caller& caller,
                    v1::JobActionResponse* resp);
-  Status ListEvents(const v1::ListEventsRequest& req, v1::ListEventsResponse* resp);
+  Status ListEvents(const v1::ListEventsRequest& req, const farm::Caller& caller,
+                    v1::ListEventsResponse* resp);
   Status ListWorkers(const v1::ListWorkersRequest& req, v1::ListWorkersResponse* resp);
   // Admins only.
   Status DrainWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
@@ -44,7 +48,7 @@ class Handlers {
                        v1::WorkerActionResponse* resp);
   Status EnableWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
                       v1::WorkerActionResponse* resp);
-  Status FetchResults(const v1::FetchResultsRequest& req,
+  Status FetchResults(const v1::FetchResultsRequest& req, const farm::Caller& caller,
                       const std::function<bool(const v1::FileChunk&)>& write);
 
   // ---- WorkerService ----

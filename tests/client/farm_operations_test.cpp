@@ -254,6 +254,34 @@ TEST_F(FarmTest, AnAdminDrainsAndDisablesWorkersAndOthersMayNot) {
   EXPECT_EQ(root.drain_worker("gamma").status().code(), Code::kNotFound);
 }
 
+TEST_F(FarmTest, PrivateJobsAreReadByTheirOwnerAndAdminsOnly) {
+  server_security_.auth =
+      Authenticator::from_tokens({"ann ann-token-0123456789", "bob bob-token-0123456789"},
+                                 {kWorkerToken}, {"root root-token-0123456789"});
+  client_creds_.token = "ann-token-0123456789";
+  options_.private_jobs = true;
+  start();
+  Credentials bc, rc;
+  bc.token = "bob-token-0123456789";
+  rc.token = "root-token-0123456789";
+  FarmClient bob(address_, bc), root(address_, rc);
+  add_workers(1);
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 1, 1, "private.png");
+  const JobInfo job = run(r);
+  expect_identical(job, r);  // the owner reads and fetches
+  EXPECT_EQ(bob.job(job.job_id).status().code(), Code::kPermissionDenied);
+  EXPECT_NE(bob.job(job.job_id).status().message().find("private"), std::string::npos);
+  EXPECT_EQ(bob.events(job.job_id, 0).status().code(), Code::kPermissionDenied);
+  EXPECT_EQ(bob.watch(job.job_id, [](const JobInfo&) {}).status().code(), Code::kPermissionDenied);
+  auto fetched = bob.fetch(
+      job.job_id, {}, [&](int, const std::string& n) { return (dir_ / ("bob_" + n)).string(); });
+  EXPECT_EQ(fetched.status().code(), Code::kPermissionDenied);
+  EXPECT_TRUE(bob.jobs()->empty());  // listed to its owner and admins only
+  EXPECT_EQ(client_->jobs()->size(), 1u);
+  EXPECT_EQ(root.jobs()->size(), 1u);
+  EXPECT_TRUE(root.job(job.job_id).ok());
+}
+
 TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
   server_security_.auth =
       Authenticator::from_tokens({"ann ann-token-0123456789", "bob-token-0123456789"},

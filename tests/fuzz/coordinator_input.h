@@ -24,6 +24,10 @@ enum Rpc : uint8_t {
   kGetScene,
   kCompleteBand,
   kHeartbeat,
+  kPauseJob,  // also ResumeJob, by the kind's kRightSize bit
+  kSetPriority,
+  kListEvents,
+  kWorkerAction,  // DrainWorker, DisableWorker or EnableWorker, by the request's bytes
   kRpcCount
 };
 inline constexpr uint8_t kFillIds = 0x80;

@@ -31,6 +31,10 @@ inline void fill(v1::GetJobRequest& r, const Ids& ids) { r.set_job_id(ids.job); 
 inline void fill(v1::WatchJobRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
 inline void fill(v1::CancelJobRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
 inline void fill(v1::FetchResultsRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
+inline void fill(v1::JobActionRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
+inline void fill(v1::SetPriorityRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
+inline void fill(v1::ListEventsRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
+inline void fill(v1::WorkerActionRequest& r, const Ids& ids) { r.set_worker(ids.worker); }
 inline void fill(v1::GetTaskRequest& r, const Ids& ids) { r.set_worker_id(ids.worker); }
 inline void fill(v1::GetSceneRequest& r, const Ids& ids) {
   r.set_worker_id(ids.worker);
@@ -53,36 +57,39 @@ inline bool parse(const std::string& bytes, uint8_t kind, const Ids& ids, Req* r
 }
 
 inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& ids) {
+  const farm::Caller anyone = farm::Caller::anyone();
   switch ((kind & 0x0f) % kRpcCount) {
     case kSubmitJob: {
       v1::SubmitJobRequest req;
       v1::SubmitJobResponse resp;
-      if (parse(bytes, kind, ids, &req) && h.SubmitJob(req, farm::Caller::anyone(), &resp).ok()) ids.job = resp.job_id();
+      if (parse(bytes, kind, ids, &req) && h.SubmitJob(req, anyone, &resp).ok())
+        ids.job = resp.job_id();
       break;
     }
     case kGetJob: {
       v1::GetJobRequest req;
       v1::JobStatus resp;
-      if (parse(bytes, kind, ids, &req)) h.GetJob(req, &resp);
+      if (parse(bytes, kind, ids, &req)) h.GetJob(req, anyone, &resp);
       break;
     }
     case kListJobs: {
       v1::ListJobsRequest req;
       v1::ListJobsResponse resp;
-      if (parse(bytes, kind, ids, &req)) h.ListJobs(req, &resp);
+      if (parse(bytes, kind, ids, &req)) h.ListJobs(req, anyone, &resp);
       break;
     }
     case kWatchJob: {
       // One status, then the "client" goes away: a watch never blocks here.
       v1::WatchJobRequest req;
       if (parse(bytes, kind, ids, &req))
-        h.WatchJob(req, [] { return true; }, [](const v1::JobStatus&) { return false; });
+        h.WatchJob(
+            req, anyone, [] { return true; }, [](const v1::JobStatus&) { return false; });
       break;
     }
     case kCancelJob: {
       v1::CancelJobRequest req;
       v1::CancelJobResponse resp;
-      if (parse(bytes, kind, ids, &req)) h.CancelJob(req, farm::Caller::anyone(), &resp);
+      if (parse(bytes, kind, ids, &req)) h.CancelJob(req, anyone, &resp);
       break;
     }
     case kListWorkers: {
@@ -93,7 +100,8 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
     }
     case kFetchResults: {
       v1::FetchResultsRequest req;
-      if (parse(bytes, kind, ids, &req)) h.FetchResults(req, [](const v1::FileChunk&) { return true; });
+      if (parse(bytes, kind, ids, &req))
+        h.FetchResults(req, anyone, [](const v1::FileChunk&) { return true; });
       break;
     }
     case kRegister: {
@@ -108,7 +116,10 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
       v1::GetTaskResponse resp;
       if (!parse(bytes, kind, ids, &req)) break;
       req.set_wait_ms(0);  // a long poll would only wait
-      if (h.GetTask(req, [] { return false; }, &resp).ok() && resp.has_task()) {
+      if (h.GetTask(
+               req, [] { return false; }, &resp)
+              .ok() &&
+          resp.has_task()) {
         const v1::BandTask& t = resp.task();
         ids.lease = t.lease_id();
         ids.scene = t.scene_hash();
@@ -126,7 +137,8 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
       v1::CompleteBandRequest req;
       v1::CompleteBandResponse resp;
       if (!parse(bytes, kind, ids, &req)) break;
-      if ((kind & kRightSize) && ids.band_floats > 0) req.mutable_rgb()->Resize(ids.band_floats, 0.5f);
+      if ((kind & kRightSize) && ids.band_floats > 0)
+        req.mutable_rgb()->Resize(ids.band_floats, 0.5f);
       h.CompleteBand(req, &resp);
       break;
     }
@@ -134,6 +146,45 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
       v1::HeartbeatRequest req;
       v1::HeartbeatResponse resp;
       if (parse(bytes, kind, ids, &req)) h.Heartbeat(req, &resp);
+      break;
+    }
+    case kPauseJob: {
+      v1::JobActionRequest req;
+      v1::JobActionResponse resp;
+      if (!parse(bytes, kind, ids, &req)) break;
+      if (kind & kRightSize) {
+        h.ResumeJob(req, anyone, &resp);
+      } else {
+        h.PauseJob(req, anyone, &resp);
+      }
+      break;
+    }
+    case kSetPriority: {
+      v1::SetPriorityRequest req;
+      v1::JobActionResponse resp;
+      if (parse(bytes, kind, ids, &req)) h.SetPriority(req, anyone, &resp);
+      break;
+    }
+    case kListEvents: {
+      v1::ListEventsRequest req;
+      v1::ListEventsResponse resp;
+      if (parse(bytes, kind, ids, &req)) h.ListEvents(req, anyone, &resp);
+      break;
+    }
+    case kWorkerAction: {
+      v1::WorkerActionRequest req;
+      v1::WorkerActionResponse resp;
+      if (!parse(bytes, kind, ids, &req)) break;
+      switch (bytes.size() % 3) {
+        case 0:
+          h.DrainWorker(req, anyone, &resp);
+          break;
+        case 1:
+          h.DisableWorker(req, anyone, &resp);
+          break;
+        default:
+          h.EnableWorker(req, anyone, &resp);
+      }
       break;
     }
   }
@@ -167,7 +218,8 @@ inline int fuzz_coordinator(const uint8_t* data, size_t size) {
   }
   // Still serving.
   v1::ListJobsResponse jobs;
-  if (!handlers.ListJobs(v1::ListJobsRequest(), &jobs).ok()) violated("ListJobs failed");
+  if (!handlers.ListJobs(v1::ListJobsRequest(), farm::Caller::anyone(), &jobs).ok())
+    violated("ListJobs failed");
   coordinator.shutdown();
   return 0;
 }

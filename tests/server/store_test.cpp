@@ -505,7 +505,7 @@ TEST(CoordinatorRestart, FinishedJobsStayFetchableAndCancelledStayCancelled) {
   EXPECT_EQ(j.frames_written, std::vector<int>{1});
   expect_frames_identical(b, j, r);
   size_t bytes = 0;
-  ASSERT_TRUE(b.fetch(done, {}, [&](const FileChunk& c) {
+  ASSERT_TRUE(b.fetch(done, Caller::anyone(), {}, [&](const FileChunk& c) {
                  bytes += c.data.size();
                  return true;
                }).ok());
