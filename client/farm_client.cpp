@@ -160,6 +160,13 @@ Result<farm::JobInfo> FarmClient::resume(const std::string& job_id) {
   return impl_->action(&v1::ClientService::Stub::ResumeJob, req);
 }
 
+Result<farm::JobInfo> FarmClient::remove(const std::string& job_id, bool outputs) {
+  v1::DeleteJobRequest req;
+  req.set_job_id(job_id);
+  req.set_outputs(outputs);
+  return impl_->action(&v1::ClientService::Stub::DeleteJob, req);
+}
+
 Result<std::string> FarmClient::drain_worker(const std::string& worker) {
   return impl_->worker_action(&v1::ClientService::Stub::DrainWorker, worker);
 }

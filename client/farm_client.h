@@ -30,6 +30,8 @@ class FarmClient {
   Result<farm::JobInfo> set_priority(const std::string& job_id, int priority, bool preempt);
   Result<farm::JobInfo> pause(const std::string& job_id);
   Result<farm::JobInfo> resume(const std::string& job_id);
+  // A finished job; `outputs`: its frames too. Its last status.
+  Result<farm::JobInfo> remove(const std::string& job_id, bool outputs);
   // The job's history after cursor `after` (all of it from 0).
   Result<std::vector<farm::HistoryEntry>> events(const std::string& job_id, int64_t after);
   Result<std::vector<farm::WorkerInfo>> workers();

@@ -613,6 +613,12 @@ int main(int argc, char** argv) {
   auto* resume = app.add_subcommand("resume", "Resume a paused job");
   resume->add_option("job", job_id, "Job id")->required();
   add_farm(resume);
+  bool delete_outputs = false;
+  auto* del = app.add_subcommand(
+      "delete", "Delete a finished job: its record, history and band files (and frames)");
+  del->add_option("job", job_id, "Job id")->required();
+  del->add_flag("--outputs", delete_outputs, "Its frames too");
+  add_farm(del);
   EventsArgs ea;
   auto* events = app.add_subcommand(
       "events", "A job's history: submission, leases and how they ended, frames, actions");
@@ -674,6 +680,12 @@ int main(int argc, char** argv) {
   if (pause->parsed()) return print_action(client::FarmClient(farm_address, creds).pause(job_id));
   if (resume->parsed()) return print_action(client::FarmClient(farm_address, creds).resume(job_id));
   if (events->parsed()) return run_events(farm_address, creds, job_id, ea);
+  if (del->parsed()) {
+    auto j = client::FarmClient(farm_address, creds).remove(job_id, delete_outputs);
+    if (!j.ok()) return fail(j.status());
+    std::printf("job %s: deleted%s\n", j->job_id.c_str(), delete_outputs ? " with its frames" : "");
+    return 0;
+  }
   for (auto [cmd, state] : {std::pair{drain, "draining"}, std::pair{disable, "disabled"},
                             std::pair{enable, "enabled"}}) {
     if (!cmd->parsed()) continue;

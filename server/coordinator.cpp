@@ -241,10 +241,15 @@ std::string Coordinator::output_root() const {
 void Coordinator::tick_loop() {
   std::unique_lock lk(mu_);
   uint64_t seen = scheduler_.version();
+  auto retained = SteadyClock::now() - std::chrono::hours(1);
   while (!stopping_) {
     changed_.wait_for(lk, options_.tick);
     scheduler_.expire();
     persist();
+    if (SteadyClock::now() - retained >= options_.retention_check) {
+      retained = SteadyClock::now();
+      apply_retention();
+    }
     if (scheduler_.version() != seen) {
       seen = scheduler_.version();
       drop_unused_scenes();
@@ -477,6 +482,49 @@ Result<std::string> Coordinator::set_worker_disabled(const std::string& worker, 
 bool Coordinator::worker_draining(const std::string& worker_id) {
   std::lock_guard lk(mu_);
   return scheduler_.draining(worker_id);
+}
+
+Status Coordinator::remove_job(const JobInfo& job, bool outputs) {
+  if (!is_terminal(job.state)) {
+    return FailedPrecondition("job " + job.job_id + " is " + job_state_name(job.state) +
+                              "; cancel it first, then delete it");
+  }
+  persist();
+  if (Status s = store_->delete_job(job.job_id); !s.ok()) return s;
+  scheduler_.forget_job(job.job_id);
+  std::error_code ec;
+  const fs::path dir = job_dir(job.job_id);
+  fs::remove_all(outputs ? dir : dir / "bands", ec);
+  if (ec) spdlog::warn("job {}: cannot remove {}: {}", job.job_id, dir.string(), ec.message());
+  spdlog::info("job {}: deleted{}", job.job_id, outputs ? " with its frames" : "");
+  return Status::Ok();
+}
+
+Result<JobInfo> Coordinator::delete_job(const std::string& job_id, bool outputs,
+                                        const Caller& caller) {
+  return act(job_id, "delete", caller, [&](const std::string&) -> Result<JobInfo> {
+    auto j = scheduler_.job(job_id);
+    if (!j.ok()) return j.status();
+    if (Status s = remove_job(*j, outputs); !s.ok()) return s;
+    return j;
+  });
+}
+
+void Coordinator::apply_retention() {
+  if (options_.retention.count() <= 0 || !store_) return;
+  const double before =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
+      std::chrono::duration<double>(options_.retention).count();
+  auto old = store_->jobs_finished_before(before);
+  if (!old.ok()) {
+    spdlog::error("retention: {}", old.status().message());
+    return;
+  }
+  for (const std::string& id : *old) {
+    auto j = scheduler_.job(id);
+    if (!j.ok()) continue;
+    if (Status s = remove_job(*j, true); !s.ok()) spdlog::error("retention: {}", s.message());
+  }
 }
 
 Result<std::vector<HistoryEntry>> Coordinator::events(const std::string& job_id, int64_t after,

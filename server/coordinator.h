@@ -48,6 +48,10 @@ struct CoordinatorOptions {
   Millis band_timeout{0};    // --band-timeout; 0: none
   Millis ageing{60000};      // --ageing
   int user_max_running = 0;  // --user-max-running; 0: no cap
+  // --retention-days: finished jobs older than this are deleted with their
+  // frames (checked every minute); 0: kept until `locus delete`.
+  Millis retention{0};
+  Millis retention_check{60000};  // how often (tests shorten it)
   // fsync band files, frames and their directory before the store names
   // them (survives a power loss); without it a kill -9 is still survived.
   bool fsync = true;
@@ -108,6 +112,11 @@ class Coordinator {
                                const Caller& caller = Caller::anyone());
   Result<JobInfo> pause(const std::string& job_id, const Caller& caller = Caller::anyone());
   Result<JobInfo> resume(const std::string& job_id, const Caller& caller = Caller::anyone());
+  // `locus delete`: a finished job (FAILED_PRECONDITION otherwise) and its
+  // record, history and band files; with `outputs` its frames too. Its
+  // owner's or an admin's. Returns its last status.
+  Result<JobInfo> delete_job(const std::string& job_id, bool outputs,
+                             const Caller& caller = Caller::anyone());
   // The job's history after cursor `after`, at most `limit` lines
   // (`locus events`); NotFound for an unknown job.
   Result<std::vector<HistoryEntry>> events(const std::string& job_id, int64_t after, int limit,
@@ -170,6 +179,9 @@ class Coordinator {
   void tick_loop();
   void write_loop();
   void drop_unused_scenes();  // mu_ held
+  // delete_job's work once allowed; mu_ held.
+  Status remove_job(const JobInfo& job, bool outputs);
+  void apply_retention();  // mu_ held
   // Hands the Scheduler's events to the store in one transaction; mu_ held.
   Status persist();
   // PERMISSION_DENIED when --private-jobs hides the job from the caller.

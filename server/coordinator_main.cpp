@@ -42,6 +42,7 @@ struct Flags {
   int speculate_min_ms = 1000;
   double band_timeout = 0;  // seconds
   double ageing = 60;       // seconds
+  double retention_days = 0;
   bool no_fsync = false;
   bool equal_bands = false;
   std::string health_address, metrics_address;
@@ -89,6 +90,10 @@ void add_farm_flags(CLI::App& app, Flags& f) {
                  "A job with bands waiting gains one priority point per this many seconds since "
                  "its last lease, so none starves (0: no ageing)")
       ->check(CLI::Range(0.0, 365 * 24 * 3600.0));
+  app.add_option("--retention-days", f.retention_days,
+                 "Finished jobs older than this many days are deleted with their frames, so the "
+                 "data directory stays bounded (0: kept until `locus delete`)")
+      ->check(CLI::Range(0.0, 36500.0));
   app.add_flag("--private-jobs", f.options.private_jobs,
                "A job's status, history and frames are its owner's and admins' only (default: "
                "every client reads every job)");
@@ -187,6 +192,8 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
   options.speculate_min = farm::Millis(f.speculate_min_ms);
   options.band_timeout = farm::Millis(static_cast<int64_t>(std::llround(f.band_timeout * 1000)));
   options.ageing = farm::Millis(static_cast<int64_t>(std::llround(f.ageing * 1000)));
+  options.retention =
+      farm::Millis(static_cast<int64_t>(std::llround(f.retention_days * 86400.0 * 1000)));
   options.fsync = !f.no_fsync;
   options.cost_bands = !f.equal_bands;
   return options;

@@ -165,6 +165,12 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
                  [&](const farm::Caller& c) { return h_.ResumeJob(*req, c, resp); });
   }
 
+  grpc::Status DeleteJob(grpc::ServerContext* ctx, const v1::DeleteJobRequest* req,
+                         v1::JobActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.DeleteJob", *req, resp,
+                 [&](const farm::Caller& c) { return h_.DeleteJob(*req, c, resp); });
+  }
+
   grpc::Status ListEvents(grpc::ServerContext* ctx, const v1::ListEventsRequest* req,
                           v1::ListEventsResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.ListEvents", *req, resp,

@@ -112,6 +112,12 @@ Status Handlers::ResumeJob(const v1::JobActionRequest& req, const farm::Caller& 
   return job_action(req.job_id(), resp, [&] { return c_.resume(req.job_id(), caller); });
 }
 
+Status Handlers::DeleteJob(const v1::DeleteJobRequest& req, const farm::Caller& caller,
+                           v1::JobActionResponse* resp) {
+  return job_action(req.job_id(), resp,
+                    [&] { return c_.delete_job(req.job_id(), req.outputs(), caller); });
+}
+
 Status Handlers::ListEvents(const v1::ListEventsRequest& req, const farm::Caller& caller,
                             v1::ListEventsResponse* resp) {
   if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;

@@ -74,7 +74,8 @@ class Scheduler {
   // `spec` is validated by the caller; returns the new job's id.
   std::string add_job(JobSpec spec, const std::string& request_id = "",
                       const std::string& fingerprint = "");
-  // Undoes add_job when its record could not be stored.
+  // Undoes add_job when its record could not be stored, and removes a job
+  // deleted from the store (`locus delete`, retention).
   void forget_job(const std::string& job_id);
   // The job an earlier submission with this request id created, if any.
   std::optional<JobRecord> job_for_request(const std::string& request_id) const;

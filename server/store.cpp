@@ -567,6 +567,36 @@ Status JobStore::keep_scenes(const std::set<std::string>& keep) {
   return Status::Ok();
 }
 
+Status JobStore::delete_job(const std::string& job_id) {
+  if (Status s = exec("BEGIN IMMEDIATE"); !s.ok()) return s;
+  for (const char* sql :
+       {"DELETE FROM history WHERE job_id = ?", "DELETE FROM attempts WHERE job_id = ?",
+        "DELETE FROM frames WHERE job_id = ?", "DELETE FROM bands WHERE job_id = ?",
+        "DELETE FROM jobs WHERE id = ?"}) {
+    Statement st(*this, sql);
+    st.bind(job_id);
+    if (Status s = st.run(); !s.ok()) {
+      exec("ROLLBACK");
+      return s;
+    }
+  }
+  return exec("COMMIT");
+}
+
+Result<std::vector<std::string>> JobStore::jobs_finished_before(double unix_seconds) {
+  Statement st(*this,
+               "SELECT id FROM jobs WHERE finished_at IS NOT NULL AND finished_at < ? "
+               "ORDER BY seq");
+  st.bind(unix_seconds);
+  std::vector<std::string> out;
+  for (;;) {
+    const int rc = st.step();
+    if (rc == SQLITE_DONE) return out;
+    if (rc != SQLITE_ROW) return st.error();
+    out.push_back(st.text(0));
+  }
+}
+
 Result<int> JobStore::band_completions(const std::string& job_id, int frame, int band) {
   Statement st(*this, "SELECT completions FROM bands WHERE job_id = ? AND frame = ? AND band = ?");
   st.bind(job_id, frame, band);

@@ -48,6 +48,11 @@ class JobStore {
   // most `limit` lines.
   Result<std::vector<HistoryEntry>> history(const std::string& job_id, int64_t after, int limit);
 
+  // Removes the job and everything recorded of it, in one transaction.
+  Status delete_job(const std::string& job_id);
+  // Ids of the jobs that ended before `unix_seconds` (retention).
+  Result<std::vector<std::string>> jobs_finished_before(double unix_seconds);
+
   // For tests and tools: times a band's result was accepted (0 if never).
   Result<int> band_completions(const std::string& job_id, int frame, int band);
 

@@ -282,6 +282,45 @@ TEST_F(FarmTest, PrivateJobsAreReadByTheirOwnerAndAdminsOnly) {
   EXPECT_TRUE(root.job(job.job_id).ok());
 }
 
+TEST_F(FarmTest, DeleteRemovesAFinishedJobAndRetentionOldOnes) {
+  options_.retention = Millis(3000);
+  options_.retention_check = Millis(100);
+  start();
+  add_workers(1);
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 2, 2, "deleted_####.png");
+  auto running = client_->submit(request(kSpheres, 32, 24, 1, 1, 1, "kept.png"));
+  ASSERT_TRUE(running.ok());
+  ASSERT_TRUE(client_->pause(running->job_id).ok());
+  EXPECT_EQ(client_->remove(running->job_id, false).status().code(), Code::kFailedPrecondition);
+  const JobInfo job = run(r);
+  ASSERT_EQ(job.state, JobState::kSucceeded);
+  const fs::path dir = fs::path(coordinator_->job_dir(job.job_id));
+  ASSERT_TRUE(fs::exists(dir / "deleted_0002.png"));
+  auto gone = client_->remove(job.job_id, false);
+  ASSERT_TRUE(gone.ok()) << gone.status().message();
+  EXPECT_EQ(client_->job(job.job_id).status().code(), Code::kNotFound);
+  EXPECT_EQ(client_->events(job.job_id, 0).status().code(), Code::kNotFound);
+  EXPECT_FALSE(fs::exists(dir / "bands"));
+  EXPECT_TRUE(fs::exists(dir / "deleted_0001.png"));  // frames stay without --outputs
+  // Retention: a finished job goes with its frames once old enough.
+  const JobInfo old = run(request(kSpheres, 32, 24, 1, 1, 1, "old.png"));
+  ASSERT_EQ(old.state, JobState::kSucceeded);
+  const fs::path old_dir = fs::path(coordinator_->job_dir(old.job_id));
+  EXPECT_TRUE(client_->job(old.job_id).ok());
+  for (int i = 0; i < 800 && client_->job(old.job_id).ok(); ++i)
+    std::this_thread::sleep_for(Millis(10));
+  EXPECT_EQ(client_->job(old.job_id).status().code(), Code::kNotFound);
+  EXPECT_FALSE(fs::exists(old_dir));
+  EXPECT_TRUE(client_->job(running->job_id).ok());  // unfinished jobs stay
+  // And the store forgets them across a restart.
+  server_->shutdown(Millis(500));
+  coordinator_->shutdown();
+  coordinator_ = std::make_unique<Coordinator>(options_);
+  ASSERT_TRUE(coordinator_->start().ok());
+  EXPECT_EQ(coordinator_->job(job.job_id).status().code(), Code::kNotFound);
+  EXPECT_EQ(coordinator_->jobs().size(), 1u);
+}
+
 TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
   server_security_.auth =
       Authenticator::from_tokens({"ann ann-token-0123456789", "bob-token-0123456789"},
