@@ -286,11 +286,12 @@ TEST_F(FarmTest, DeleteRemovesAFinishedJobAndRetentionOldOnes) {
   options_.retention = Millis(3000);
   options_.retention_check = Millis(100);
   start();
-  add_workers(1);
   SubmitRequest r = request(kSpheres, 32, 24, 1, 2, 2, "deleted_####.png");
+  // Paused before any worker comes: it stays unfinished.
   auto running = client_->submit(request(kSpheres, 32, 24, 1, 1, 1, "kept.png"));
   ASSERT_TRUE(running.ok());
   ASSERT_TRUE(client_->pause(running->job_id).ok());
+  add_workers(1);
   EXPECT_EQ(client_->remove(running->job_id, false).status().code(), Code::kFailedPrecondition);
   const JobInfo job = run(r);
   ASSERT_EQ(job.state, JobState::kSucceeded);
