@@ -179,6 +179,28 @@ Result<std::string> FarmClient::enable_worker(const std::string& worker) {
   return impl_->worker_action(&v1::ClientService::Stub::EnableWorker, worker);
 }
 
+Result<std::vector<farm::BandLogLine>> FarmClient::logs(const std::string& job_id, int frame,
+                                                        int band, int64_t after) {
+  if (!impl_->broken.ok()) return impl_->broken;
+  std::vector<farm::BandLogLine> out;
+  for (;;) {
+    v1::ListLogsRequest req;
+    req.set_job_id(job_id);
+    if (frame >= 0) req.set_frame(frame);
+    if (band >= 0) req.set_band(band);
+    req.set_after_seq(after);
+    v1::ListLogsResponse resp;
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx, rpc::kShortCall);
+    if (Status s = impl_->check(impl_->stub->ListLogs(&ctx, req, &resp)); !s.ok()) return s;
+    for (const v1::BandLogLine& l : resp.lines()) {
+      out.push_back({l.seq(), l.frame(), l.band(), l.lease_id(), l.worker_id(), l.text()});
+      after = l.seq();
+    }
+    if (resp.lines_size() < farm::kMaxEventsPerCall) return out;
+  }
+}
+
 Result<std::vector<farm::HistoryEntry>> FarmClient::events(const std::string& job_id,
                                                            int64_t after) {
   if (!impl_->broken.ok()) return impl_->broken;

@@ -32,6 +32,10 @@ class FarmClient {
   Result<farm::JobInfo> resume(const std::string& job_id);
   // A finished job; `outputs`: its frames too. Its last status.
   Result<farm::JobInfo> remove(const std::string& job_id, bool outputs);
+  // The lines workers logged for the job's bands after cursor `after`, of
+  // one frame and band (-1: any).
+  Result<std::vector<farm::BandLogLine>> logs(const std::string& job_id, int frame, int band,
+                                              int64_t after);
   // The job's history after cursor `after` (all of it from 0).
   Result<std::vector<farm::HistoryEntry>> events(const std::string& job_id, int64_t after);
   Result<std::vector<farm::WorkerInfo>> workers();

@@ -414,6 +414,29 @@ struct EventsArgs {
   bool follow = false;
 };
 
+// Prints what workers logged for the job's bands; --follow polls for more
+// until the job ends.
+int run_logs(const std::string& address, const farm::Credentials& creds, const std::string& job_id,
+             const EventsArgs& a) {
+  client::FarmClient farm(address, creds);
+  int64_t after = 0;
+  for (;;) {
+    auto lines = farm.logs(job_id, a.frame, a.band, after);
+    if (!lines.ok()) return fail(lines.status());
+    for (const farm::BandLogLine& l : *lines) {
+      after = l.seq;
+      std::printf("frame %d band %d %s: %s\n", l.frame, l.band, l.worker_id.c_str(),
+                  l.text.c_str());
+    }
+    std::fflush(stdout);
+    if (!a.follow) return 0;
+    auto j = farm.job(job_id);
+    if (!j.ok()) return fail(j.status());
+    if (farm::is_terminal(j->state) && lines->empty()) return 0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+}
+
 // Prints the job's history; --follow polls for more until the job ends.
 int run_events(const std::string& address, const farm::Credentials& creds,
                const std::string& job_id, const EventsArgs& a) {
@@ -639,6 +662,13 @@ int main(int argc, char** argv) {
   auto* enable = app.add_subcommand("enable", "Admins: let a disabled worker take bands again");
   enable->add_option("worker", worker, "Worker id or name")->required();
   add_farm(enable);
+  auto* logs = app.add_subcommand(
+      "logs", "What workers logged for a job's bands (warnings, errors, timings)");
+  logs->add_option("job", job_id, "Job id")->required();
+  logs->add_option("--frame", ea.frame, "Only this frame's bands");
+  logs->add_option("--band", ea.band, "Only this band (of every frame, or of --frame)");
+  logs->add_flag("--follow", ea.follow, "Keep printing new lines until the job ends");
+  add_farm(logs);
   auto* workers = app.add_subcommand("workers", "List the farm's workers");
   add_farm(workers);
   auto* fetch = app.add_subcommand("fetch", "Download a job's written frames into a directory");
@@ -680,6 +710,7 @@ int main(int argc, char** argv) {
   if (pause->parsed()) return print_action(client::FarmClient(farm_address, creds).pause(job_id));
   if (resume->parsed()) return print_action(client::FarmClient(farm_address, creds).resume(job_id));
   if (events->parsed()) return run_events(farm_address, creds, job_id, ea);
+  if (logs->parsed()) return run_logs(farm_address, creds, job_id, ea);
   if (del->parsed()) {
     auto j = client::FarmClient(farm_address, creds).remove(job_id, delete_outputs);
     if (!j.ok()) return fail(j.status());

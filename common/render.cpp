@@ -8,6 +8,7 @@
 #include <sstream>
 #include <thread>
 
+#include "common/base/log.h"
 #include "common/prepare/prepared.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/prepare/tessellate.h"
@@ -89,7 +90,14 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
     }
   };
   std::vector<std::thread> pool;
-  for (int i = 1; i < threads; ++i) pool.emplace_back(work, i);
+  // The pool logs under the caller's band ids (its lines go to the band's log).
+  const BandLogIds log_ids = current_band_log_ids();
+  for (int i = 1; i < threads; ++i) {
+    pool.emplace_back([&, i] {
+      BandLogScope scope(log_ids);
+      work(i);
+    });
+  }
   work(0);
   for (auto& t : pool) t.join();
   result.cancelled = stopped.load();

@@ -527,6 +527,16 @@ void Coordinator::apply_retention() {
   }
 }
 
+Result<std::vector<BandLogLine>> Coordinator::logs(const std::string& job_id, int frame, int band,
+                                                   int64_t after, int limit, const Caller& caller) {
+  std::lock_guard lk(mu_);
+  auto j = scheduler_.job(job_id);
+  if (!j.ok()) return j.status();
+  if (Status s = may_read(*j, caller); !s.ok()) return s;
+  if (!store_) return FailedPrecondition("the coordinator has no job store (not started)");
+  return store_->band_logs(job_id, frame, band, after, limit);
+}
+
 Result<std::vector<HistoryEntry>> Coordinator::events(const std::string& job_id, int64_t after,
                                                       int limit, const Caller& caller) {
   std::lock_guard lk(mu_);

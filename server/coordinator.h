@@ -112,6 +112,11 @@ class Coordinator {
                                const Caller& caller = Caller::anyone());
   Result<JobInfo> pause(const std::string& job_id, const Caller& caller = Caller::anyone());
   Result<JobInfo> resume(const std::string& job_id, const Caller& caller = Caller::anyone());
+  // The lines workers logged for the job's bands (`locus logs`), read like
+  // events().
+  Result<std::vector<BandLogLine>> logs(const std::string& job_id, int frame, int band,
+                                        int64_t after, int limit,
+                                        const Caller& caller = Caller::anyone());
   // `locus delete`: a finished job (FAILED_PRECONDITION otherwise) and its
   // record, history and band files; with `outputs` its frames too. Its
   // owner's or an admin's. Returns its last status.

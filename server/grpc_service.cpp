@@ -171,6 +171,12 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
                  [&](const farm::Caller& c) { return h_.DeleteJob(*req, c, resp); });
   }
 
+  grpc::Status ListLogs(grpc::ServerContext* ctx, const v1::ListLogsRequest* req,
+                        v1::ListLogsResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.ListLogs", *req, resp,
+                 [&](const farm::Caller& c) { return h_.ListLogs(*req, c, resp); });
+  }
+
   grpc::Status ListEvents(grpc::ServerContext* ctx, const v1::ListEventsRequest* req,
                           v1::ListEventsResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.ListEvents", *req, resp,

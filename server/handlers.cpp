@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "common/base/log.h"
 #include "proto/wire/rpc.h"
 
 namespace locus::rpc {
@@ -20,9 +21,10 @@ Status check_id(const std::string& id, const char* what) {
   return Status::Ok();
 }
 
-// Names go into logs and tables: bounded, one line, printable.
-std::string printable_name(const std::string& name) {
-  std::string out = name.substr(0, kMaxNameBytes);
+// Names and workers' log lines go into logs and tables: bounded, one line,
+// printable.
+std::string printable(const std::string& text, size_t max_bytes = kMaxNameBytes) {
+  std::string out = text.substr(0, max_bytes);
   for (char& c : out)
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
   return out;
@@ -41,7 +43,7 @@ Status Handlers::SubmitJob(const v1::SubmitJobRequest& req, const farm::Caller& 
                            " tags; after: at most " + std::to_string(farm::kMaxAfter) + " jobs");
   }
   farm::SubmitRequest r = FromProto(req.spec());
-  r.scene_name = printable_name(r.scene_name);
+  r.scene_name = printable(r.scene_name);
   r.request_id = req.request_id();
   auto job = c_.submit(r, caller.user);
   if (!job.ok()) return job.status();
@@ -118,6 +120,27 @@ Status Handlers::DeleteJob(const v1::DeleteJobRequest& req, const farm::Caller& 
                     [&] { return c_.delete_job(req.job_id(), req.outputs(), caller); });
 }
 
+Status Handlers::ListLogs(const v1::ListLogsRequest& req, const farm::Caller& caller,
+                          v1::ListLogsResponse* resp) {
+  if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
+  const int limit =
+      req.limit() > 0 ? std::min(req.limit(), farm::kMaxEventsPerCall) : farm::kMaxEventsPerCall;
+  auto r =
+      c_.logs(req.job_id(), req.has_frame() ? req.frame() : -1, req.has_band() ? req.band() : -1,
+              std::max<int64_t>(0, req.after_seq()), limit, caller);
+  if (!r.ok()) return r.status();
+  for (const farm::BandLogLine& l : *r) {
+    v1::BandLogLine* p = resp->add_lines();
+    p->set_seq(l.seq);
+    p->set_frame(l.frame);
+    p->set_band(l.band);
+    p->set_lease_id(l.lease_id);
+    p->set_worker_id(l.worker_id);
+    p->set_text(l.text);
+  }
+  return Status::Ok();
+}
+
 Status Handlers::ListEvents(const v1::ListEventsRequest& req, const farm::Caller& caller,
                             v1::ListEventsResponse* resp) {
   if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
@@ -183,7 +206,7 @@ Status Handlers::FetchResults(const v1::FetchResultsRequest& req, const farm::Ca
 
 Status Handlers::Register(const v1::RegisterRequest& req, const std::string& peer,
                           v1::RegisterResponse* resp) {
-  const std::string name = printable_name(req.name().empty() ? peer : req.name());
+  const std::string name = printable(req.name().empty() ? peer : req.name());
   if (req.tags_size() > static_cast<int>(farm::kMaxTags))
     return InvalidArgument("tags: at most " + std::to_string(farm::kMaxTags));
   const std::vector<std::string> tags(req.tags().begin(), req.tags().end());
@@ -217,8 +240,11 @@ Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* 
 Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {
   if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
   if (Status s = check_id(req.lease_id(), "lease_id"); !s.ok()) return s;
+  if (req.log_lines_size() > static_cast<int>(kMaxBandLogLines) + 1)
+    return InvalidArgument("log_lines: at most " + std::to_string(kMaxBandLogLines));
   farm::BandOutput output = FromProto(req);
   output.error = output.error.substr(0, 4096);
+  for (std::string& l : output.log_lines) l = printable(l, kMaxBandLogLineBytes);
   auto r = c_.complete_band(std::move(output));
   if (!r.ok()) return r.status();
   resp->set_accepted(r->accepted);

@@ -42,6 +42,8 @@ class Handlers {
                    v1::JobActionResponse* resp);
   Status ListEvents(const v1::ListEventsRequest& req, const farm::Caller& caller,
                     v1::ListEventsResponse* resp);
+  Status ListLogs(const v1::ListLogsRequest& req, const farm::Caller& caller,
+                  v1::ListLogsResponse* resp);
   Status ListWorkers(const v1::ListWorkersRequest& req, v1::ListWorkersResponse* resp);
   // Admins only.
   Status DrainWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,

@@ -104,6 +104,15 @@ struct PriorityChanged {
   std::string job_id;
   int priority = kDefaultPriority;
 };
+// The lines a worker logged for a band, sent with its result or failure.
+struct BandLog {
+  std::string job_id;
+  int frame = 0;
+  int band = 0;
+  std::string lease_id;
+  std::string worker_id;
+  std::vector<std::string> lines;
+};
 // `locus disable` / `locus enable` of a worker name.
 struct WorkerDisabled {
   std::string name;
@@ -120,7 +129,7 @@ struct JobNote {
 using Event =
     std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted, event::LeaseEnded,
                  event::BandDone, event::FrameWritten, event::WorkerAdded, event::PriorityChanged,
-                 event::JobNote, event::WorkerDisabled>;
+                 event::JobNote, event::WorkerDisabled, event::BandLog>;
 
 // A job as the store remembers it, for Scheduler::restore().
 struct RecoveredJob {

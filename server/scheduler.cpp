@@ -775,6 +775,11 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   const Lease lease = it->second;
   Job& job = jobs_.at(lease.job_id);
   const JobSpec& s = job.info.spec;
+  if (!out.log_lines.empty() && !out.handed_back) {
+    events_.push_back(event::BandLog{job.info.job_id, frame_of(job, lease.job_band),
+                                     band_of(job, lease.job_band), out.lease_id, out.worker_id,
+                                     out.log_lines});
+  }
   if (out.handed_back) {
     release(out.lease_id, LeaseOutcome::kHandedBack, "handed back by " + who);
     outcome.accepted = true;

@@ -66,6 +66,11 @@ CREATE TABLE IF NOT EXISTS history(
   text TEXT NOT NULL);
 CREATE INDEX IF NOT EXISTS history_by_job ON history(job_id, seq);
 CREATE TABLE IF NOT EXISTS disabled_workers(name TEXT PRIMARY KEY);
+CREATE TABLE IF NOT EXISTS band_logs(
+  seq INTEGER PRIMARY KEY,
+  job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
+  lease_id TEXT NOT NULL, worker_id TEXT NOT NULL, text TEXT NOT NULL);
+CREATE INDEX IF NOT EXISTS band_logs_by_job ON band_logs(job_id, seq);
 CREATE VIEW IF NOT EXISTS leases AS
   SELECT lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at
   FROM attempts WHERE outcome IS NULL;
@@ -372,6 +377,16 @@ Status JobStore::apply_one(const Event& e) {
   }
   if (const auto* n = std::get_if<event::JobNote>(&e))
     return add_history(n->job_id, -1, -1, n->text);
+  if (const auto* b = std::get_if<event::BandLog>(&e)) {
+    for (const std::string& line : b->lines) {
+      Statement st(*this,
+                   "INSERT INTO band_logs(job_id, frame, band, lease_id, worker_id, text) "
+                   "VALUES(?,?,?,?,?,?)");
+      st.bind(b->job_id, b->frame, b->band, b->lease_id, b->worker_id, line);
+      if (Status s = st.run(); !s.ok()) return s;
+    }
+    return Status::Ok();
+  }
   if (const auto* d = std::get_if<event::WorkerDisabled>(&e)) {
     Statement st(*this, d->disabled ? "INSERT OR IGNORE INTO disabled_workers(name) VALUES(?)"
                                     : "DELETE FROM disabled_workers WHERE name = ?");
@@ -570,9 +585,9 @@ Status JobStore::keep_scenes(const std::set<std::string>& keep) {
 Status JobStore::delete_job(const std::string& job_id) {
   if (Status s = exec("BEGIN IMMEDIATE"); !s.ok()) return s;
   for (const char* sql :
-       {"DELETE FROM history WHERE job_id = ?", "DELETE FROM attempts WHERE job_id = ?",
-        "DELETE FROM frames WHERE job_id = ?", "DELETE FROM bands WHERE job_id = ?",
-        "DELETE FROM jobs WHERE id = ?"}) {
+       {"DELETE FROM history WHERE job_id = ?", "DELETE FROM band_logs WHERE job_id = ?",
+        "DELETE FROM attempts WHERE job_id = ?", "DELETE FROM frames WHERE job_id = ?",
+        "DELETE FROM bands WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"}) {
     Statement st(*this, sql);
     st.bind(job_id);
     if (Status s = st.run(); !s.ok()) {
@@ -581,6 +596,22 @@ Status JobStore::delete_job(const std::string& job_id) {
     }
   }
   return exec("COMMIT");
+}
+
+Result<std::vector<BandLogLine>> JobStore::band_logs(const std::string& job_id, int frame, int band,
+                                                     int64_t after, int limit) {
+  Statement st(*this,
+               "SELECT seq, frame, band, lease_id, worker_id, text FROM band_logs WHERE job_id = ? "
+               "AND seq > ? AND (? < 0 OR frame = ?) AND (? < 0 OR band = ?) ORDER BY seq LIMIT ?");
+  st.bind(job_id, after, frame, frame, band, band, limit);
+  std::vector<BandLogLine> out;
+  for (;;) {
+    const int rc = st.step();
+    if (rc == SQLITE_DONE) return out;
+    if (rc != SQLITE_ROW) return st.error();
+    out.push_back({st.integer(0), static_cast<int>(st.integer(1)), static_cast<int>(st.integer(2)),
+                   st.text(3), st.text(4), st.text(5)});
+  }
 }
 
 Result<std::vector<std::string>> JobStore::jobs_finished_before(double unix_seconds) {

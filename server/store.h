@@ -48,6 +48,10 @@ class JobStore {
   // most `limit` lines.
   Result<std::vector<HistoryEntry>> history(const std::string& job_id, int64_t after, int limit);
 
+  // The lines workers logged for the job's bands after cursor `after`, of
+  // one frame and band (-1: any), oldest first, at most `limit`.
+  Result<std::vector<BandLogLine>> band_logs(const std::string& job_id, int frame, int band,
+                                             int64_t after, int limit);
   // Removes the job and everything recorded of it, in one transaction.
   Status delete_job(const std::string& job_id);
   // Ids of the jobs that ended before `unix_seconds` (retention).

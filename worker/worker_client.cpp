@@ -32,6 +32,7 @@ class WorkerClient::Impl {
  public:
   explicit Impl(WorkerOptions o) : o_(std::move(o)), renderer_(o_.threads, o_.mesh_root) {
     if (o_.name.empty()) o_.name = default_name();
+    install_band_log_capture();
     peer_ = "coordinator at " + o_.coordinator;
     auto c = rpc::connect(o_.coordinator, o_.credentials);
     if (!c.ok()) {
@@ -374,6 +375,8 @@ void WorkerClient::Impl::hand_back() {
 void WorkerClient::Impl::handle(const BandLease& t) {
   // Every line logged about this band carries its ids.
   BandLogScope log_scope(t.job_id, t.frame, t.band);
+  // ... and goes with its result to the coordinator (`locus logs`).
+  BandLogCapture capture(t.job_id, t.frame, t.band);
   metrics_.band_started();
   if (o_.slow_band.count() > 0) {
     pause(o_.slow_band);
@@ -406,6 +409,7 @@ void WorkerClient::Impl::handle(const BandLease& t) {
       o.error = r.status().message();
       spdlog::warn("cannot render the band: {}", o.error);
     }
+    o.log_lines = capture.take();
     const BandEnd end = send(std::move(o));
     metrics_.band_ended(end, seconds);
     if (end == BandEnd::kDone) spdlog::info("rendered in {:.3f} s and returned", seconds);

@@ -1,24 +1,24 @@
 #include "common/base/log.h"
 
 #include <spdlog/pattern_formatter.h>
+#include <spdlog/sinks/base_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/sinks/stdout_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <mutex>
 #include <utility>
 
 namespace locus {
 namespace {
 
-// The band this thread works on; job empty: none.
-struct BandIds {
-  std::string job;
-  int frame = -1;
-  int band = -1;
-};
+// The band this thread works on.
+using BandIds = BandLogIds;
 thread_local BandIds current_band;
 
 // %* in the text pattern: "[job j0001 frame 3 band 7] ", or nothing.
@@ -114,6 +114,84 @@ std::unique_ptr<spdlog::formatter> make_log_formatter(LogFormat format) {
   return f;
 }
 
+namespace {
+
+// The active captures; the sink offers each line to all of them (the
+// worker has one at a time; the tests run several workers in a process).
+std::mutex captures_mu;
+std::vector<BandLogCapture*> captures;
+
+class CaptureSink final : public spdlog::sinks::base_sink<std::mutex> {
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    if (msg.level < spdlog::level::info) return;
+    const BandIds& ids = current_band;
+    if (ids.job.empty()) return;
+    std::lock_guard lk(captures_mu);
+    if (captures.empty()) return;
+    const std::time_t t = std::chrono::system_clock::to_time_t(msg.time);
+    std::tm tm{};
+    localtime_r(&t, &tm);
+    char stamp[32];
+    const auto ms =
+        std::chrono::duration_cast<std::chrono::milliseconds>(msg.time.time_since_epoch()).count() %
+        1000;
+    std::snprintf(stamp, sizeof stamp, "%02d:%02d:%02d.%03d ", tm.tm_hour, tm.tm_min, tm.tm_sec,
+                  static_cast<int>(ms));
+    const auto level = spdlog::level::to_string_view(msg.level);
+    std::string line = stamp + std::string(level.data(), level.size()) + " " +
+                       std::string(msg.payload.data(), msg.payload.size());
+    for (BandLogCapture* c : captures) c->offer(ids, line);
+  }
+  void flush_() override {}
+};
+
+std::shared_ptr<CaptureSink>& capture_sink() {
+  static auto sink = std::make_shared<CaptureSink>();
+  return sink;
+}
+
+void add_capture_sink(spdlog::logger& logger) {
+  auto& sinks = logger.sinks();
+  if (std::find(sinks.begin(), sinks.end(), capture_sink()) == sinks.end())
+    sinks.push_back(capture_sink());
+}
+
+}  // namespace
+
+void install_band_log_capture() { add_capture_sink(*spdlog::default_logger()); }
+
+BandLogIds current_band_log_ids() { return current_band; }
+
+BandLogCapture::BandLogCapture(std::string job, int frame, int band)
+    : ids_{std::move(job), frame, band} {
+  std::lock_guard lk(captures_mu);
+  captures.push_back(this);
+}
+
+BandLogCapture::~BandLogCapture() {
+  std::lock_guard lk(captures_mu);
+  captures.erase(std::remove(captures.begin(), captures.end(), this), captures.end());
+}
+
+void BandLogCapture::offer(const BandLogIds& ids, const std::string& line) {
+  // captures_mu held.
+  if (ids.job != ids_.job || ids.frame != ids_.frame || ids.band != ids_.band) return;
+  if (lines_.size() >= kMaxBandLogLines) {
+    ++dropped_;
+    return;
+  }
+  lines_.push_back(line.substr(0, kMaxBandLogLineBytes));
+}
+
+std::vector<std::string> BandLogCapture::take() {
+  std::lock_guard lk(captures_mu);
+  std::vector<std::string> out = std::exchange(lines_, {});
+  if (dropped_ > 0) out.push_back("... " + std::to_string(dropped_) + " more lines not kept");
+  dropped_ = 0;
+  return out;
+}
+
 Status setup_logging(LogFormat format, std::string_view level) {
   const auto known = label_value(kLogLevelLabels, level);
   if (!known) {
@@ -130,6 +208,7 @@ Status setup_logging(LogFormat format, std::string_view level) {
   auto logger = std::make_shared<spdlog::logger>("locus", std::move(sink));
   logger->set_formatter(make_log_formatter(format));
   logger->set_level(*known);
+  add_capture_sink(*logger);
   spdlog::set_default_logger(std::move(logger));
   return Status::Ok();
 }

@@ -186,6 +186,8 @@ struct BandOutput {
   Stats stats;
   std::string error;
   bool handed_back = false;  // the worker is stopping and gives the band back unrendered
+  // What the worker logged for the band (BandLogCapture), kept with the job.
+  std::vector<std::string> log_lines;
 };
 
 struct JobInfo {
@@ -231,7 +233,17 @@ struct HistoryEntry {
   int band = -1;
   std::string text;
 };
-// The most history lines one ListEvents call returns (the client pages).
+// A line a worker logged for a band (`locus logs`).
+struct BandLogLine {
+  int64_t seq = 0;  // a cursor, as HistoryEntry::seq
+  int frame = 0;
+  int band = 0;
+  std::string lease_id;
+  std::string worker_id;
+  std::string text;
+};
+// The most history or log lines one ListEvents or ListLogs call returns
+// (the client pages).
 inline constexpr int kMaxEventsPerCall = 10000;
 
 // The worker's state as `locus workers` and the wire name it.

@@ -503,6 +503,7 @@ v1::CompleteBandRequest ToProto(farm::BandOutput&& o) {
   *p.mutable_stats() = ToProto(o.stats);
   p.set_error(o.error);
   p.set_handed_back(o.handed_back);
+  for (const std::string& l : o.log_lines) p.add_log_lines(l);
   return p;
 }
 
@@ -514,6 +515,7 @@ farm::BandOutput FromProto(const v1::CompleteBandRequest& p) {
   o.stats = FromProto(p.stats());
   o.error = p.error();
   o.handed_back = p.handed_back();
+  o.log_lines.assign(p.log_lines().begin(), p.log_lines().end());
   return o;
 }
 

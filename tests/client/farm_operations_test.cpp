@@ -3,6 +3,7 @@
 // and the worker that cannot stop it exiting; pause and resume; a higher
 // priority served first; every step in the job's history (`locus events`).
 #include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
 
 #include <atomic>
 #include <chrono>
@@ -320,6 +321,43 @@ TEST_F(FarmTest, DeleteRemovesAFinishedJobAndRetentionOldOnes) {
   ASSERT_TRUE(coordinator_->start().ok());
   EXPECT_EQ(coordinator_->job(job.job_id).status().code(), Code::kNotFound);
   EXPECT_EQ(coordinator_->jobs().size(), 1u);
+}
+
+TEST_F(FarmTest, AWarningLoggedOnTheWorkerIsInTheBandsLogAfterARestartToo) {
+  start();
+  // Logged inside render_band, on the row that band 1 of each frame starts
+  // with (rows 12..23 of 24 in two bands).
+  set_row_hook_for_test([](int row) {
+    if (row == 12) spdlog::warn("test: row {} looked odd", row);
+  });
+  ClearRowHook clear;
+  add_workers(1, [](WorkerOptions& o) { o.threads = 2; });  // from the render pool too
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 2, 2, "logged_####.png");
+  r.render.method = "raytrace";  // no cost preview at submit, which would meet the hook
+  const JobInfo job = run(r);
+  ASSERT_EQ(job.state, JobState::kSucceeded);
+  auto lines = client_->logs(job.job_id, -1, -1, 0);
+  ASSERT_TRUE(lines.ok()) << lines.status().message();
+  int odd = 0;
+  for (const BandLogLine& l : *lines) {
+    if (l.text.find("warning test: row 12 looked odd") == std::string::npos) continue;
+    ++odd;
+    EXPECT_EQ(l.band, 1);
+    EXPECT_EQ(l.worker_id, "w0001");
+  }
+  EXPECT_EQ(odd, 2);  // one per frame
+  auto frame2 = client_->logs(job.job_id, 2, 1, 0);
+  ASSERT_TRUE(frame2.ok());
+  ASSERT_FALSE(frame2->empty());
+  for (const BandLogLine& l : *frame2) EXPECT_TRUE(l.frame == 2 && l.band == 1);
+  EXPECT_TRUE(client_->logs(job.job_id, 2, 7, 0)->empty());
+  server_->shutdown(Millis(500));
+  coordinator_->shutdown();
+  coordinator_ = std::make_unique<Coordinator>(options_);
+  ASSERT_TRUE(coordinator_->start().ok());
+  auto kept = coordinator_->logs(job.job_id, -1, -1, 0, 100);
+  ASSERT_TRUE(kept.ok());
+  EXPECT_EQ(kept->size(), lines->size());
 }
 
 TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
