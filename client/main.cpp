@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <regex>
 #include <thread>
 
@@ -324,6 +326,8 @@ void print_job(const farm::JobInfo& j) {
                 static_cast<long long>(j.results_discarded));
   }
   for (const std::string& w : j.quarantined) std::printf("  quarantined worker %s\n", w.c_str());
+  std::printf("  account  %.1f band-seconds rendered, %.1f failed, %.1f lost; %.1f CPU seconds\n",
+              j.account.done, j.account.failed, j.account.lost, j.stats.seconds_render_cpu);
   if (!j.spec.require.empty())
     std::printf("  requires workers tagged %s\n", farm::words_text(j.spec.require).c_str());
   if (!j.spec.after.empty()) std::printf("  after    %s\n", farm::words_text(j.spec.after).c_str());
@@ -351,6 +355,15 @@ int run_status(const std::string& address, const farm::Credentials& creds,
   }
   std::printf("%-8s %-10s %-4s %-12s %-13s %-15s %-10s %s\n", "JOB", "STATE", "PRIO", "OWNER",
               "FRAMES", "BANDS", "ELAPSED", "SCENE");
+  // Per user, over the jobs the coordinator holds.
+  std::map<std::string, std::array<double, 4>> users;
+  for (const farm::JobInfo& j : *jobs) {
+    auto& u = users[j.spec.owner.empty() ? "-" : j.spec.owner];
+    u[0] += j.account.done;
+    u[1] += j.account.failed;
+    u[2] += j.account.lost;
+    u[3] += j.stats.seconds_render_cpu;
+  }
   for (const farm::JobInfo& j : *jobs) {
     const std::string frames =
         std::to_string(j.frames_done) + "/" + std::to_string(j.spec.frames());
@@ -360,6 +373,11 @@ int run_status(const std::string& address, const farm::Credentials& creds,
                 farm::job_state_name(j.state), j.spec.priority,
                 j.spec.owner.empty() ? "-" : j.spec.owner.c_str(), frames.c_str(), bands.c_str(),
                 client::format_duration(j.seconds_elapsed).c_str(), j.spec.scene_name.c_str());
+  }
+  std::printf("\n%-12s %14s %12s %12s %12s\n", "USER", "BAND-SECONDS", "FAILED", "LOST",
+              "CPU-SECONDS");
+  for (const auto& [user, u] : users) {
+    std::printf("%-12s %14.1f %12.1f %12.1f %12.1f\n", user.c_str(), u[0], u[1], u[2], u[3]);
   }
   return 0;
 }

@@ -80,7 +80,10 @@ struct LeaseEnded {
   int band = 0;
   LeaseOutcome outcome = LeaseOutcome::kRevoked;
   std::string error;
-  bool requeued = false;  // the band went back to the queue (not the store's concern)
+  bool requeued = false;    // the band went back to the queue (not the store's concern)
+  double seconds = 0;       // from the lease to its end
+  std::string owner;        // the job's (the metrics' user label)
+  BandSeconds job_account;  // the job's total after this lease
 };
 // The band's pixels are in its band file; the lease that delivered them ends.
 struct BandDone {
@@ -89,8 +92,11 @@ struct BandDone {
   int band = 0;
   std::string lease_id;
   std::string worker_id;
-  Stats job_stats;     // the job's total after this band
-  double seconds = 0;  // from the lease to the result (not the store's concern)
+  Stats job_stats;          // the job's total after this band
+  double seconds = 0;       // from the lease to the result
+  std::string owner;        // the job's (the metrics' user label)
+  double cpu_seconds = 0;   // this band's render CPU time
+  BandSeconds job_account;  // the job's total after this band
 };
 struct FrameWritten {
   std::string job_id;
@@ -138,6 +144,7 @@ struct RecoveredJob {
   std::string error;
   double seconds_elapsed = 0;
   Stats stats;
+  BandSeconds account;
   int64_t bands_done = 0;
   int64_t results_discarded = 0;
   int64_t speculative_leases = 0;

@@ -40,6 +40,12 @@ CoordinatorMetrics::CoordinatorMetrics()
                        "lapse, a silent worker or a hand-back)")),
       speculative_(counter(*registry_, "locus_speculative_leases_total",
                            "Second leases of bands running far longer than their peers")),
+      user_band_seconds_(counters(*registry_, "locus_user_band_seconds_total",
+                                  "Band-seconds (lease to end) of each user's attempts, by kind: "
+                                  "done (accepted), failed (charged), lost (races lost, lapses, "
+                                  "revocations, preemptions, hand-backs)")),
+      user_cpu_seconds_(counters(*registry_, "locus_user_render_cpu_seconds_total",
+                                 "Render CPU seconds of each user's accepted bands")),
       received_(counters(*registry_, "locus_rpc_received_bytes_total",
                          "Bytes of request messages received, by call")),
       sent_(counters(*registry_, "locus_rpc_sent_bytes_total",
@@ -68,9 +74,14 @@ void CoordinatorMetrics::observe(const std::vector<Event>& events) {
             if (is_charged(ev.outcome))
               failures_.Add({{"reason", lease_outcome_name(ev.outcome)}}).Increment();
             if (ev.requeued) retries_.Increment();
+            user_band_seconds_
+                .Add({{"user", ev.owner}, {"kind", is_charged(ev.outcome) ? "failed" : "lost"}})
+                .Increment(ev.seconds);
           } else if constexpr (std::is_same_v<T, event::BandDone>) {
             bands_completed_.Increment();
             band_seconds_.Observe(ev.seconds);
+            user_band_seconds_.Add({{"user", ev.owner}, {"kind", "done"}}).Increment(ev.seconds);
+            user_cpu_seconds_.Add({{"user", ev.owner}}).Increment(ev.cpu_seconds);
           }
         },
         e);

@@ -49,6 +49,8 @@ class CoordinatorMetrics {
   prometheus::Family<prometheus::Counter>& failures_;
   prometheus::Counter& retries_;
   prometheus::Counter& speculative_;
+  prometheus::Family<prometheus::Counter>& user_band_seconds_;
+  prometheus::Family<prometheus::Counter>& user_cpu_seconds_;
   prometheus::Family<prometheus::Counter>& received_;
   prometheus::Family<prometheus::Counter>& sent_;
 };

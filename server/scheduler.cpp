@@ -147,10 +147,18 @@ void Scheduler::drop_leases_of(Job& job) {
       auto w = workers_.find(it->second.worker_id);
       if (w != workers_.end()) w->second.leases.erase(it->first);
       count_running(job, -1);
-      events_.push_back(event::LeaseEnded{it->first, job.info.job_id,
-                                          frame_of(job, it->second.job_band),
-                                          band_of(job, it->second.job_band), LeaseOutcome::kRevoked,
-                                          std::string("job ") + job_state_name(job.info.state)});
+      event::LeaseEnded ended{it->first,
+                              job.info.job_id,
+                              frame_of(job, it->second.job_band),
+                              band_of(job, it->second.job_band),
+                              LeaseOutcome::kRevoked,
+                              std::string("job ") + job_state_name(job.info.state),
+                              false,
+                              0,
+                              "",
+                              {}};
+      account(job, ended, it->second);
+      events_.push_back(std::move(ended));
       it = leases_.erase(it);
     } else {
       ++it;
@@ -172,6 +180,12 @@ void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   job.failures.clear();
   job.durations.clear();
   if (state == JobState::kFailed) spdlog::warn("job {} failed: {}", job.info.job_id, error);
+  const BandSeconds& a = job.info.account;
+  char line[160];
+  std::snprintf(line, sizeof line,
+                "accounting: %.3f band-seconds rendered, %.3f failed, %.3f lost; %.3f CPU seconds",
+                a.done, a.failed, a.lost, job.info.stats.seconds_render_cpu);
+  note(job, line);
   ++version_;
   if (state != JobState::kSucceeded) fail_dependents(job);
 }
@@ -248,6 +262,13 @@ Result<JobInfo> Scheduler::resume(const std::string& job_id, const std::string& 
   if (!who.empty()) note(*job, "resumed by " + who);
   ++version_;
   return snapshot(*job);
+}
+
+void Scheduler::account(Job& job, event::LeaseEnded& ended, const Lease& lease) {
+  ended.seconds = seconds(now_() - lease.granted);
+  ended.owner = job.info.spec.owner;
+  (is_charged(ended.outcome) ? job.info.account.failed : job.info.account.lost) += ended.seconds;
+  ended.job_account = job.info.account;
 }
 
 void Scheduler::note(const Job& job, std::string text) {
@@ -700,7 +721,8 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
   const int frame = frame_of(*job, lease.job_band);
   const int band = band_of(*job, lease.job_band);
   BandLogScope log_scope(lease.job_id, frame, band);
-  event::LeaseEnded ended{lease_id, lease.job_id, frame, band, outcome, why, false};
+  event::LeaseEnded ended{lease_id, lease.job_id, frame, band, outcome, why, false, 0, "", {}};
+  account(*job, ended, lease);
   ++version_;
   if (is_terminal(job->info.state)) {
     events_.push_back(std::move(ended));
@@ -817,8 +839,10 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   const double took = seconds(now_() - lease.granted);
   job.durations.push_back(took);
   if (job.durations.size() > kDurationsKept) job.durations.pop_front();
+  job.info.account.done += took;
   events_.push_back(event::BandDone{job.info.job_id, frame, band, out.lease_id, out.worker_id,
-                                    job.info.stats, took});
+                                    job.info.stats, took, job.info.spec.owner,
+                                    out.stats.seconds_render_cpu, job.info.account});
   // The first result wins: the band's other lease (a speculative copy, or
   // the original it copied) is discarded, counted once here.
   if (state.leases > 0) {

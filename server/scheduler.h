@@ -228,6 +228,8 @@ class Scheduler {
   double effective_priority(const Job& job, TimePoint now) const;
   // A lease starts or ends: the running counts of its job and its owner.
   void count_running(Job& job, int delta);
+  // A lease ends: its seconds to the job's accounting, and to the event.
+  void account(Job& job, event::LeaseEnded& ended, const Lease& lease);
   // A line of the job's history (`locus events`).
   void note(const Job& job, std::string text);
   // A band running far longer than its peers, for a second lease, or null.

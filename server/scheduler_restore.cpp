@@ -61,6 +61,7 @@ Scheduler::Job Scheduler::recovered_job(const RecoveredJob& r, TimePoint now) {
   info.state = r.state;
   info.error = r.error;
   info.stats = r.stats;
+  info.account = r.account;
   info.results_discarded = r.results_discarded;
   info.speculative_leases = r.speculative_leases;
   info.frames_written = r.frames_written;

@@ -90,7 +90,7 @@ std::string encode_stats(const Stats& s) {
     << ' ' << s.rays_refracted << ' ' << s.rays_shadow << ' ' << s.tests_ray_object << ' '
     << s.tests_shadow_volume << ' ' << s.pixels_total << ' ' << s.pixels_ray_traced << ' '
     << s.spans_total << ' ' << s.spans_ray_traced << ' ' << s.shadow_method << ' '
-    << s.seconds_tessellate << ' ' << s.geometry_triangles;
+    << s.seconds_tessellate << ' ' << s.geometry_triangles << ' ' << s.seconds_render_cpu;
   return o.str();
 }
 
@@ -109,6 +109,8 @@ Stats decode_stats(const std::string& text) {
     s.seconds_tessellate = tessellate;
     s.geometry_triangles = triangles;
   }
+  double cpu = 0;
+  if (i >> cpu) s.seconds_render_cpu = cpu;
   return s;
 }
 
@@ -221,7 +223,10 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
         {"band_timeout_ms", "band_timeout_ms INTEGER NOT NULL DEFAULT 0"},
         {"owner", "owner TEXT NOT NULL DEFAULT ''"},
         {"require_tags", "require_tags TEXT NOT NULL DEFAULT ''"},
-        {"after_jobs", "after_jobs TEXT NOT NULL DEFAULT ''"}}) {
+        {"after_jobs", "after_jobs TEXT NOT NULL DEFAULT ''"},
+        {"band_seconds", "band_seconds REAL NOT NULL DEFAULT 0"},
+        {"band_seconds_failed", "band_seconds_failed REAL NOT NULL DEFAULT 0"},
+        {"band_seconds_lost", "band_seconds_lost REAL NOT NULL DEFAULT 0"}}) {
     Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info('jobs') WHERE name = ?");
     has.bind(column);
     if (has.step() != SQLITE_ROW) return has.error();
@@ -330,6 +335,10 @@ Status JobStore::apply_one(const Event& e) {
         !s.ok()) {
       return s;
     }
+    Statement acc(*this,
+                  "UPDATE jobs SET band_seconds_failed = ?, band_seconds_lost = ? WHERE id = ?");
+    acc.bind(l->job_account.failed, l->job_account.lost, l->job_id);
+    if (Status s = acc.run(); !s.ok()) return s;
     if (!is_charged(l->outcome)) return Status::Ok();
     Statement band(*this,
                    "INSERT INTO bands(job_id, frame, band, failures, last_error) VALUES(?,?,?,1,?) "
@@ -358,8 +367,8 @@ Status JobStore::apply_one(const Event& e) {
         !s.ok()) {
       return s;
     }
-    Statement stats(*this, "UPDATE jobs SET stats = ? WHERE id = ?");
-    stats.bind(encode_stats(d->job_stats), d->job_id);
+    Statement stats(*this, "UPDATE jobs SET stats = ?, band_seconds = ? WHERE id = ?");
+    stats.bind(encode_stats(d->job_stats), d->job_account.done, d->job_id);
     return stats.run();
   }
   if (const auto* f = std::get_if<event::FrameWritten>(&e)) {
@@ -450,7 +459,8 @@ Result<RecoveredState> JobStore::recover() {
       "SELECT seq, id, COALESCE(request_id, ''), fingerprint, scene_hash, scene_name, "
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
       "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges, priority, "
-      "frame_order, band_timeout_ms, owner, require_tags, after_jobs FROM jobs ORDER BY seq");
+      "frame_order, band_timeout_ms, owner, require_tags, after_jobs, band_seconds, "
+      "band_seconds_failed, band_seconds_lost FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -496,6 +506,7 @@ Result<RecoveredState> JobStore::recover() {
     s.owner = jobs.text(27);
     s.require = words_from_text(jobs.text(28));
     s.after = words_from_text(jobs.text(29));
+    j.account = {jobs.real(30), jobs.real(31), jobs.real(32)};
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {

@@ -190,6 +190,15 @@ struct BandOutput {
   std::vector<std::string> log_lines;
 };
 
+// Band-seconds of a job's attempts (lease to end), apart by how they ended:
+// accepted, failed (charged to the band), lost (a race lost, lapsed,
+// revoked, preempted, handed back, voided by a restart).
+struct BandSeconds {
+  double done = 0;
+  double failed = 0;
+  double lost = 0;
+};
+
 struct JobInfo {
   std::string job_id;
   JobState state = JobState::kQueued;
@@ -208,6 +217,7 @@ struct JobInfo {
   // Why no band of it runs although some wait: "waiting for job j0003
   // (running)", "waiting for a worker tagged bigmem"; empty otherwise.
   std::string waiting;
+  BandSeconds account;  // the CPU seconds of accepted results are stats.seconds_render_cpu
 };
 
 struct WorkerInfo {

@@ -253,6 +253,7 @@ v1::RenderStats ToProto(const Stats& s) {
   p.set_tests_shadow_volume(s.tests_shadow_volume);
   p.set_seconds_tessellate(s.seconds_tessellate);
   p.set_geometry_triangles(s.geometry_triangles);
+  p.set_seconds_render_cpu(s.seconds_render_cpu);
   p.set_pixels_total(s.pixels_total);
   p.set_pixels_ray_traced(s.pixels_ray_traced);
   p.set_spans_total(s.spans_total);
@@ -273,6 +274,7 @@ Stats FromProto(const v1::RenderStats& p) {
   s.tests_shadow_volume = p.tests_shadow_volume();
   s.seconds_tessellate = p.seconds_tessellate();
   s.geometry_triangles = p.geometry_triangles();
+  s.seconds_render_cpu = p.seconds_render_cpu();
   s.pixels_total = p.pixels_total();
   s.pixels_ray_traced = p.pixels_ray_traced();
   s.spans_total = p.spans_total();
@@ -347,6 +349,9 @@ v1::JobStatus ToProto(const farm::JobInfo& j) {
   for (const std::string& t : j.spec.require) p.add_require(t);
   for (const std::string& a : j.spec.after) p.add_after(a);
   p.set_waiting(j.waiting);
+  p.set_band_seconds(j.account.done);
+  p.set_band_seconds_failed(j.account.failed);
+  p.set_band_seconds_lost(j.account.lost);
   return p;
 }
 
@@ -380,6 +385,7 @@ farm::JobInfo FromProto(const v1::JobStatus& p) {
   j.spec.require.assign(p.require().begin(), p.require().end());
   j.spec.after.assign(p.after().begin(), p.after().end());
   j.waiting = p.waiting();
+  j.account = {p.band_seconds(), p.band_seconds_failed(), p.band_seconds_lost()};
   return j;
 }
 

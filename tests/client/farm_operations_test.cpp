@@ -135,6 +135,12 @@ TEST_F(FarmTest, AHigherPriorityJobSubmittedLaterGetsTheWorkerFirst) {
       first_low_lease = std::min(first_low_lease, e.seq);
   }
   EXPECT_LT(last_high_lease, first_low_lease);
+  // Accounting: the job's band-seconds and CPU seconds, in its status and
+  // the last line of its history.
+  EXPECT_GT(low_done->account.done, 0.0);
+  EXPECT_GT(low_done->stats.seconds_render_cpu, 0.0);
+  EXPECT_EQ(low_done->account.failed, 0.0);
+  EXPECT_EQ(count_events(*client_, low->job_id, "accounting: "), 1);
   // A bad priority or frame order is refused at submit, naming it.
   SubmitRequest bad = request(kSpheres, 32, 24, 1, 1, 1, "bad.png");
   bad.frame_order = "random";

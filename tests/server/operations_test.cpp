@@ -361,6 +361,47 @@ TEST_F(OperationsTest, DisabledWorkersStayOutByNameAcrossReconnectsAndRestartsDr
   EXPECT_FALSE(restarted.workers()[0].disabled);
 }
 
+TEST_F(OperationsTest, BandSecondsAreAccountedByHowEachAttemptEnded) {
+  TempDir dir;
+  const std::string db = (dir.path / "locus.db").string();
+  const std::string job = s.add_job(spec(1, 3, kDefaultPriority, "ann"));
+  const std::string w = s.add_worker("w", 1), v = s.add_worker("v", 1);
+  const BandLease ok = *next(w), bad = *next(v);
+  clock.advance(2000);
+  BandOutput good = pixels(w, ok);
+  good.stats.seconds_render_cpu = 1.5;
+  ASSERT_TRUE(s.complete_band(good)->accepted);  // 2 s done
+  BandOutput failed;
+  failed.worker_id = v;
+  failed.lease_id = bad.lease_id;
+  failed.error = "out of memory";
+  ASSERT_TRUE(s.complete_band(failed).ok());  // 2 s failed
+  const BandLease third = *next(w);
+  clock.advance(500);
+  ASSERT_TRUE(s.set_priority(s.add_job(spec(1, 1, 90)), 95, true).ok());  // 0.5 s lost
+  (void)third;
+  auto j = s.job(job);
+  EXPECT_DOUBLE_EQ(j->account.done, 2.0);
+  EXPECT_DOUBLE_EQ(j->account.failed, 2.0);
+  EXPECT_DOUBLE_EQ(j->account.lost, 0.5);
+  EXPECT_DOUBLE_EQ(j->stats.seconds_render_cpu, 1.5);
+  {
+    auto store = JobStore::open(db);
+    ASSERT_TRUE(store.ok());
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  }
+  auto store = JobStore::open(db);
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok());
+  Scheduler again(options(), clock.fn());
+  again.restore(*state);
+  auto r = again.job(job);
+  EXPECT_DOUBLE_EQ(r->account.done, 2.0);
+  EXPECT_DOUBLE_EQ(r->account.failed, 2.0);
+  EXPECT_DOUBLE_EQ(r->account.lost, 0.5);
+  EXPECT_DOUBLE_EQ(r->stats.seconds_render_cpu, 1.5);
+}
+
 // Two bands hang at once and the first timeout fails the job (one attempt
 // allowed): the second lease went with the job, and expire() goes on.
 TEST_F(OperationsTest, HungBandsThatFailTheirJobEndItOnce) {

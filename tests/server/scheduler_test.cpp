@@ -420,8 +420,9 @@ TEST_F(SchedulerTest, EveryDurableChangeIsAnEvent) {
   s.frame_written(job, 1, Status::Ok());
   std::vector<size_t> kinds;
   for (const Event& e : s.take_events()) kinds.push_back(e.index());
-  // JobAdded, WorkerAdded, running, LeaseGranted, BandDone, FrameWritten, succeeded.
-  EXPECT_EQ(kinds, (std::vector<size_t>{0, 6, 1, 2, 4, 5, 1}));
+  // JobAdded, WorkerAdded, running, LeaseGranted, BandDone, FrameWritten,
+  // succeeded, and the job's accounting line (a JobNote).
+  EXPECT_EQ(kinds, (std::vector<size_t>{0, 6, 1, 2, 4, 5, 1, 8}));
   EXPECT_TRUE(s.take_events().empty());
 }
 
