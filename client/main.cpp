@@ -13,6 +13,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <regex>
@@ -432,50 +433,55 @@ struct EventsArgs {
   bool follow = false;
 };
 
-// Prints what workers logged for the job's bands; --follow polls for more
-// until the job ends.
+// Prints lines of a job after a cursor (`print_after` prints those after
+// `after`, moves it on and says how many came); with `follow`, polls for
+// more every 0.5 s until the job has ended and nothing more comes.
+int follow_lines(client::FarmClient& farm, const std::string& job_id, bool follow,
+                 const std::function<Result<size_t>(int64_t& after)>& print_after) {
+  int64_t after = 0;
+  for (;;) {
+    auto printed = print_after(after);
+    if (!printed.ok()) return fail(printed.status());
+    std::fflush(stdout);
+    if (!follow) return 0;
+    auto j = farm.job(job_id);
+    if (!j.ok()) return fail(j.status());
+    if (farm::is_terminal(j->state) && *printed == 0) return 0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+}
+
+// What workers logged for the job's bands.
 int run_logs(const std::string& address, const farm::Credentials& creds, const std::string& job_id,
              const EventsArgs& a) {
   client::FarmClient farm(address, creds);
-  int64_t after = 0;
-  for (;;) {
+  return follow_lines(farm, job_id, a.follow, [&](int64_t& after) -> Result<size_t> {
     auto lines = farm.logs(job_id, a.frame, a.band, after);
-    if (!lines.ok()) return fail(lines.status());
+    if (!lines.ok()) return lines.status();
     for (const farm::BandLogLine& l : *lines) {
       after = l.seq;
       std::printf("frame %d band %d %s: %s\n", l.frame, l.band, l.worker_id.c_str(),
                   l.text.c_str());
     }
-    std::fflush(stdout);
-    if (!a.follow) return 0;
-    auto j = farm.job(job_id);
-    if (!j.ok()) return fail(j.status());
-    if (farm::is_terminal(j->state) && lines->empty()) return 0;
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  }
+    return lines->size();
+  });
 }
 
-// Prints the job's history; --follow polls for more until the job ends.
+// The job's history.
 int run_events(const std::string& address, const farm::Credentials& creds,
                const std::string& job_id, const EventsArgs& a) {
   client::FarmClient farm(address, creds);
-  int64_t after = 0;
-  for (;;) {
+  return follow_lines(farm, job_id, a.follow, [&](int64_t& after) -> Result<size_t> {
     auto events = farm.events(job_id, after);
-    if (!events.ok()) return fail(events.status());
+    if (!events.ok()) return events.status();
     for (const farm::HistoryEntry& e : *events) {
       after = e.seq;
       if (a.frame >= 0 && e.frame != a.frame && e.frame != -1) continue;
       if (a.band >= 0 && e.band != a.band) continue;
       std::printf("%s  %s\n", format_time(e.at).c_str(), e.text.c_str());
     }
-    std::fflush(stdout);
-    if (!a.follow) return 0;
-    auto j = farm.job(job_id);
-    if (!j.ok()) return fail(j.status());
-    if (farm::is_terminal(j->state) && events->empty()) return 0;
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  }
+    return events->size();
+  });
 }
 
 int run_workers(const std::string& address, const farm::Credentials& creds) {
@@ -661,13 +667,18 @@ int main(int argc, char** argv) {
   del->add_flag("--outputs", delete_outputs, "Its frames too");
   add_farm(del);
   EventsArgs ea;
-  auto* events = app.add_subcommand(
+  // `events` and `logs`: a job, optionally one frame and band, --follow.
+  auto add_lines_command = [&](const char* name, const char* help) {
+    auto* cmd = app.add_subcommand(name, help);
+    cmd->add_option("job", job_id, "Job id")->required();
+    cmd->add_option("--frame", ea.frame, "Only this frame's lines");
+    cmd->add_option("--band", ea.band, "Only this band's lines");
+    cmd->add_flag("--follow", ea.follow, "Keep printing new lines until the job ends");
+    add_farm(cmd);
+    return cmd;
+  };
+  auto* events = add_lines_command(
       "events", "A job's history: submission, leases and how they ended, frames, actions");
-  events->add_option("job", job_id, "Job id")->required();
-  events->add_option("--frame", ea.frame, "Only this frame's lines (and the job's own)");
-  events->add_option("--band", ea.band, "Only this band's lines");
-  events->add_flag("--follow", ea.follow, "Keep printing new lines until the job ends");
-  add_farm(events);
   std::string worker;
   auto* drain = app.add_subcommand(
       "drain", "Admins: a worker finishes its band, takes no more and exits (maintenance)");
@@ -680,13 +691,8 @@ int main(int argc, char** argv) {
   auto* enable = app.add_subcommand("enable", "Admins: let a disabled worker take bands again");
   enable->add_option("worker", worker, "Worker id or name")->required();
   add_farm(enable);
-  auto* logs = app.add_subcommand(
+  auto* logs = add_lines_command(
       "logs", "What workers logged for a job's bands (warnings, errors, timings)");
-  logs->add_option("job", job_id, "Job id")->required();
-  logs->add_option("--frame", ea.frame, "Only this frame's bands");
-  logs->add_option("--band", ea.band, "Only this band (of every frame, or of --frame)");
-  logs->add_flag("--follow", ea.follow, "Keep printing new lines until the job ends");
-  add_farm(logs);
   auto* workers = app.add_subcommand("workers", "List the farm's workers");
   add_farm(workers);
   auto* fetch = app.add_subcommand("fetch", "Download a job's written frames into a directory");
