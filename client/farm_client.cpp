@@ -160,6 +160,21 @@ Result<farm::JobInfo> FarmClient::resume(const std::string& job_id) {
   return impl_->action(&v1::ClientService::Stub::ResumeJob, req);
 }
 
+Result<farm::JobInfo> FarmClient::retry(const std::string& job_id) {
+  v1::JobActionRequest req;
+  req.set_job_id(job_id);
+  return impl_->action(&v1::ClientService::Stub::RetryJob, req);
+}
+
+Result<farm::JobInfo> FarmClient::requeue(const std::string& job_id, std::optional<int> first,
+                                          std::optional<int> last) {
+  v1::RequeueJobRequest req;
+  req.set_job_id(job_id);
+  if (first) req.set_frame_first(*first);
+  if (last) req.set_frame_last(*last);
+  return impl_->action(&v1::ClientService::Stub::RequeueJob, req);
+}
+
 Result<farm::JobInfo> FarmClient::remove(const std::string& job_id, bool outputs) {
   v1::DeleteJobRequest req;
   req.set_job_id(job_id);

@@ -4,6 +4,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,11 @@ class FarmClient {
   Result<farm::JobInfo> set_priority(const std::string& job_id, int priority, bool preempt);
   Result<farm::JobInfo> pause(const std::string& job_id);
   Result<farm::JobInfo> resume(const std::string& job_id);
+  // A failed or cancelled job back in the queue, with fresh attempts.
+  Result<farm::JobInfo> retry(const std::string& job_id);
+  // The written frames in [first, last] (absent: the job's bounds) again.
+  Result<farm::JobInfo> requeue(const std::string& job_id, std::optional<int> first,
+                                std::optional<int> last);
   // A finished job; `outputs`: its frames too. Its last status.
   Result<farm::JobInfo> remove(const std::string& job_id, bool outputs);
   // The lines workers logged for the job's bands after cursor `after`, of

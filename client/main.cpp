@@ -660,6 +660,18 @@ int main(int argc, char** argv) {
   auto* resume = app.add_subcommand("resume", "Resume a paused job");
   resume->add_option("job", job_id, "Job id")->required();
   add_farm(resume);
+  auto* retry = app.add_subcommand(
+      "retry", "A failed or cancelled job back in the queue: the bands it lacks, fresh attempts");
+  retry->add_option("job", job_id, "Job id")->required();
+  add_farm(retry);
+  std::string requeue_frames;
+  auto* requeue = app.add_subcommand(
+      "requeue",
+      "Render written frames of a job again (e.g. deleted outputs); each file is replaced only "
+      "when its new frame is complete");
+  requeue->add_option("job", job_id, "Job id")->required();
+  requeue->add_option("--frames", requeue_frames, "A-B or one frame (default: all the job's)");
+  add_farm(requeue);
   bool delete_outputs = false;
   auto* del = app.add_subcommand(
       "delete", "Delete a finished job: its record, history and band files (and frames)");
@@ -733,6 +745,17 @@ int main(int argc, char** argv) {
   }
   if (pause->parsed()) return print_action(client::FarmClient(farm_address, creds).pause(job_id));
   if (resume->parsed()) return print_action(client::FarmClient(farm_address, creds).resume(job_id));
+  if (retry->parsed()) return print_action(client::FarmClient(farm_address, creds).retry(job_id));
+  if (requeue->parsed()) {
+    std::optional<int> first, last;
+    if (!requeue_frames.empty()) {
+      int a = 0, b = 0;
+      if (Status s = parse_frames(requeue_frames, &a, &b); !s.ok()) return fail(s);
+      first = a;
+      last = b;
+    }
+    return print_action(client::FarmClient(farm_address, creds).requeue(job_id, first, last));
+  }
   if (events->parsed()) return run_events(farm_address, creds, job_id, ea);
   if (logs->parsed()) return run_logs(farm_address, creds, job_id, ea);
   if (del->parsed()) {

@@ -81,8 +81,9 @@ Status Coordinator::recover() {
   for (RecoveredJob& j : state->jobs) {
     const std::string dir = job_dir(j.record.job_id);
     const JobSpec& s = j.record.spec;
-    if (is_terminal(j.state)) {
-      // Bands of a finished job are of no more use (left by a crash).
+    if (j.state == JobState::kSucceeded) {
+      // Bands of a job that succeeded are of no more use (left by a crash).
+      // Those of a failed or cancelled job stay for `locus retry`.
       fs::remove_all(fs::path(dir) / "bands", ec);
       continue;
     }
@@ -106,15 +107,9 @@ Status Coordinator::recover() {
       }
     }
     j.done_bands = std::move(kept);
-    if (!scenes_.count(s.scene_hash)) {
-      auto bytes = store_->scene(s.scene_hash);
-      auto scene = std::make_shared<v1::Scene>();
-      if (!bytes.ok() || !scene->ParseFromString(*bytes)) {
-        return FailedPrecondition(db + ": the scene of job " + j.record.job_id +
-                                  " is missing or unreadable");
-      }
-      scenes_.emplace(s.scene_hash, std::move(scene));
-    }
+    if (is_terminal(j.state)) continue;
+    if (Status st = load_scene(s.scene_hash, j.record.job_id); !st.ok())
+      return FailedPrecondition(db + ": " + st.message());
   }
   for (FrameReady& f : scheduler_.restore(*state)) to_write_.push_back(std::move(f));
   for (const auto& [hash, scene] : scenes_) scenes_stored_.insert(hash);
@@ -259,17 +254,37 @@ void Coordinator::tick_loop() {
 }
 
 void Coordinator::drop_unused_scenes() {
+  // In memory the scenes of unfinished jobs; in the store every job's, for
+  // a retry or a requeue, until the job is deleted.
   const std::set<std::string> used = scheduler_.scenes_in_use();
   for (auto it = scenes_.begin(); it != scenes_.end();) {
     it = used.count(it->first) ? std::next(it) : scenes_.erase(it);
   }
-  if (store_ && used != scenes_stored_) {
-    if (Status s = store_->keep_scenes(used); s.ok()) {
-      scenes_stored_ = used;
+  const std::set<std::string> kept = scheduler_.scenes_kept();
+  if (store_ && kept != scenes_stored_) {
+    if (Status s = store_->keep_scenes(kept); s.ok()) {
+      scenes_stored_ = kept;
     } else {
       spdlog::error("{}", s.message());
     }
   }
+}
+
+Status Coordinator::load_scene(const std::string& hash, const std::string& job_id) {
+  if (scenes_.count(hash)) return Status::Ok();
+  auto bytes = store_->scene(hash);
+  auto scene = std::make_shared<v1::Scene>();
+  if (!bytes.ok() || !scene->ParseFromString(*bytes)) {
+    return FailedPrecondition("the scene of job " + job_id +
+                              " is missing or unreadable in the job store");
+  }
+  scenes_.emplace(hash, std::move(scene));
+  return Status::Ok();
+}
+
+bool Coordinator::write_pending(const std::string& job_id, int frame) const {
+  const auto same = [&](const FrameReady& f) { return f.job_id == job_id && f.frame == frame; };
+  return (writing_ && same(*writing_)) || std::any_of(to_write_.begin(), to_write_.end(), same);
 }
 
 void Coordinator::write_loop() {
@@ -277,9 +292,9 @@ void Coordinator::write_loop() {
   for (;;) {
     write_ready_.wait(lk, [&] { return stopping_ || !to_write_.empty(); });
     if (to_write_.empty()) return;  // stopping, and nothing left
-    const FrameReady f = std::move(to_write_.front());
+    writing_ = std::move(to_write_.front());
     to_write_.pop_front();
-    writing_ = true;
+    const FrameReady f = *writing_;
     lk.unlock();
     // Bounded memory: this is the only frame image the coordinator holds;
     // it is stitched from the band files and freed before the next.
@@ -290,15 +305,13 @@ void Coordinator::write_loop() {
       st = image.ok() ? write_frame_file(dir, f.file_name, *image, options_.fsync) : image.status();
     }
     lk.lock();
-    scheduler_.frame_written(f.job_id, f.frame, st);
+    const bool expected = scheduler_.frame_written(f.job_id, f.frame, st);
     const bool recorded = persist().ok();
     // Once the store says "written", the frame's bands are of no more use.
-    if (st.ok() && recorded) {
-      lk.unlock();
-      remove_band_files(dir, f.frame, f.bands);
-      lk.lock();
-    }
-    writing_ = false;
+    // Removed under the lock: a `locus requeue` of the frame, which may
+    // follow at once, renders them again into the same files.
+    if (st.ok() && expected && recorded) remove_band_files(dir, f.frame, f.bands);
+    writing_.reset();
     changed_.notify_all();
   }
 }
@@ -438,6 +451,49 @@ Result<JobInfo> Coordinator::set_priority(const std::string& job_id, int priorit
                                           const Caller& caller) {
   return act(job_id, "reprioritise", caller, [&](const std::string& who) {
     return scheduler_.set_priority(job_id, priority, preempt, who);
+  });
+}
+
+Result<JobInfo> Coordinator::reopen(const std::string& job_id,
+                                    const std::function<Result<Scheduler::Reopened>()>& call) {
+  auto j = scheduler_.job(job_id);
+  if (!j.ok()) return j.status();
+  if (is_terminal(j->state)) {
+    if (stopping_ || draining_) {
+      return Status(Code::kUnavailable, "the coordinator is shutting down; try again once it is back");
+    }
+    const int max_jobs = options_.limits.max_jobs;
+    if (scheduler_.unfinished_jobs() >= static_cast<size_t>(max_jobs)) {
+      return Status(Code::kResourceExhausted,
+                    "the farm has " + std::to_string(max_jobs) +
+                        " unfinished jobs (--max-jobs); try again when one has finished");
+    }
+    if (Status s = load_scene(j->spec.scene_hash, job_id); !s.ok()) {
+      return FailedPrecondition(s.message() + " (the job ended before its scene was kept); " +
+                                "submit it again");
+    }
+  }
+  auto r = call();
+  if (!r.ok()) return r.status();
+  // A frame the job finished before it ended may still be on its way to
+  // the writer: it is written once.
+  for (FrameReady& f : r->ready) {
+    if (!write_pending(f.job_id, f.frame)) to_write_.push_back(std::move(f));
+  }
+  write_ready_.notify_one();
+  return r->info;
+}
+
+Result<JobInfo> Coordinator::retry(const std::string& job_id, const Caller& caller) {
+  return act(job_id, "retry", caller, [&](const std::string& who) {
+    return reopen(job_id, [&] { return scheduler_.retry(job_id, who); });
+  });
+}
+
+Result<JobInfo> Coordinator::requeue(const std::string& job_id, std::optional<int> first,
+                                     std::optional<int> last, const Caller& caller) {
+  return act(job_id, "requeue", caller, [&](const std::string& who) {
+    return reopen(job_id, [&] { return scheduler_.requeue(job_id, first, last, who); });
   });
 }
 

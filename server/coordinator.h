@@ -112,6 +112,13 @@ class Coordinator {
                                const Caller& caller = Caller::anyone());
   Result<JobInfo> pause(const std::string& job_id, const Caller& caller = Caller::anyone());
   Result<JobInfo> resume(const std::string& job_id, const Caller& caller = Caller::anyone());
+  // `locus retry` and `locus requeue` (Scheduler::retry, requeue): the job
+  // back in the queue, with its scene from the store. RESOURCE_EXHAUSTED
+  // at --max-jobs unfinished jobs; FAILED_PRECONDITION when the store no
+  // longer has the scene (a job that ended before scenes were kept).
+  Result<JobInfo> retry(const std::string& job_id, const Caller& caller = Caller::anyone());
+  Result<JobInfo> requeue(const std::string& job_id, std::optional<int> first,
+                          std::optional<int> last, const Caller& caller = Caller::anyone());
   // The lines workers logged for the job's bands (`locus logs`), read like
   // events().
   Result<std::vector<BandLogLine>> logs(const std::string& job_id, int frame, int band,
@@ -184,6 +191,13 @@ class Coordinator {
   void tick_loop();
   void write_loop();
   void drop_unused_scenes();  // mu_ held
+  // The scene into scenes_ from the store, unless there; mu_ held.
+  Status load_scene(const std::string& hash, const std::string& job_id);
+  // retry's and requeue's common steps; mu_ held.
+  Result<JobInfo> reopen(const std::string& job_id,
+                         const std::function<Result<Scheduler::Reopened>()>& call);
+  // Whether the frame is queued for the writer or being written; mu_ held.
+  bool write_pending(const std::string& job_id, int frame) const;
   // delete_job's work once allowed; mu_ held.
   Status remove_job(const JobInfo& job, bool outputs);
   void apply_retention();  // mu_ held
@@ -207,7 +221,7 @@ class Coordinator {
   LatencyHistogram dispatch_;
   std::unique_ptr<CoordinatorMetrics> metrics_;
   std::condition_variable write_ready_;
-  bool writing_ = false;   // the writer thread holds a frame
+  std::optional<FrameReady> writing_;  // the frame the writer thread holds
   bool draining_ = false;  // drain()
   bool closing_ = false;   // stop_waiting()
   bool stopping_ = false;

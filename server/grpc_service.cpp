@@ -165,6 +165,18 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
                  [&](const farm::Caller& c) { return h_.ResumeJob(*req, c, resp); });
   }
 
+  grpc::Status RetryJob(grpc::ServerContext* ctx, const v1::JobActionRequest* req,
+                        v1::JobActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.RetryJob", *req, resp,
+                 [&](const farm::Caller& c) { return h_.RetryJob(*req, c, resp); });
+  }
+
+  grpc::Status RequeueJob(grpc::ServerContext* ctx, const v1::RequeueJobRequest* req,
+                          v1::JobActionResponse* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.RequeueJob", *req, resp,
+                 [&](const farm::Caller& c) { return h_.RequeueJob(*req, c, resp); });
+  }
+
   grpc::Status DeleteJob(grpc::ServerContext* ctx, const v1::DeleteJobRequest* req,
                          v1::JobActionResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.DeleteJob", *req, resp,

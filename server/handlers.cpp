@@ -114,6 +114,20 @@ Status Handlers::ResumeJob(const v1::JobActionRequest& req, const farm::Caller& 
   return job_action(req.job_id(), resp, [&] { return c_.resume(req.job_id(), caller); });
 }
 
+Status Handlers::RetryJob(const v1::JobActionRequest& req, const farm::Caller& caller,
+                          v1::JobActionResponse* resp) {
+  return job_action(req.job_id(), resp, [&] { return c_.retry(req.job_id(), caller); });
+}
+
+Status Handlers::RequeueJob(const v1::RequeueJobRequest& req, const farm::Caller& caller,
+                            v1::JobActionResponse* resp) {
+  const auto bound = [](bool has, int32_t v) { return has ? std::optional<int>(v) : std::nullopt; };
+  return job_action(req.job_id(), resp, [&] {
+    return c_.requeue(req.job_id(), bound(req.has_frame_first(), req.frame_first()),
+                      bound(req.has_frame_last(), req.frame_last()), caller);
+  });
+}
+
 Status Handlers::DeleteJob(const v1::DeleteJobRequest& req, const farm::Caller& caller,
                            v1::JobActionResponse* resp) {
   return job_action(req.job_id(), resp,

@@ -38,6 +38,10 @@ class Handlers {
                   v1::JobActionResponse* resp);
   Status ResumeJob(const v1::JobActionRequest& req, const farm::Caller& caller,
                    v1::JobActionResponse* resp);
+  Status RetryJob(const v1::JobActionRequest& req, const farm::Caller& caller,
+                  v1::JobActionResponse* resp);
+  Status RequeueJob(const v1::RequeueJobRequest& req, const farm::Caller& caller,
+                    v1::JobActionResponse* resp);
   Status DeleteJob(const v1::DeleteJobRequest& req, const farm::Caller& caller,
                    v1::JobActionResponse* resp);
   Status ListEvents(const v1::ListEventsRequest& req, const farm::Caller& caller,

@@ -124,6 +124,15 @@ struct WorkerDisabled {
   std::string name;
   bool disabled = true;
 };
+// `locus retry` / `locus requeue`: the job is unfinished again (`state`).
+// The written frames in `frames` render again (their bands are no longer
+// done); `fresh_attempts`: the charged failures of its bands are forgiven.
+struct JobReopened {
+  std::string job_id;
+  JobState state = JobState::kQueued;
+  std::vector<int> frames;
+  bool fresh_attempts = false;
+};
 // A line of the job's history that no other event words (an operator's
 // action, who did it).
 struct JobNote {
@@ -135,7 +144,7 @@ struct JobNote {
 using Event =
     std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted, event::LeaseEnded,
                  event::BandDone, event::FrameWritten, event::WorkerAdded, event::PriorityChanged,
-                 event::JobNote, event::WorkerDisabled, event::BandLog>;
+                 event::JobNote, event::WorkerDisabled, event::BandLog, event::JobReopened>;
 
 // A job as the store remembers it, for Scheduler::restore().
 struct RecoveredJob {
@@ -149,9 +158,9 @@ struct RecoveredJob {
   int64_t results_discarded = 0;
   int64_t speculative_leases = 0;
   std::vector<int> frames_written;
-  // Unfinished jobs only: the bands whose pixels are on disk, and the
-  // charged failures (for the attempt limit, "another worker where
-  // possible" and quarantine).
+  // Jobs that did not succeed: the bands whose pixels are on disk;
+  // unfinished jobs only: the charged failures (for the attempt limit,
+  // "another worker where possible" and quarantine).
   struct BandRef {
     int frame = 0;
     int band = 0;

@@ -173,11 +173,16 @@ void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   job.finished = now_();
   events_.push_back(event::JobStateChanged{job.info.job_id, state, error});
   drop_leases_of(job);
-  // A finished job keeps only its JobInfo in memory; the store has the rest.
-  job.bands = {};
+  // A finished job keeps its JobInfo in memory, and, when it failed or was
+  // cancelled, which bands are done (for `locus retry`); the store has the
+  // rest.
+  if (state == JobState::kSucceeded) {
+    job.bands = {};
+    job.frame_bands.clear();
+  }
   job.retry = {};
-  job.frame_bands.clear();
   job.failures.clear();
+  job.worker_failures.clear();
   job.durations.clear();
   if (state == JobState::kFailed) spdlog::warn("job {} failed: {}", job.info.job_id, error);
   const BandSeconds& a = job.info.account;
@@ -264,6 +269,133 @@ Result<JobInfo> Scheduler::resume(const std::string& job_id, const std::string& 
   return snapshot(*job);
 }
 
+Status Scheduler::check_predecessors(const Job& job) const {
+  for (const std::string& id : job.info.spec.after) {
+    const Job* before = find_job(id);  // a deleted one no longer holds it back
+    if (!before) continue;
+    const JobState st = before->info.state;
+    if (st == JobState::kFailed || st == JobState::kCancelled) {
+      return FailedPrecondition("job " + job.info.job_id + " waits for job " + id + ", which " +
+                                job_state_name(st) + "; retry " + id + " first");
+    }
+  }
+  return Status::Ok();
+}
+
+std::vector<FrameReady> Scheduler::reopen_ended(Job& job, const std::vector<int>& requeued,
+                                                const std::string& note_text) {
+  const std::set<int> written(job.info.frames_written.begin(), job.info.frames_written.end());
+  job.retry.clear();
+  job.frame_bands.clear();
+  job.failures.clear();
+  job.worker_failures.clear();
+  job.info.quarantined.clear();
+  job.durations.clear();
+  for (size_t i = 0; i < job.bands.size(); ++i) {
+    BandState& b = job.bands[i];
+    b.failures = 0;
+    b.leases = 0;  // the leases were revoked when the job ended
+    b.speculated = 0;
+    if (b.phase == BandPhase::kLeased) b.phase = BandPhase::kQueued;
+    const int frame = frame_of(job, static_cast<int>(i));
+    if (b.phase == BandPhase::kDone && !written.count(frame)) ++job.frame_bands[frame];
+  }
+  queue_unfinished(job);
+  job.info.state = JobState::kQueued;
+  job.info.error.clear();
+  job.waiting_since = now_();
+  events_.push_back(event::JobReopened{job.info.job_id, JobState::kQueued, requeued, true});
+  note(job, note_text);
+  ++version_;
+  return take_complete_frames(job);
+}
+
+Result<Scheduler::Reopened> Scheduler::retry(const std::string& job_id, const std::string& who) {
+  Job* job = find_job(job_id);
+  if (!job) return NotFound("job '" + job_id + "' is unknown; `locus status` lists the jobs");
+  const JobState st = job->info.state;
+  if (st != JobState::kFailed && st != JobState::kCancelled) {
+    return FailedPrecondition(
+        "job " + job_id + " is " + job_state_name(st) + "; only a failed or cancelled job is " +
+        "retried" + (st == JobState::kSucceeded ? " (`locus requeue` renders frames again)" : ""));
+  }
+  if (Status s = check_predecessors(*job); !s.ok()) return s;
+  const int64_t missing =
+      static_cast<int64_t>(job->bands.size()) -
+      std::count_if(job->bands.begin(), job->bands.end(),
+                    [](const BandState& b) { return b.phase == BandPhase::kDone; });
+  Reopened out;
+  out.ready = reopen_ended(*job, {},
+                           "retried" + (who.empty() ? std::string() : " by " + who) + ": " +
+                               std::to_string(missing) +
+                               " bands back in the queue with fresh attempts");
+  out.info = snapshot(*job);
+  return out;
+}
+
+Result<Scheduler::Reopened> Scheduler::requeue(const std::string& job_id,
+                                               std::optional<int> first_frame,
+                                               std::optional<int> last_frame,
+                                               const std::string& who) {
+  Job* job = find_job(job_id);
+  if (!job) return NotFound("job '" + job_id + "' is unknown; `locus status` lists the jobs");
+  const JobSpec& s = job->info.spec;
+  const int first = first_frame.value_or(s.frame_first);
+  const int last = last_frame.value_or(s.frame_last);
+  if (first > last || first < s.frame_first || last > s.frame_last) {
+    return InvalidArgument("frames " + std::to_string(first) + "-" + std::to_string(last) +
+                           ": job " + job_id + " has frames " + std::to_string(s.frame_first) +
+                           "-" + std::to_string(s.frame_last));
+  }
+  const JobState st = job->info.state;
+  const bool ended = is_terminal(st);
+  if (ended) {
+    if (Status e = check_predecessors(*job); !e.ok()) return e;
+  }
+  std::vector<int> frames;
+  for (int f : job->info.frames_written) {
+    if (f >= first && f <= last) frames.push_back(f);
+  }
+  std::sort(frames.begin(), frames.end());
+  if (frames.empty() && !ended) {
+    return FailedPrecondition("no frame in " + std::to_string(first) + "-" +
+                              std::to_string(last) + " of job " + job_id +
+                              " is written yet: they are still to render");
+  }
+  // A job that succeeded kept no band states: every band was done.
+  if (job->bands.empty()) {
+    job->bands.assign(static_cast<size_t>(s.bands_total()), BandState{BandPhase::kDone, 0, 0, 0});
+  }
+  const std::set<int> again(frames.begin(), frames.end());
+  auto& written = job->info.frames_written;
+  written.erase(std::remove_if(written.begin(), written.end(),
+                               [&](int f) { return again.count(f) > 0; }),
+                written.end());
+  job->info.frames_done = static_cast<int>(written.size());
+  for (int f : frames) {
+    for (int b = 0; b < s.bands; ++b) {
+      const int i = (f - s.frame_first) * s.bands + b;
+      job->bands[i].phase = BandPhase::kQueued;
+      --job->info.bands_done;
+      if (!ended) job->retry.push_back(i);
+    }
+  }
+  const std::string text =
+      "frames " + std::to_string(first) + "-" + std::to_string(last) + " requeued" +
+      (who.empty() ? std::string() : " by " + who) + ": " + std::to_string(frames.size()) +
+      " written frames render again";
+  Reopened out;
+  if (ended) {
+    out.ready = reopen_ended(*job, frames, text);
+  } else {
+    events_.push_back(event::JobReopened{job_id, st, frames, false});
+    note(*job, text);
+    ++version_;
+  }
+  out.info = snapshot(*job);
+  return out;
+}
+
 void Scheduler::account(Job& job, event::LeaseEnded& ended, const Lease& lease) {
   ended.seconds = seconds(now_() - lease.granted);
   ended.owner = job.info.spec.owner;
@@ -280,15 +412,19 @@ void Scheduler::count_running(Job& job, int delta) {
   user_running_[job.info.spec.owner] += delta;
 }
 
-void Scheduler::frame_written(const std::string& job_id, int frame, const Status& status) {
+bool Scheduler::frame_written(const std::string& job_id, int frame, const Status& status) {
   Job* job = find_job(job_id);
-  if (!job || is_terminal(job->info.state)) return;
+  if (!job || is_terminal(job->info.state)) return false;
+  // Kept in order (a requeued frame comes back among the others).
+  auto& written = job->info.frames_written;
+  const auto at = std::lower_bound(written.begin(), written.end(), frame);
+  if (at != written.end() && *at == frame) return false;
   if (!status.ok()) {
     end_job(*job, JobState::kFailed, "frame " + std::to_string(frame) + ": " + status.message());
-    return;
+    return false;
   }
   ++job->info.frames_done;
-  job->info.frames_written.push_back(frame);
+  written.insert(at, frame);
   events_.push_back(event::FrameWritten{job_id, frame, frame_path(job->info.spec.output, frame)});
   ++version_;
   if (job->info.frames_done == job->info.spec.frames()) {
@@ -297,6 +433,7 @@ void Scheduler::frame_written(const std::string& job_id, int frame, const Status
                  seconds(job->finished - job->submitted), job->info.spec.frames(),
                  job->info.spec.bands_total());
   }
+  return true;
 }
 
 // ---------------------------------------------------------------- workers
@@ -392,6 +529,12 @@ std::set<std::string> Scheduler::scenes_in_use() const {
     if (!is_terminal(job.info.state)) used.insert(job.info.spec.scene_hash);
   }
   return used;
+}
+
+std::set<std::string> Scheduler::scenes_kept() const {
+  std::set<std::string> kept;
+  for (const auto& [id, job] : jobs_) kept.insert(job.info.spec.scene_hash);
+  return kept;
 }
 
 size_t Scheduler::unfinished_jobs() const {

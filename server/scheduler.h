@@ -90,8 +90,29 @@ class Scheduler {
   // No new leases while paused; bands in flight finish and are kept.
   Result<JobInfo> pause(const std::string& job_id, const std::string& who = "");
   Result<JobInfo> resume(const std::string& job_id, const std::string& who = "");
+  // A job that goes back to the queue (`locus retry`, `locus requeue`).
+  struct Reopened {
+    JobInfo info;
+    // Frames whose bands are all done but which were never written (the
+    // job ended first): the caller writes them now.
+    std::vector<FrameReady> ready;
+  };
+  // `locus retry`: a failed or cancelled job goes back to the queue; its
+  // bands not done get fresh attempts (their failures and the job's
+  // quarantines are forgotten). FailedPrecondition for any other state, or
+  // while a job it waits for has failed or was cancelled.
+  Result<Reopened> retry(const std::string& job_id, const std::string& who = "");
+  // `locus requeue`: the written frames in [first, last] render again (the
+  // caller replaces each file only when its new frame is complete). A job
+  // that succeeded goes back to the queue; one that failed or was cancelled
+  // is retried as well. InvalidArgument for frames outside the job's; an
+  // absent bound is the job's first or last frame.
+  Result<Reopened> requeue(const std::string& job_id, std::optional<int> first,
+                           std::optional<int> last, const std::string& who = "");
   // The caller wrote (or failed to write) a frame handed out as ready.
-  void frame_written(const std::string& job_id, int frame, const Status& status);
+  // False when the job no longer expects it (it ended, or has it already):
+  // the frame's band files must then stay, for a retry to stitch it again.
+  bool frame_written(const std::string& job_id, int frame, const Status& status);
 
   // ---- workers ----
   // `tags` (the worker's pools) are checked by the caller.
@@ -135,6 +156,9 @@ class Scheduler {
 
   // Content hashes of the scenes that unfinished jobs still need.
   std::set<std::string> scenes_in_use() const;
+  // ... and of every job's, finished or not (until it is deleted): a retry
+  // or a requeue needs its scene again.
+  std::set<std::string> scenes_kept() const;
   // Jobs queued or running (the --max-jobs limit).
   size_t unfinished_jobs() const;
   // Bands and jobs by state, workers: the metrics' gauges.
@@ -202,6 +226,12 @@ class Scheduler {
   static void queue_unfinished(Job& job);
   // The frames whose bands are all done, taken out of frame_bands.
   static std::vector<FrameReady> take_complete_frames(Job& job);
+  // A finished job back in the queue, rebuilt from its bands' phases: the
+  // bands not done queued with fresh attempts (retry and requeue).
+  std::vector<FrameReady> reopen_ended(Job& job, const std::vector<int>& requeued,
+                                       const std::string& note_text);
+  // OK unless a job this one waits for failed or was cancelled.
+  Status check_predecessors(const Job& job) const;
 
   Job* find_job(const std::string& id);
   const Job* find_job(const std::string& id) const;

@@ -41,6 +41,10 @@ std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
       const JobInfo& info = job.info;
       spdlog::info("job {} resumed: {}/{} bands done, {}/{} frames written", info.job_id,
                    info.bands_done, info.spec.bands_total(), info.frames_done, info.spec.frames());
+    } else if (r.state != JobState::kSucceeded) {
+      // Which bands are done, for `locus retry` (end_job keeps as much).
+      job.bands.resize(job.info.spec.bands_total());
+      mark_done_bands(job, r);
     }
     next_job_ = std::max<uint64_t>(next_job_, static_cast<uint64_t>(r.record.seq) + 1);
     if (!r.record.request_id.empty()) requests_[r.record.request_id] = job.info.job_id;

@@ -384,6 +384,29 @@ Status JobStore::apply_one(const Event& e) {
     st.bind(p->priority, p->job_id);
     return st.run();
   }
+  if (const auto* r = std::get_if<event::JobReopened>(&e)) {
+    Statement st(*this,
+                 "UPDATE jobs SET state = ?, error = '', finished_at = NULL WHERE id = ?");
+    st.bind(job_state_name(r->state), r->job_id);
+    if (Status s = st.run(); !s.ok()) return s;
+    for (int f : r->frames) {
+      for (const char* sql :
+           {"DELETE FROM frames WHERE job_id = ? AND frame = ?",
+            "UPDATE bands SET done = 0, completions = 0 WHERE job_id = ? AND frame = ?"}) {
+        Statement q(*this, sql);
+        q.bind(r->job_id, f);
+        if (Status s = q.run(); !s.ok()) return s;
+      }
+    }
+    if (!r->fresh_attempts) return Status::Ok();
+    for (const char* sql : {"UPDATE attempts SET charged = 0 WHERE job_id = ? AND charged = 1",
+                            "UPDATE bands SET failures = 0 WHERE job_id = ?"}) {
+      Statement q(*this, sql);
+      q.bind(r->job_id);
+      if (Status s = q.run(); !s.ok()) return s;
+    }
+    return Status::Ok();
+  }
   if (const auto* n = std::get_if<event::JobNote>(&e))
     return add_history(n->job_id, -1, -1, n->text);
   if (const auto* b = std::get_if<event::BandLog>(&e)) {
@@ -526,7 +549,7 @@ Result<RecoveredState> JobStore::recover() {
         j.speculative_leases = st.integer(1);
       }
     }
-    if (is_terminal(j.state)) {
+    if (j.state == JobState::kSucceeded) {
       Statement st(*this, "SELECT COUNT(*) FROM bands WHERE job_id = ? AND done = 1");
       st.bind(id);
       if (st.step() == SQLITE_ROW) j.bands_done = st.integer(0);
@@ -540,6 +563,7 @@ Result<RecoveredState> JobStore::recover() {
       }
       j.bands_done = static_cast<int64_t>(j.done_bands.size());
     }
+    if (is_terminal(j.state)) continue;
     {
       Statement st(*this,
                    "SELECT frame, band, worker_name, error FROM attempts WHERE job_id = ? AND "

@@ -7,6 +7,8 @@
 
 #include <atomic>
 #include <chrono>
+#include <fstream>
+#include <iterator>
 
 #include "tests/farm_fixture.h"
 
@@ -404,6 +406,59 @@ TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
   ASSERT_TRUE(own.ok()) << own.status().message();
   EXPECT_EQ(own->spec.owner, "token-2");
   EXPECT_TRUE(bob->cancel(own->job_id).ok());
+}
+
+
+TEST_F(FarmTest, RetryAndRequeueRenderAgainAndReplaceEachFrameOnlyWhenItIsComplete) {
+  start();
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 3, 2, "again_####.png");
+  // Cancelled before any worker came; retried, it renders in full.
+  auto job = client_->submit(r);
+  ASSERT_TRUE(job.ok()) << job.status().message();
+  ASSERT_TRUE(client_->cancel(job->job_id).ok());
+  auto retried = client_->retry(job->job_id);
+  ASSERT_TRUE(retried.ok()) << retried.status().message();
+  EXPECT_EQ(retried->state, JobState::kQueued);
+  add_workers(1, [](WorkerOptions& o) { o.slow_band = Millis(150); });
+  auto done = client_->watch(job->job_id, [](const JobInfo&) {});
+  ASSERT_TRUE(done.ok());
+  expect_identical(*done, r);
+  EXPECT_EQ(client_->retry(job->job_id).status().code(), Code::kFailedPrecondition);
+  EXPECT_EQ(client_->retry("j0404").status().code(), Code::kNotFound);
+  EXPECT_EQ(client_->requeue(job->job_id, 0, 9).status().code(), Code::kInvalidArgument);
+
+  // Frame 2 deleted, frame 3 replaced by a stand-in: requeued, each is
+  // rendered again; frame 3's file is the stand-in until its new frame is
+  // complete, never missing nor partial; frame 1 is left alone.
+  const fs::path dir = fs::path(coordinator_->job_dir(job->job_id));
+  fs::remove(dir / "again_0002.png");
+  { std::ofstream(dir / "again_0003.png") << "stand-in"; }
+  const auto frame1_time = fs::last_write_time(dir / "again_0001.png");
+  auto requeued = client_->requeue(job->job_id, 2, std::nullopt);
+  ASSERT_TRUE(requeued.ok()) << requeued.status().message();
+  EXPECT_EQ(requeued->frames_written, std::vector<int>{1});
+  int stand_in_seen = 0, bad = 0;
+  for (;;) {
+    auto now = client_->job(job->job_id);
+    ASSERT_TRUE(now.ok());
+    std::ifstream in(dir / "again_0003.png", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (bytes == "stand-in") {
+      ++stand_in_seen;
+    } else if (!read_image((dir / "again_0003.png").string()).ok()) {
+      ++bad;
+    }
+    if (is_terminal(now->state)) break;
+    std::this_thread::sleep_for(Millis(5));
+  }
+  EXPECT_GT(stand_in_seen, 0);
+  EXPECT_EQ(bad, 0);
+  auto again = client_->job(job->job_id);
+  ASSERT_TRUE(again.ok());
+  expect_identical(*again, r);
+  EXPECT_EQ(fs::last_write_time(dir / "again_0001.png"), frame1_time);
+  EXPECT_EQ(count_events(*client_, job->job_id, "frames 2-3 requeued"), 1);
+  EXPECT_EQ(count_events(*client_, job->job_id, "frame 3 written"), 2);
 }
 
 }  // namespace

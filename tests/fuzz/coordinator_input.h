@@ -24,8 +24,8 @@ enum Rpc : uint8_t {
   kGetScene,
   kCompleteBand,
   kHeartbeat,
-  kPauseJob,  // also ResumeJob, by the kind's kRightSize bit
-  kSetPriority,
+  kPauseJob,     // also ResumeJob (the kind's kRightSize bit) or RetryJob (odd length)
+  kSetPriority,  // also RequeueJob, by the kind's kRightSize bit
   kListEvents,
   kWorkerAction,  // DrainWorker, DisableWorker or EnableWorker, by the request's bytes
   kRpcCount

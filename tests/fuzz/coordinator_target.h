@@ -33,6 +33,7 @@ inline void fill(v1::CancelJobRequest& r, const Ids& ids) { r.set_job_id(ids.job
 inline void fill(v1::FetchResultsRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
 inline void fill(v1::JobActionRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
 inline void fill(v1::SetPriorityRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
+inline void fill(v1::RequeueJobRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
 inline void fill(v1::ListEventsRequest& r, const Ids& ids) { r.set_job_id(ids.job); }
 inline void fill(v1::WorkerActionRequest& r, const Ids& ids) { r.set_worker(ids.worker); }
 inline void fill(v1::GetTaskRequest& r, const Ids& ids) { r.set_worker_id(ids.worker); }
@@ -152,7 +153,9 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
       v1::JobActionRequest req;
       v1::JobActionResponse resp;
       if (!parse(bytes, kind, ids, &req)) break;
-      if (kind & kRightSize) {
+      if (bytes.size() % 2 == 1) {
+        h.RetryJob(req, anyone, &resp);
+      } else if (kind & kRightSize) {
         h.ResumeJob(req, anyone, &resp);
       } else {
         h.PauseJob(req, anyone, &resp);
@@ -160,8 +163,13 @@ inline void run(rpc::Handlers& h, uint8_t kind, const std::string& bytes, Ids& i
       break;
     }
     case kSetPriority: {
-      v1::SetPriorityRequest req;
       v1::JobActionResponse resp;
+      if (kind & kRightSize) {
+        v1::RequeueJobRequest req;
+        if (parse(bytes, kind, ids, &req)) h.RequeueJob(req, anyone, &resp);
+        break;
+      }
+      v1::SetPriorityRequest req;
       if (parse(bytes, kind, ids, &req)) h.SetPriority(req, anyone, &resp);
       break;
     }

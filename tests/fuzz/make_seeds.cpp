@@ -90,6 +90,15 @@ int main(int argc, char** argv) {
   failed.set_error("out of memory");
   append_request(anim, kCompleteBand | F, bytes(failed));
   append_request(anim, kCancelJob | F, bytes(v1::CancelJobRequest()));
+  // Retried (a JobActionRequest of odd length), then frames requeued.
+  v1::JobActionRequest retry;
+  retry.set_job_id("x");
+  append_request(anim, kPauseJob | F, bytes(retry));
+  v1::RequeueJobRequest requeue;
+  requeue.set_frame_first(1);
+  requeue.set_frame_last(2);
+  append_request(anim, kSetPriority | F | kRightSize, bytes(requeue));
+  append_request(anim, kGetTask | F, bytes(v1::GetTaskRequest()));
   append_request(anim, kListJobs, bytes(v1::ListJobsRequest()));
   write(dir, "animation_cancel", anim);
 

@@ -496,5 +496,240 @@ TEST_F(OperationsTest, PrioritiesPausesOrderTimeoutsAndHistorySurviveARestart) {
   EXPECT_TRUE(after->empty());
 }
 
+
+// A worker's failure report for a leased band.
+BandOutput failure(const std::string& worker, const BandLease& t, const std::string& error) {
+  BandOutput o;
+  o.worker_id = worker;
+  o.lease_id = t.lease_id;
+  o.error = error;
+  return o;
+}
+
+std::vector<std::pair<int, int>> frames_and_bands(Scheduler& s, const std::string& w,
+                                                  std::vector<BandLease>* leases) {
+  std::vector<std::pair<int, int>> out;
+  while (auto t = *s.next_band(w)) {
+    out.emplace_back(t->frame, t->band);
+    leases->push_back(*t);
+  }
+  return out;
+}
+
+TEST_F(OperationsTest, RetryGivesAFailedJobTheBandsItLacksWithFreshAttempts) {
+  SchedulerOptions o = options();
+  o.max_attempts = 2;
+  Scheduler t(o, clock.fn());
+  const std::string job = t.add_job(spec(2, 2, kDefaultPriority, "ann"));
+  const std::string w = t.add_worker("w", 1), v = t.add_worker("v", 1);
+  // Frame 1 is written; band 0 of frame 2 is done; band 1 of frame 2 fails
+  // twice, once on each worker.
+  for (int k = 0; k < 3; ++k) {
+    const BandLease l = **t.next_band(w);
+    auto r = t.complete_band(pixels(w, l));
+    ASSERT_TRUE(r.ok() && r->accepted);
+    if (r->frame) t.frame_written(job, r->frame->frame, Status::Ok());
+  }
+  const BandLease bad1 = **t.next_band(w);
+  ASSERT_TRUE(t.complete_band(failure(w, bad1, "out of memory")).ok());
+  const BandLease bad2 = **t.next_band(v);
+  EXPECT_EQ(bad2.frame, 2);
+  EXPECT_EQ(bad2.band, 1);
+  ASSERT_TRUE(t.complete_band(failure(v, bad2, "out of memory")).ok());
+  ASSERT_EQ(t.job(job)->state, JobState::kFailed);
+  EXPECT_EQ(t.retry(job, "ann").status().code(), Code::kOk);
+  auto j = t.job(job);
+  EXPECT_EQ(j->state, JobState::kQueued);
+  EXPECT_EQ(j->error, "");
+  EXPECT_EQ(j->bands_done, 3);
+  EXPECT_EQ(j->frames_written, std::vector<int>{1});
+  // Only the band it lacks, with two fresh attempts: one more failure does
+  // not fail it again.
+  const BandLease again = **t.next_band(w);
+  EXPECT_EQ(std::make_pair(again.frame, again.band), std::make_pair(2, 1));
+  EXPECT_FALSE(t.next_band(v)->has_value());
+  ASSERT_TRUE(t.complete_band(failure(w, again, "out of memory")).ok());
+  EXPECT_EQ(t.job(job)->state, JobState::kRunning);
+  const BandLease last = **t.next_band(v);
+  auto r = t.complete_band(pixels(v, last));
+  ASSERT_TRUE(r.ok() && r->accepted && r->frame);
+  EXPECT_EQ(r->frame->frame, 2);
+  EXPECT_TRUE(t.frame_written(job, 2, Status::Ok()));
+  EXPECT_EQ(t.job(job)->state, JobState::kSucceeded);
+  EXPECT_EQ(t.job(job)->frames_written, (std::vector<int>{1, 2}));
+  // Only failed or cancelled jobs are retried.
+  EXPECT_EQ(t.retry(job).status().code(), Code::kFailedPrecondition);
+  const std::string running = t.add_job(spec(2, 1));
+  ASSERT_TRUE(t.next_band(w)->has_value());
+  EXPECT_EQ(t.retry(running).status().code(), Code::kFailedPrecondition);
+  EXPECT_EQ(t.retry("j9999").status().code(), Code::kNotFound);
+}
+
+TEST_F(OperationsTest, ARetriedJobWritesTheFramesItFinishedBeforeItWasCancelled) {
+  const std::string job = s.add_job(spec(2, 1));
+  JobSpec then = spec(1, 1);
+  then.after = {job};
+  const std::string dependent = s.add_job(then);
+  const std::string w = s.add_worker("w", 1);
+  const BandLease a = *next(w);
+  auto r = s.complete_band(pixels(w, a));
+  ASSERT_TRUE(r->frame);  // handed to the writer, not yet written...
+  ASSERT_TRUE(s.cancel(job, "ann").ok());
+  EXPECT_FALSE(s.frame_written(job, 1, Status::Ok()));  // ...when the job was cancelled
+  EXPECT_EQ(s.job(dependent)->state, JobState::kFailed);
+  EXPECT_EQ(s.retry(dependent).status().code(), Code::kFailedPrecondition);
+  EXPECT_NE(s.retry(dependent).status().message().find("retry " + job + " first"),
+            std::string::npos);
+  auto re = s.retry(job, "ann");
+  ASSERT_TRUE(re.ok()) << re.status().message();
+  ASSERT_EQ(re->ready.size(), 1u);  // frame 1's bands are done: written now
+  EXPECT_EQ(re->ready[0].frame, 1);
+  EXPECT_TRUE(s.frame_written(job, 1, Status::Ok()));
+  EXPECT_FALSE(s.frame_written(job, 1, Status::Ok()));  // once
+  EXPECT_EQ(next(w)->frame, 2);
+  EXPECT_FALSE(next(w).has_value());
+  // Its dependent may now be retried too.
+  EXPECT_TRUE(s.retry(dependent).ok());
+}
+
+TEST_F(OperationsTest, RequeueRendersTheWrittenFramesAgainAndOnlyThose) {
+  const std::string job = s.add_job(spec(4, 2, kDefaultPriority, "ann"));
+  const std::string w = s.add_worker("w", 1);
+  while (auto t = next(w)) done(w, *t);
+  ASSERT_EQ(s.job(job)->state, JobState::kSucceeded);
+  EXPECT_EQ(s.requeue(job, 0, 2).status().code(), Code::kInvalidArgument);
+  EXPECT_EQ(s.requeue(job, 3, 2).status().code(), Code::kInvalidArgument);
+  EXPECT_EQ(s.requeue(job, 4, 5).status().code(), Code::kInvalidArgument);
+  auto r = s.requeue(job, 2, 3, "ann");
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_TRUE(r->ready.empty());
+  EXPECT_EQ(r->info.state, JobState::kQueued);
+  EXPECT_EQ(r->info.frames_written, (std::vector<int>{1, 4}));
+  EXPECT_EQ(r->info.bands_done, 4);
+  std::vector<BandLease> leases;
+  EXPECT_EQ(frames_and_bands(s, w, &leases),
+            (std::vector<std::pair<int, int>>{{2, 0}, {2, 1}, {3, 0}, {3, 1}}));
+  for (const BandLease& l : leases) done(w, l);
+  EXPECT_EQ(s.job(job)->state, JobState::kSucceeded);
+  EXPECT_EQ(s.job(job)->frames_written, (std::vector<int>{1, 2, 3, 4}));
+  // No bounds: every frame.
+  ASSERT_TRUE(s.requeue(job, std::nullopt, std::nullopt).ok());
+  leases.clear();
+  EXPECT_EQ(frames_and_bands(s, w, &leases).size(), 8u);
+}
+
+TEST_F(OperationsTest, RequeueOfARunningJobPutsItsWrittenFramesFirstInItsQueue) {
+  const std::string job = s.add_job(spec(3, 1));
+  const std::string w = s.add_worker("w", 1);
+  done(w, *next(w));  // frame 1 written
+  const BandLease two = *next(w);
+  EXPECT_EQ(s.requeue(job, 2, 3).status().code(), Code::kFailedPrecondition);  // none written
+  auto r = s.requeue(job, 1, 2);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->info.state, JobState::kRunning);
+  EXPECT_TRUE(r->info.frames_written.empty());
+  EXPECT_EQ(next(w)->frame, 1);  // before frame 3
+  EXPECT_EQ(next(w)->frame, 3);
+  done(w, two);
+  EXPECT_EQ(s.job(job)->frames_written, std::vector<int>{2});
+  // Paused, it stays paused.
+  ASSERT_TRUE(s.pause(job).ok());
+  EXPECT_EQ(s.requeue(job, 2, 2)->info.state, JobState::kPaused);
+}
+
+TEST_F(OperationsTest, RetryAndRequeueSurviveRestartsAndEachResultIsAcceptedOnce) {
+  TempDir dir;
+  const std::string db = (dir.path / "locus.db").string();
+  SchedulerOptions o = options();
+  o.max_attempts = 1;
+  std::string failed, succeeded;
+  {
+    Scheduler t(o, clock.fn());
+    auto store = JobStore::open(db);
+    ASSERT_TRUE(store.ok());
+    failed = t.add_job(spec(1, 2, kDefaultPriority, "bob"));
+    succeeded = t.add_job(spec(2, 1, kDefaultPriority, "ann"));
+    const std::string w = t.add_worker("w", 1);
+    // Equal jobs, none running: the older first. Band 0 of `failed` is
+    // done, band 1 fails (one attempt allowed): the job fails. The other
+    // job's first band is in flight at the kill.
+    const BandLease b0 = **t.next_band(w);
+    ASSERT_EQ(b0.job_id, failed);
+    ASSERT_TRUE(t.complete_band(pixels(w, b0))->accepted);
+    const BandLease b1 = **t.next_band(w);
+    ASSERT_EQ(b1.job_id, failed);
+    ASSERT_TRUE(t.complete_band(failure(w, b1, "segfault")).ok());
+    ASSERT_EQ(t.job(failed)->state, JobState::kFailed);
+    const BandLease lost = **t.next_band(w);
+    EXPECT_EQ(lost.job_id, succeeded);
+    ASSERT_TRUE((*store)->apply(t.take_events()).ok());
+  }
+  // First restart: the failed job is retried; the other finishes, then
+  // frame 1 is requeued and its band is in flight at a second kill.
+  {
+    auto store = JobStore::open(db);
+    auto state = (*store)->recover();
+    ASSERT_TRUE(state.ok()) << state.status().message();
+    Scheduler t(o, clock.fn());
+    t.restore(*state);
+    ASSERT_EQ(t.job(failed)->state, JobState::kFailed);
+    auto re = t.retry(failed, "bob");
+    ASSERT_TRUE(re.ok()) << re.status().message();
+    const std::string w = t.add_worker("w2", 1);
+    std::vector<BandLease> leases;
+    frames_and_bands(t, w, &leases);
+    // The failed band with a fresh attempt (not the band that was done),
+    // and the other job's two frames.
+    std::set<std::string> got;
+    for (const BandLease& l : leases) {
+      got.insert(l.job_id + ":" + std::to_string(l.frame) + ":" + std::to_string(l.band));
+    }
+    EXPECT_EQ(got,
+              (std::set<std::string>{failed + ":1:1", succeeded + ":1:0", succeeded + ":2:0"}));
+    for (const BandLease& l : leases) {
+      auto r = t.complete_band(pixels(w, l));
+      ASSERT_TRUE(r.ok() && r->accepted);
+      if (r->frame) t.frame_written(l.job_id, r->frame->frame, Status::Ok());
+    }
+    EXPECT_EQ(t.job(failed)->state, JobState::kSucceeded);
+    EXPECT_EQ(t.job(succeeded)->state, JobState::kSucceeded);
+    ASSERT_TRUE(t.requeue(succeeded, 1, 1, "ann").ok());
+    EXPECT_EQ((*t.next_band(w))->frame, 1);
+    ASSERT_TRUE((*store)->apply(t.take_events()).ok());
+  }
+  auto store = JobStore::open(db);
+  auto state = (*store)->recover();
+  ASSERT_TRUE(state.ok());
+  Scheduler t(o, clock.fn());
+  t.restore(*state);
+  auto j = t.job(succeeded);
+  EXPECT_EQ(j->state, JobState::kRunning);
+  EXPECT_EQ(j->frames_written.size(), 1u);
+  const int kept = j->frames_written.at(0);
+  const std::string w = t.add_worker("w3", 1);
+  const BandLease l = **t.next_band(w);
+  EXPECT_EQ(std::make_pair(l.job_id, l.frame), std::make_pair(succeeded, 1));
+  EXPECT_FALSE(t.next_band(w)->has_value());
+  auto r = t.complete_band(pixels(w, l));
+  ASSERT_TRUE(r.ok() && r->accepted && r->frame);
+  t.frame_written(succeeded, 1, Status::Ok());
+  EXPECT_EQ(t.job(succeeded)->state, JobState::kSucceeded);
+  ASSERT_TRUE(store.ok());
+  ASSERT_TRUE((*store)->apply(t.take_events()).ok());
+  // Each band's result was accepted once since it was last queued.
+  EXPECT_EQ(*(*store)->band_completions(succeeded, 1, 0), 1);
+  EXPECT_EQ(*(*store)->band_completions(succeeded, kept, 0), 1);
+  EXPECT_EQ(*(*store)->band_completions(failed, 1, 0), 1);
+  EXPECT_EQ(*(*store)->band_completions(failed, 1, 1), 1);
+  // The history says who did what.
+  auto h = (*store)->history(failed, 0, 100);
+  ASSERT_TRUE(h.ok());
+  bool retried = false;
+  for (const HistoryEntry& e : *h) {
+    retried |= e.text == "retried by bob: 1 bands back in the queue with fresh attempts";
+  }
+  EXPECT_TRUE(retried);
+}
+
 }  // namespace
 }  // namespace locus::farm
