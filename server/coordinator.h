@@ -134,6 +134,30 @@ class Coordinator {
   Result<std::vector<HistoryEntry>> events(const std::string& job_id, int64_t after, int limit,
                                            const Caller& caller = Caller::anyone());
   std::vector<WorkerInfo> workers();
+  // The farm page: jobs (those the caller may read) and workers, with the
+  // scheduler's version; nothing when `since` is that version already.
+  struct Snapshot {
+    uint64_t version = 0;
+    bool unchanged = false;
+    std::vector<JobInfo> jobs;
+    std::vector<WorkerInfo> workers;
+  };
+  Snapshot snapshot(uint64_t since, const Caller& caller = Caller::anyone());
+  // One frame's bands from the store (the band map); read like job().
+  // NotFound for a frame outside the job's.
+  Result<FrameDetail> frame_detail(const std::string& job_id, int frame,
+                                   const Caller& caller = Caller::anyone());
+  // A worker, by id or name: connected, or remembered by its leases in the
+  // store. With --private-jobs only the caller's jobs' leases and lines.
+  Result<WorkerDetail> worker_detail(const std::string& worker,
+                                     const Caller& caller = Caller::anyone());
+  // The dashboard's images, read like job(): the path of a written frame's
+  // file; the pixels of an accepted band of a frame not yet written
+  // (NotFound otherwise, e.g. once its frame is written).
+  Result<std::string> frame_file(const std::string& job_id, int frame,
+                                 const Caller& caller = Caller::anyone());
+  Result<Image> band_image(const std::string& job_id, int frame, int band,
+                           const Caller& caller = Caller::anyone());
   // `locus drain|disable|enable`: admins only (PERMISSION_DENIED). The
   // worker by id or name; returns its name.
   Result<std::string> drain_worker(const std::string& worker, const Caller& caller);

@@ -45,7 +45,8 @@ struct Flags {
   double retention_days = 0;
   bool no_fsync = false;
   bool equal_bands = false;
-  std::string health_address, metrics_address;
+  std::string health_address, metrics_address, http_address;
+  double http_rate = 200;
   std::string log_format = "text", log_level = "info";
   int drain_ms = 20000;
   farm::CoordinatorOptions options;  // the flags that map one to one
@@ -131,6 +132,12 @@ void add_operations_flags(CLI::App& app, Flags& f) {
                  "Also serve the gRPC health service alone, plaintext, on HOST:PORT (probes)");
   app.add_option("--metrics", f.metrics_address,
                  "Serve Prometheus metrics at http://HOST:PORT/metrics");
+  app.add_option("--http", f.http_address,
+                 "Serve the dashboard and its JSON API on HOST:PORT (TLS when --tls-cert is "
+                 "given; client tokens as for gRPC; docs/http-api.md)");
+  app.add_option("--http-rate", f.http_rate,
+                 "HTTP requests per second allowed from one address (past it: 429)")
+      ->check(CLI::Range(1.0, 1e6));
   app.add_option("--drain-ms", f.drain_ms,
                  "On SIGTERM, wait this long at most for the bands in flight before exiting")
       ->check(CLI::Range(0, 3600000));
@@ -215,7 +222,7 @@ Status serve_farm(locus::rpc::CoordinatorServer& server, farm::Coordinator& coor
   const bool tls = !f.security.tls_cert.empty();
   const bool mtls = !f.security.tls_ca.empty();
   const bool tokens = f.security.auth.enforcing();
-  auto port = server.start(f.listen, std::move(f.security));
+  auto port = server.start(f.listen, f.security);
   if (!port.ok()) return port.status();
   spdlog::info("locus-coordinator listening on {} (port {}; {}{}, {}), frames in {}", f.listen,
                *port, tls ? "TLS" : "plaintext", mtls ? " with worker certificates" : "",
@@ -234,6 +241,20 @@ Result<std::unique_ptr<farm::MetricsEndpoint>> serve_operations(
     auto health_port = server.serve_health(f.health_address);
     if (!health_port.ok()) return health_port.status();
     spdlog::info("health service on {} (port {})", f.health_address, *health_port);
+  }
+  if (!f.http_address.empty()) {
+    locus::rpc::HttpServerOptions o;
+    o.address = f.http_address;
+    o.scratch_dir = f.data;
+    locus::rpc::HttpOptions api;
+    api.rate = f.http_rate;
+    api.burst = 2 * f.http_rate;
+    auto port = server.serve_http(o, api);
+    if (!port.ok()) return port.status();
+    spdlog::info("dashboard on {}://{} (port {})", f.security.tls_cert.empty() ? "http" : "https",
+                 f.http_address, *port);
+    std::printf("dashboard on port %d\n", *port);
+    std::fflush(stdout);
   }
   std::unique_ptr<farm::MetricsEndpoint> metrics;
   if (!f.metrics_address.empty()) {

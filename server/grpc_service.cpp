@@ -165,6 +165,24 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
                  [&](const farm::Caller& c) { return h_.ResumeJob(*req, c, resp); });
   }
 
+  grpc::Status GetFarm(grpc::ServerContext* ctx, const v1::GetFarmRequest* req,
+                       v1::FarmSnapshot* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.GetFarm", *req, resp,
+                 [&](const farm::Caller& c) { return h_.GetFarm(*req, c, resp); });
+  }
+
+  grpc::Status GetFrame(grpc::ServerContext* ctx, const v1::GetFrameRequest* req,
+                        v1::FrameStatus* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.GetFrame", *req, resp,
+                 [&](const farm::Caller& c) { return h_.GetFrame(*req, c, resp); });
+  }
+
+  grpc::Status GetWorker(grpc::ServerContext* ctx, const v1::GetWorkerRequest* req,
+                         v1::WorkerStatus* resp) override {
+    return serve(auth_, m_, *ctx, kClient, "ClientService.GetWorker", *req, resp,
+                 [&](const farm::Caller& c) { return h_.GetWorker(*req, c, resp); });
+  }
+
   grpc::Status RetryJob(grpc::ServerContext* ctx, const v1::JobActionRequest* req,
                         v1::JobActionResponse* resp) override {
     return serve(auth_, m_, *ctx, kClient, "ClientService.RetryJob", *req, resp,
@@ -320,6 +338,8 @@ Result<int> CoordinatorServer::start(const std::string& address, ServerSecurity 
     creds = grpc::InsecureServerCredentials();
   }
   auth_ = std::move(security.auth);
+  tls_cert_ = security.tls_cert;
+  tls_key_ = security.tls_key;
 
   grpc::ServerBuilder builder;
   int port = 0;
@@ -341,6 +361,20 @@ Result<int> CoordinatorServer::start(const std::string& address, ServerSecurity 
   return port;
 }
 
+Result<int> CoordinatorServer::serve_http(HttpServerOptions options, HttpOptions api) {
+  if (!server_) return FailedPrecondition("serve_http() before start()");
+  options.tls_cert = tls_cert_;
+  options.tls_key = tls_key_;
+  http_api_ = std::make_unique<HttpApi>(coordinator_, handlers_, auth_, api);
+  auto http = HttpServer::start(options, *http_api_);
+  if (!http.ok()) {
+    http_api_.reset();
+    return http.status();
+  }
+  http_ = std::move(*http);
+  return http_->port();
+}
+
 Result<int> CoordinatorServer::serve_health(const std::string& address) {
   auto port = health_.start(address);
   if (port.ok()) health_.set_ready(server_ != nullptr);
@@ -359,6 +393,7 @@ void CoordinatorServer::drain(farm::Millis max, farm::Millis grace) {
 
 void CoordinatorServer::shutdown(farm::Millis grace) {
   if (!server_) return;
+  http_.reset();  // its requests finish first; they use the coordinator
   health_service_.shutdown();
   health_.set_ready(false);
   // Long polls and watches return now; calls in flight (a band's result)

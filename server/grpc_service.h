@@ -15,6 +15,8 @@
 #include "proto/wire/rpc.h"
 #include "server/coordinator.h"
 #include "server/handlers.h"
+#include "server/http_api.h"
+#include "server/http_server.h"
 
 namespace locus::rpc {
 
@@ -29,6 +31,10 @@ class CoordinatorServer {
   // The health service alone on a plaintext port of its own (--health),
   // for probes; returns the bound port.
   Result<int> serve_health(const std::string& address);
+  // The dashboard and its JSON API on a port of their own (--http), after
+  // start(): the same tokens and handlers, and TLS with the main port's
+  // certificate when it has one. Returns the bound port.
+  Result<int> serve_http(HttpServerOptions options, HttpOptions api = {});
   // SIGTERM: not ready (health), no new jobs or leases, waits up to
   // `max` for the bands in flight (Coordinator::drain()), then shutdown().
   void drain(farm::Millis max, farm::Millis grace);
@@ -49,6 +55,9 @@ class CoordinatorServer {
   HealthService health_service_;  // on the main port
   std::unique_ptr<grpc::Server> server_;
   HealthServer health_;  // --health
+  std::string tls_cert_, tls_key_;  // the main port's, for --http
+  std::unique_ptr<HttpApi> http_api_;
+  std::unique_ptr<HttpServer> http_;
 };
 
 }  // namespace locus::rpc

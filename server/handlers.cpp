@@ -143,15 +143,7 @@ Status Handlers::ListLogs(const v1::ListLogsRequest& req, const farm::Caller& ca
       c_.logs(req.job_id(), req.has_frame() ? req.frame() : -1, req.has_band() ? req.band() : -1,
               std::max<int64_t>(0, req.after_seq()), limit, caller);
   if (!r.ok()) return r.status();
-  for (const farm::BandLogLine& l : *r) {
-    v1::BandLogLine* p = resp->add_lines();
-    p->set_seq(l.seq);
-    p->set_frame(l.frame);
-    p->set_band(l.band);
-    p->set_lease_id(l.lease_id);
-    p->set_worker_id(l.worker_id);
-    p->set_text(l.text);
-  }
+  for (const farm::BandLogLine& l : *r) *resp->add_lines() = ToProto(l);
   return Status::Ok();
 }
 
@@ -205,6 +197,34 @@ Status Handlers::EnableWorker(const v1::WorkerActionRequest& req, const farm::Ca
 
 Status Handlers::ListWorkers(const v1::ListWorkersRequest&, v1::ListWorkersResponse* resp) {
   for (const farm::WorkerInfo& w : c_.workers()) *resp->add_workers() = ToProto(w);
+  return Status::Ok();
+}
+
+Status Handlers::GetFarm(const v1::GetFarmRequest& req, const farm::Caller& caller,
+                         v1::FarmSnapshot* resp) {
+  const farm::Coordinator::Snapshot s = c_.snapshot(req.since(), caller);
+  resp->set_version(s.version);
+  resp->set_unchanged(s.unchanged);
+  for (const farm::JobInfo& j : s.jobs) *resp->add_jobs() = ToProto(j);
+  for (const farm::WorkerInfo& w : s.workers) *resp->add_workers() = ToProto(w);
+  return Status::Ok();
+}
+
+Status Handlers::GetFrame(const v1::GetFrameRequest& req, const farm::Caller& caller,
+                          v1::FrameStatus* resp) {
+  if (Status s = check_id(req.job_id(), "job_id"); !s.ok()) return s;
+  auto r = c_.frame_detail(req.job_id(), req.frame(), caller);
+  if (!r.ok()) return r.status();
+  *resp = ToProto(*r);
+  return Status::Ok();
+}
+
+Status Handlers::GetWorker(const v1::GetWorkerRequest& req, const farm::Caller& caller,
+                           v1::WorkerStatus* resp) {
+  if (Status s = check_id(req.worker(), "worker"); !s.ok()) return s;
+  auto r = c_.worker_detail(req.worker(), caller);
+  if (!r.ok()) return r.status();
+  *resp = ToProto(*r);
   return Status::Ok();
 }
 

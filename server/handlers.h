@@ -49,6 +49,14 @@ class Handlers {
   Status ListLogs(const v1::ListLogsRequest& req, const farm::Caller& caller,
                   v1::ListLogsResponse* resp);
   Status ListWorkers(const v1::ListWorkersRequest& req, v1::ListWorkersResponse* resp);
+  // The dashboard's reads (also over gRPC): the farm with a cursor, one
+  // frame's bands, one worker's recent work.
+  Status GetFarm(const v1::GetFarmRequest& req, const farm::Caller& caller,
+                 v1::FarmSnapshot* resp);
+  Status GetFrame(const v1::GetFrameRequest& req, const farm::Caller& caller,
+                  v1::FrameStatus* resp);
+  Status GetWorker(const v1::GetWorkerRequest& req, const farm::Caller& caller,
+                   v1::WorkerStatus* resp);
   // Admins only.
   Status DrainWorker(const v1::WorkerActionRequest& req, const farm::Caller& caller,
                      v1::WorkerActionResponse* resp);

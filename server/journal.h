@@ -97,6 +97,7 @@ struct BandDone {
   std::string owner;        // the job's (the metrics' user label)
   double cpu_seconds = 0;   // this band's render CPU time
   BandSeconds job_account;  // the job's total after this band
+  Stats band_stats;         // this band's (the dashboard's band map)
 };
 struct FrameWritten {
   std::string job_id;

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <sstream>
+#include <tuple>
 
 namespace locus::farm {
 namespace {
@@ -59,6 +60,7 @@ CREATE TABLE IF NOT EXISTS attempts(
   error TEXT NOT NULL DEFAULT '',
   charged INTEGER NOT NULL DEFAULT 0);
 CREATE INDEX IF NOT EXISTS attempts_by_band ON attempts(job_id, frame, band);
+CREATE INDEX IF NOT EXISTS attempts_by_worker ON attempts(worker_id, started_at);
 CREATE TABLE IF NOT EXISTS history(
   seq INTEGER PRIMARY KEY,
   job_id TEXT NOT NULL, at REAL NOT NULL,
@@ -71,6 +73,7 @@ CREATE TABLE IF NOT EXISTS band_logs(
   job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
   lease_id TEXT NOT NULL, worker_id TEXT NOT NULL, text TEXT NOT NULL);
 CREATE INDEX IF NOT EXISTS band_logs_by_job ON band_logs(job_id, seq);
+CREATE INDEX IF NOT EXISTS band_logs_by_worker ON band_logs(worker_id, seq);
 CREATE VIEW IF NOT EXISTS leases AS
   SELECT lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at
   FROM attempts WHERE outcome IS NULL;
@@ -112,6 +115,26 @@ Stats decode_stats(const std::string& text) {
   double cpu = 0;
   if (i >> cpu) s.seconds_render_cpu = cpu;
   return s;
+}
+
+// Row costs as text: "%.4g" numbers separated by spaces (relative units:
+// four digits are plenty for a chart).
+std::string costs_text(const std::vector<float>& costs) {
+  std::string out;
+  char buf[32];
+  for (float c : costs) {
+    std::snprintf(buf, sizeof buf, out.empty() ? "%.4g" : " %.4g", static_cast<double>(c));
+    out += buf;
+  }
+  return out;
+}
+
+std::vector<float> costs_from_text(const std::string& text) {
+  std::vector<float> out;
+  std::istringstream i(text);
+  float c = 0;
+  while (i >> c) out.push_back(c);
+  return out;
 }
 
 // A word the table lacks (a damaged row) reads as a failed job.
@@ -214,24 +237,27 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   }
   // Columns added since schema 1 was first written: a store from before
   // them gets them with the defaults (jobs then used).
-  for (const auto& [column, definition] :
-       {std::pair{"aa", "aa INTEGER NOT NULL DEFAULT -1"},
-        {"tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"},
-        {"band_edges", "band_edges TEXT NOT NULL DEFAULT ''"},
-        {"priority", "priority INTEGER NOT NULL DEFAULT 50"},
-        {"frame_order", "frame_order TEXT NOT NULL DEFAULT ''"},
-        {"band_timeout_ms", "band_timeout_ms INTEGER NOT NULL DEFAULT 0"},
-        {"owner", "owner TEXT NOT NULL DEFAULT ''"},
-        {"require_tags", "require_tags TEXT NOT NULL DEFAULT ''"},
-        {"after_jobs", "after_jobs TEXT NOT NULL DEFAULT ''"},
-        {"band_seconds", "band_seconds REAL NOT NULL DEFAULT 0"},
-        {"band_seconds_failed", "band_seconds_failed REAL NOT NULL DEFAULT 0"},
-        {"band_seconds_lost", "band_seconds_lost REAL NOT NULL DEFAULT 0"}}) {
-    Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info('jobs') WHERE name = ?");
-    has.bind(column);
+  for (const auto& [table, column, definition] :
+       {std::tuple{"bands", "stats", "stats TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "row_costs", "row_costs TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "aa", "aa INTEGER NOT NULL DEFAULT -1"},
+        {"jobs", "tess_tol", "tess_tol REAL NOT NULL DEFAULT 0.25"},
+        {"jobs", "band_edges", "band_edges TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "priority", "priority INTEGER NOT NULL DEFAULT 50"},
+        {"jobs", "frame_order", "frame_order TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "band_timeout_ms", "band_timeout_ms INTEGER NOT NULL DEFAULT 0"},
+        {"jobs", "owner", "owner TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "require_tags", "require_tags TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "after_jobs", "after_jobs TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "band_seconds", "band_seconds REAL NOT NULL DEFAULT 0"},
+        {"jobs", "band_seconds_failed", "band_seconds_failed REAL NOT NULL DEFAULT 0"},
+        {"jobs", "band_seconds_lost", "band_seconds_lost REAL NOT NULL DEFAULT 0"}}) {
+    Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info(?) WHERE name = ?");
+    has.bind(table, column);
     if (has.step() != SQLITE_ROW) return has.error();
     if (has.integer(0) == 0) {
-      const std::string alter = std::string("ALTER TABLE jobs ADD COLUMN ") + definition;
+      const std::string alter =
+          std::string("ALTER TABLE ") + table + " ADD COLUMN " + definition;
       if (Status s = store->exec(alter.c_str()); !s.ok()) return s;
     }
   }
@@ -278,15 +304,15 @@ Status JobStore::apply_one(const Event& e) {
                   "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
                   "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
                   "spp, state, submitted_at, aa, tess_tol, band_edges, priority, frame_order, "
-                  "band_timeout_ms, owner, require_tags, after_jobs) "
-                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                  "band_timeout_ms, owner, require_tags, after_jobs, row_costs) "
+                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,
              s.render.aa, s.render.tess_tol, band_edges_text(s.band_edges), s.priority,
              std::string(label_name(kFrameOrderLabels, s.frame_order)),
              static_cast<int64_t>(s.band_timeout.count()), s.owner, words_text(s.require),
-             words_text(s.after));
+             words_text(s.after), costs_text(s.row_costs));
     if (Status st = ins.run(); !st.ok()) return st;
     return add_history(
         r.job_id, -1, -1,
@@ -349,11 +375,12 @@ Status JobStore::apply_one(const Event& e) {
   }
   if (const auto* d = std::get_if<event::BandDone>(&e)) {
     Statement band(*this,
-                   "INSERT INTO bands(job_id, frame, band, done, completions, lease_id, worker_id) "
-                   "VALUES(?,?,?,1,1,?,?) ON CONFLICT(job_id, frame, band) DO UPDATE SET done = 1, "
-                   "completions = completions + 1, lease_id = excluded.lease_id, "
-                   "worker_id = excluded.worker_id");
-    band.bind(d->job_id, d->frame, d->band, d->lease_id, d->worker_id);
+                   "INSERT INTO bands(job_id, frame, band, done, completions, lease_id, worker_id, "
+                   "stats) VALUES(?,?,?,1,1,?,?,?) ON CONFLICT(job_id, frame, band) DO UPDATE SET "
+                   "done = 1, completions = completions + 1, lease_id = excluded.lease_id, "
+                   "worker_id = excluded.worker_id, stats = excluded.stats");
+    band.bind(d->job_id, d->frame, d->band, d->lease_id, d->worker_id,
+              encode_stats(d->band_stats));
     if (Status s = band.run(); !s.ok()) return s;
     Statement attempt(*this,
                       "UPDATE attempts SET ended_at = ?, outcome = 'done' WHERE lease_id = ? AND "
@@ -483,7 +510,7 @@ Result<RecoveredState> JobStore::recover() {
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
       "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges, priority, "
       "frame_order, band_timeout_ms, owner, require_tags, after_jobs, band_seconds, "
-      "band_seconds_failed, band_seconds_lost FROM jobs ORDER BY seq");
+      "band_seconds_failed, band_seconds_lost, row_costs FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -530,6 +557,8 @@ Result<RecoveredState> JobStore::recover() {
     s.require = words_from_text(jobs.text(28));
     s.after = words_from_text(jobs.text(29));
     j.account = {jobs.real(30), jobs.real(31), jobs.real(32)};
+    s.row_costs = costs_from_text(jobs.text(33));
+    if (static_cast<int>(s.row_costs.size()) != s.height) s.row_costs.clear();
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {
@@ -633,12 +662,9 @@ Status JobStore::delete_job(const std::string& job_id) {
   return exec("COMMIT");
 }
 
-Result<std::vector<BandLogLine>> JobStore::band_logs(const std::string& job_id, int frame, int band,
-                                                     int64_t after, int limit) {
-  Statement st(*this,
-               "SELECT seq, frame, band, lease_id, worker_id, text FROM band_logs WHERE job_id = ? "
-               "AND seq > ? AND (? < 0 OR frame = ?) AND (? < 0 OR band = ?) ORDER BY seq LIMIT ?");
-  st.bind(job_id, after, frame, frame, band, band, limit);
+// Rows of "seq, frame, band, lease_id, worker_id, text".
+template <typename Statement>
+static Result<std::vector<BandLogLine>> read_log_lines(Statement& st) {
   std::vector<BandLogLine> out;
   for (;;) {
     const int rc = st.step();
@@ -647,6 +673,84 @@ Result<std::vector<BandLogLine>> JobStore::band_logs(const std::string& job_id, 
     out.push_back({st.integer(0), static_cast<int>(st.integer(1)), static_cast<int>(st.integer(2)),
                    st.text(3), st.text(4), st.text(5)});
   }
+}
+
+Result<std::vector<BandLogLine>> JobStore::band_logs(const std::string& job_id, int frame, int band,
+                                                     int64_t after, int limit) {
+  Statement st(*this,
+               "SELECT seq, frame, band, lease_id, worker_id, text FROM band_logs WHERE job_id = ? "
+               "AND seq > ? AND (? < 0 OR frame = ?) AND (? < 0 OR band = ?) ORDER BY seq LIMIT ?");
+  st.bind(job_id, after, frame, frame, band, band, limit);
+  return read_log_lines(st);
+}
+
+namespace {
+constexpr const char* kAttemptColumns =
+    "lease_id, job_id, frame, band, worker_id, worker_name, speculative, started_at, "
+    "COALESCE(ended_at, 0), COALESCE(outcome, ''), error";
+}  // namespace
+
+// Rows of kAttemptColumns.
+template <typename Statement>
+static Result<std::vector<AttemptInfo>> read_attempts(Statement& st) {
+  std::vector<AttemptInfo> out;
+  for (;;) {
+    const int rc = st.step();
+    if (rc == SQLITE_DONE) return out;
+    if (rc != SQLITE_ROW) return st.error();
+    AttemptInfo a;
+    a.lease_id = st.text(0);
+    a.job_id = st.text(1);
+    a.frame = static_cast<int>(st.integer(2));
+    a.band = static_cast<int>(st.integer(3));
+    a.worker_id = st.text(4);
+    a.worker_name = st.text(5);
+    a.speculative = st.integer(6) != 0;
+    a.started_at = st.real(7);
+    a.ended_at = st.real(8);
+    a.outcome = st.text(9);
+    a.error = st.text(10);
+    out.push_back(std::move(a));
+  }
+}
+
+Result<std::vector<AttemptInfo>> JobStore::frame_attempts(const std::string& job_id, int frame) {
+  static const std::string sql = std::string("SELECT ") + kAttemptColumns +
+                                 " FROM attempts WHERE job_id = ? AND frame = ? ORDER BY "
+                                 "started_at, rowid";
+  Statement st(*this, sql.c_str());
+  st.bind(job_id, frame);
+  return read_attempts(st);
+}
+
+Result<std::map<int, Stats>> JobStore::frame_band_stats(const std::string& job_id, int frame) {
+  Statement st(*this, "SELECT band, stats FROM bands WHERE job_id = ? AND frame = ? AND done = 1");
+  st.bind(job_id, frame);
+  std::map<int, Stats> out;
+  for (;;) {
+    const int rc = st.step();
+    if (rc == SQLITE_DONE) return out;
+    if (rc != SQLITE_ROW) return st.error();
+    out[static_cast<int>(st.integer(0))] = decode_stats(st.text(1));
+  }
+}
+
+Result<std::vector<AttemptInfo>> JobStore::worker_attempts(const std::string& worker_id,
+                                                           int limit) {
+  static const std::string sql = std::string("SELECT ") + kAttemptColumns +
+                                 " FROM attempts WHERE worker_id = ? ORDER BY started_at DESC, "
+                                 "rowid DESC LIMIT ?";
+  Statement st(*this, sql.c_str());
+  st.bind(worker_id, limit);
+  return read_attempts(st);
+}
+
+Result<std::vector<BandLogLine>> JobStore::worker_logs(const std::string& worker_id, int limit) {
+  Statement st(*this,
+               "SELECT seq, frame, band, lease_id, worker_id, text FROM band_logs WHERE "
+               "worker_id = ? ORDER BY seq DESC LIMIT ?");
+  st.bind(worker_id, limit);
+  return read_log_lines(st);
 }
 
 Result<std::vector<std::string>> JobStore::jobs_finished_before(double unix_seconds) {

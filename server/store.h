@@ -52,6 +52,14 @@ class JobStore {
   // one frame and band (-1: any), oldest first, at most `limit`.
   Result<std::vector<BandLogLine>> band_logs(const std::string& job_id, int frame, int band,
                                              int64_t after, int limit);
+  // The leases of one frame's bands, oldest first (the band map).
+  Result<std::vector<AttemptInfo>> frame_attempts(const std::string& job_id, int frame);
+  // The stats of the frame's accepted bands, by band.
+  Result<std::map<int, Stats>> frame_band_stats(const std::string& job_id, int frame);
+  // A worker's latest leases and log lines, newest first, at most `limit`.
+  Result<std::vector<AttemptInfo>> worker_attempts(const std::string& worker_id, int limit);
+  Result<std::vector<BandLogLine>> worker_logs(const std::string& worker_id, int limit);
+
   // Removes the job and everything recorded of it, in one transaction.
   Status delete_job(const std::string& job_id);
   // Ids of the jobs that ended before `unix_seconds` (retention).

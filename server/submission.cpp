@@ -220,7 +220,7 @@ std::string submission_fingerprint(const SubmitRequest& r, const JobSpec& spec) 
                       scheduling_fingerprint(spec));
 }
 
-std::vector<int> cost_band_edges(const CheckedSubmission& job) {
+std::vector<int> cost_band_edges(const CheckedSubmission& job, std::vector<float>* row_costs) {
   const JobSpec& spec = job.spec;
   if (spec.bands <= 1 || job.params.method != Method::kLocal) return {};
   const int middle = spec.frame_first + (spec.frame_last - spec.frame_first) / 2;
@@ -232,6 +232,7 @@ std::vector<int> cost_band_edges(const CheckedSubmission& job) {
                  costs.status().message());
     return {};
   }
+  if (row_costs) row_costs->assign(costs->begin(), costs->end());
   return split_rows_by_cost(*costs, spec.bands);
 }
 

@@ -40,6 +40,9 @@ std::string submission_fingerprint(const SubmitRequest& request, const JobSpec& 
 // docs/farm.md), from a point-sampled preview of the middle frame and used
 // for every frame; empty (bands of equal height) when there is nothing to
 // balance (one band, the ray tracer) or the preview fails (logged).
-std::vector<int> cost_band_edges(const CheckedSubmission& job);
+// `row_costs`, when given, gets the prediction of each row (the dashboard's
+// band map), or nothing.
+std::vector<int> cost_band_edges(const CheckedSubmission& job,
+                                 std::vector<float>* row_costs = nullptr);
 
 }  // namespace locus::farm

@@ -117,6 +117,10 @@ struct JobSpec {
   // coordinator split by predicted cost (common/farm/band_split.h); empty:
   // equal heights (band_rows(height, bands, i)).
   std::vector<int> band_edges;
+  // The cost-aware split's prediction of each row's cost (relative units;
+  // common/farm/band_split.h), for the dashboard's band map; empty when
+  // none was made (equal bands, the ray tracer).
+  std::vector<float> row_costs;
   int priority = kDefaultPriority;
   FrameOrder frame_order = FrameOrder::kInOrder;
   // A band leased longer than this is taken back and retried elsewhere;
@@ -252,6 +256,52 @@ struct BandLogLine {
   std::string worker_id;
   std::string text;
 };
+// One lease of a band as the store remembers it (the dashboard's band map
+// and worker page).
+struct AttemptInfo {
+  std::string lease_id;
+  std::string job_id;
+  int frame = 0;
+  int band = 0;
+  std::string worker_id;
+  std::string worker_name;
+  bool speculative = false;
+  double started_at = 0;  // Unix seconds
+  double ended_at = 0;    // 0: still leased
+  std::string outcome;    // kLeaseOutcomeLabels' word, "void"; empty: still leased
+  std::string error;
+};
+// A band of one frame: where it stands, who rendered it, what it cost.
+struct BandDetail {
+  int band = 0;
+  int y0 = 0;
+  int y1 = 0;
+  std::string state;          // "queued", "running" or "done"
+  double predicted_cost = 0;  // the sum of its rows' JobSpec::row_costs; 0: none
+  Stats stats;                // of the accepted result
+  double seconds = 0;         // lease to result, of the accepted result
+  std::string worker_id;      // of the accepted result, or of the live lease
+  std::string worker_name;
+  std::vector<AttemptInfo> attempts;  // oldest first
+};
+struct FrameDetail {
+  std::string job_id;
+  int frame = 0;
+  int width = 0;
+  int height = 0;
+  bool written = false;
+  std::string file_name;
+  std::vector<BandDetail> bands;
+  std::vector<float> row_costs;  // JobSpec::row_costs
+};
+// A worker's recent work: connected (`info` set) or remembered by the store.
+struct WorkerDetail {
+  std::optional<WorkerInfo> info;
+  std::string worker_id;
+  std::vector<AttemptInfo> attempts;  // newest first
+  std::vector<BandLogLine> logs;      // newest first
+};
+
 // The most history or log lines one ListEvents or ListLogs call returns
 // (the client pages).
 inline constexpr int kMaxEventsPerCall = 10000;

@@ -404,6 +404,67 @@ v1::WorkerInfo ToProto(const farm::WorkerInfo& w) {
   return p;
 }
 
+v1::BandLogLine ToProto(const farm::BandLogLine& l) {
+  v1::BandLogLine p;
+  p.set_seq(l.seq);
+  p.set_frame(l.frame);
+  p.set_band(l.band);
+  p.set_lease_id(l.lease_id);
+  p.set_worker_id(l.worker_id);
+  p.set_text(l.text);
+  return p;
+}
+
+v1::Attempt ToProto(const farm::AttemptInfo& a) {
+  v1::Attempt p;
+  p.set_lease_id(a.lease_id);
+  p.set_job_id(a.job_id);
+  p.set_frame(a.frame);
+  p.set_band(a.band);
+  p.set_worker_id(a.worker_id);
+  p.set_worker_name(a.worker_name);
+  p.set_speculative(a.speculative);
+  p.set_started_at(a.started_at);
+  p.set_ended_at(a.ended_at);
+  p.set_outcome(a.outcome);
+  p.set_error(a.error);
+  return p;
+}
+
+v1::FrameStatus ToProto(const farm::FrameDetail& f) {
+  v1::FrameStatus p;
+  p.set_job_id(f.job_id);
+  p.set_frame(f.frame);
+  p.set_width(f.width);
+  p.set_height(f.height);
+  p.set_written(f.written);
+  p.set_file_name(f.file_name);
+  for (const farm::BandDetail& b : f.bands) {
+    v1::BandStatus* q = p.add_bands();
+    q->set_band(b.band);
+    q->set_y0(b.y0);
+    q->set_y1(b.y1);
+    q->set_state(b.state);
+    q->set_predicted_cost(b.predicted_cost);
+    *q->mutable_stats() = ToProto(b.stats);
+    q->set_seconds(b.seconds);
+    q->set_worker_id(b.worker_id);
+    q->set_worker_name(b.worker_name);
+    for (const farm::AttemptInfo& a : b.attempts) *q->add_attempts() = ToProto(a);
+  }
+  for (float c : f.row_costs) p.add_row_costs(c);
+  return p;
+}
+
+v1::WorkerStatus ToProto(const farm::WorkerDetail& w) {
+  v1::WorkerStatus p;
+  if (w.info) *p.mutable_info() = ToProto(*w.info);
+  p.set_worker_id(w.worker_id);
+  for (const farm::AttemptInfo& a : w.attempts) *p.add_attempts() = ToProto(a);
+  for (const farm::BandLogLine& l : w.logs) *p.add_logs() = ToProto(l);
+  return p;
+}
+
 farm::WorkerInfo FromProto(const v1::WorkerInfo& p) {
   farm::WorkerInfo w;
   w.worker_id = p.worker_id();
