@@ -318,8 +318,7 @@ HttpResponse HttpApi::handle(const HttpRequest& req) {
         // site's page cannot act with the user's rights (no CSRF); POSTs
         // must also say JSON (a cross-site form cannot, without a CORS
         // preflight this server never grants) and come from this origin.
-        auto caller = auth_.identify(farm::Role::kClient, req.authorization, false,
-                                     "HTTP " + req.path.substr(0, 64));
+        auto caller = auth_.identify(farm::Role::kClient, req.authorization, false, "the HTTP API");
         if (!caller.ok()) {
           spdlog::warn("http: refused {} {} from {}: {}", req.method, req.path.substr(0, 64),
                        req.remote.substr(0, 64), caller.status().message());
