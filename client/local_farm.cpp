@@ -105,6 +105,15 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   auto port = farm->server_->start("127.0.0.1:0", std::move(security));
   if (!port.ok()) return port.status();
   farm->address_ = "127.0.0.1:" + std::to_string(*port);
+  if (o.dashboard) {
+    rpc::HttpServerOptions http;
+    http.address = "127.0.0.1:0";
+    http.scratch_dir = farm->dir_;
+    auto dashboard = farm->server_->serve_http(http);
+    if (!dashboard.ok()) return dashboard.status();
+    farm->dashboard_url_ =
+        "http://127.0.0.1:" + std::to_string(*dashboard) + "/#token=" + farm->token_;
+  }
   const std::vector<std::string> env = worker_environment(farm->token_);
 
   for (int i = 0; i < o.workers; ++i) {

@@ -24,6 +24,7 @@ struct LocalFarmOptions {
   int workers = 2;
   int threads = 1;  // per worker
   farm::Millis lease{5000};
+  bool dashboard = true;  // serve the dashboard on 127.0.0.1 (any free port)
 };
 
 class LocalFarm {
@@ -36,6 +37,9 @@ class LocalFarm {
   const std::string& address() const { return address_; }
   // The farm's random token (both roles), for this process's client.
   const std::string& token() const { return token_; }
+  // The dashboard's address with the token in its fragment (the browser
+  // keeps it in the tab and never sends it in a URL); empty: none.
+  const std::string& dashboard_url() const { return dashboard_url_; }
   // The directory of worker logs (worker-N.log); kept when keep_logs() was
   // called, or when workers died.
   const std::string& dir() const { return dir_; }
@@ -50,6 +54,7 @@ class LocalFarm {
   std::string dir_;
   std::string address_;
   std::string token_;
+  std::string dashboard_url_;
   std::unique_ptr<farm::Coordinator> coordinator_;
   std::unique_ptr<rpc::CoordinatorServer> server_;
   std::mutex mu_;

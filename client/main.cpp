@@ -226,6 +226,9 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     spdlog::set_level(level);
     return fail(local.status());
   }
+  if (!(*local)->dashboard_url().empty()) {
+    std::fprintf(stderr, "locus: watch the render at %s\n", (*local)->dashboard_url().c_str());
+  }
   farm::Credentials local_creds;
   local_creds.token = (*local)->token();
   client::FarmClient farm((*local)->address(), local_creds);
