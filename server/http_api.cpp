@@ -193,7 +193,7 @@ Result<std::string> png_bytes(const Image& image, const fs::path& dir) {
   fs::create_directories(dir, ec);
   const fs::path tmp = dir / (".tmp-" + std::to_string(::getpid()) + "-" +
                               std::to_string(reinterpret_cast<uintptr_t>(&image)) + ".png");
-  if (Status s = write_image(tmp.string(), image); !s.ok()) return s;
+  if (Status s = write_image(tmp.string(), image, true); !s.ok()) return s;
   std::ifstream in(tmp, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   fs::remove(tmp, ec);
@@ -247,10 +247,6 @@ Status refresh(const fs::path& source, const fs::path& cached,
   fs::rename(tmp, cached, ec);
   if (ec) return Internal(cached.string() + ": " + ec.message());
   return Status::Ok();
-}
-
-bool ends_with(const std::string& s, const std::string& tail) {
-  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
 }
 
 }  // namespace
@@ -524,8 +520,9 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
   const fs::path cache = fs::path(c_.job_dir(job)) / ".dashboard";
   std::lock_guard lk(images_mu_);
   if (p[4] == "image") {
-    if (ends_with(source.string(), ".png")) return png_file(source.string());
-    // EXR and TIFF frames: a PNG for the browser, clamped like 8-bit output.
+    // A copy tagged for display (the frame's PNG says "linear", which a
+    // browser would brighten); the same pixel values; EXR and TIFF frames
+    // clamped like 8-bit output.
     const fs::path png = cache / ("frame-" + std::to_string(f) + ".png");
     if (Status s = refresh(source, png, [](const Image& i) -> Result<Image> { return i; });
         !s.ok()) {

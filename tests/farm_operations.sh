@@ -176,7 +176,7 @@ poll() {
 workers_up() { [ "$(cli root workers 2>/dev/null | tail -n +2 | wc -l)" -ge "$1" ]; }
 # wait_workers N: until N workers are registered (after a restart they re-register).
 wait_workers() { poll 20 workers_up "$1" || bad "fewer than $1 workers registered after 20 s"; }
-worker_name() { cli root workers 2>/dev/null | awk -v pid="$1" '$2 ~ (":" pid "$") {print $2}'; }
+worker_up() { cli root workers 2>/dev/null | awk -v pid="$1" '$2 ~ (":" pid "$") {f = 1} END {exit !f}'; }
 
 # signal_busy SIG PID...: freezes each worker in turn and sends SIG to the
 # first one seen holding a band (frozen, it cannot finish it meanwhile);
@@ -425,7 +425,7 @@ scenario5() {
   local T h1 h2 n out
   start_worker hung1 600000 --abandon-grace 600
   h1=$last_worker
-  wait_workers 3
+  poll 20 worker_up "$h1" || bad "[5] the hung worker did not register"
   T=$(submit ann --frames 1-8 --band-timeout 3)
   [ -n "$T" ] || { bad "[5] submission"; return; }
   poll 10 holding_band "$h1" "$T" || { bad "[5] the hung worker got no band of $T"; return; }
@@ -505,11 +505,11 @@ scenario7() {
     n=$(leases_of "$A")
     # The workers frozen: a band leased to one (its long poll answered)
     # stays in its hands until the coordinator is gone.
-    kill -STOP "$w1" "$w2"
+    freeze
     out=$(cli ann requeue "$A" --frames 2-2 2>&1) || bad "[7] requeue $A: $out"
     poll 10 leases_ge "$A" $((n + 1)) || bad "[7] $A: no new lease after the requeue"
     restart
-    kill -CONT "$w1" "$w2"
+    thaw
     [ -z "$(sql "SELECT 1 FROM frames WHERE job_id = '$A' AND frame = 2")" ] &&
       ok "[7] frame 2 of $A deleted and requeued; coordinator killed while it rendered again" ||
       bad "[7] frame 2 of $A was written again before the kill (the kill came too late)"
@@ -540,10 +540,10 @@ scenario7() {
 
 # ---- 8. fair share
 scenario8() {
-  local jobs=() Bj i j ann bob list t
+  local jobs=() Bj j ann bob list t
   wait_workers 2
   set_workers disable || { bad "[8] disable the workers"; return; }
-  for i in $(seq 10); do jobs+=("$(submit ann --frames 1-1)"); done
+  for _ in $(seq 10); do jobs+=("$(submit ann --frames 1-1)"); done
   Bj=$(submit bob --frames 1-10)
   list=$(printf "'%s'," "${jobs[@]}" "$Bj")
   list=${list%,}
@@ -557,7 +557,6 @@ scenario8() {
   poll 20 leases16 || { bad "[8] fewer than 16 leases after 20 s"; return; }
   restart
   ok "[8] coordinator killed after 16 leases ($(sql "SELECT COUNT(*) FROM jobs WHERE id IN ($list) AND state <> 'succeeded'") of 11 jobs unfinished)"
-  # shellcheck disable=SC2086
   poll 40 all_succeeded "${jobs[@]}" "$Bj" || { bad "[8] not all 11 jobs succeeded after 40 s"; return; }
   read -r ann bob < <(sql "SELECT SUM(owner = 'ann'), SUM(owner = 'bob') FROM
                              (SELECT j.owner FROM attempts a JOIN jobs j ON j.id = a.job_id

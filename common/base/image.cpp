@@ -17,7 +17,7 @@ std::string lower_ext(const std::string& path) {
 
 }  // namespace
 
-Status write_image(const std::string& path, const Image& image) {
+Status write_image(const std::string& path, const Image& image, bool for_display) {
   const std::string ext = lower_ext(path);
   if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
     return InvalidArgument(path + ": unsupported image type '" + ext +
@@ -36,7 +36,7 @@ Status write_image(const std::string& path, const Image& image) {
     std::vector<uint8_t> px(image.rgb.size());
     for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint8_t>(quantize8(image.rgb[i]));
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
-    spec.attribute("oiio:ColorSpace", "Linear");
+    spec.attribute("oiio:ColorSpace", for_display ? "sRGB" : "Linear");
     ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
   } else {
     std::vector<uint16_t> px(image.rgb.size());

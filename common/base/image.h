@@ -35,7 +35,10 @@ inline void store_pixel(Image& band_pixels, const Band& band, int x, int y, cons
 
 // Writes by extension: .png (8-bit, round(255 * clamp(v, 0, 1)), no transfer
 // curve), .exr (float, linear, unclamped), .tif (16-bit). SHADING.md "Output".
-Status write_image(const std::string& path, const Image& image);
+// A PNG is tagged linear (gAMA 1.0), which is what its values are; with
+// `for_display` it is tagged sRGB instead, so that a browser shows the
+// stored values as they are (the dashboard's copies; same pixel values).
+Status write_image(const std::string& path, const Image& image, bool for_display = false);
 Result<Image> read_image(const std::string& path);
 
 // 8-bit quantisation used by every 8-bit output (SHADING.md "Output").

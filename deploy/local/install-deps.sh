@@ -8,8 +8,11 @@ PACKAGES=(
   protobuf-compiler libprotobuf-dev protobuf-compiler-grpc libgrpc++-dev
   libglm-dev libopenimageio-dev openimageio-tools libspdlog-dev libgtest-dev libcli11-dev
   libtinyobjloader-dev libsqlite3-dev libssl-dev
-  # Metrics (prometheus-cpp: core and the pull endpoint).
-  prometheus-cpp-dev
+  # Metrics (prometheus-cpp: core and the pull endpoint); the dashboard's
+  # HTTP server (civetweb, which prometheus-cpp's pull endpoint also uses).
+  prometheus-cpp-dev libcivetweb-dev
+  # The dashboard's browser test (tests/dashboard/run.sh).
+  chromium chromium-driver python3-selenium
   sqlite3 iproute2
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio python3-yaml
   # TLS test certificates (tests/tls/make_certs.sh); libFuzzer targets:

@@ -161,28 +161,30 @@ function farmView() {
 // ---------------------------------------------------------------- job
 
 // The band map of one frame: a strip per band, its height its rows, its
-// colour its render time (pale: fast, dark red: slow); beside it the
+// colour its render time (the renderer's own seconds for the band, without
+// the network or the queue; pale: fast, dark red: slow); beside it the
 // predicted cost of each row from the localization preview.
+const renderSeconds = (b) => num((b.stats || {}).seconds_render);
 function bandMap(frame, onPick) {
   const maxH = 420, scale = Math.min(2, maxH / Math.max(1, frame.height));
   const bands = frame.bands || [];
-  const slowest = Math.max(1e-9, ...bands.map((b) => num(b.seconds)));
+  const slowest = Math.max(1e-9, ...bands.map(renderSeconds));
   const costliest = Math.max(1e-9, ...bands.map((b) => num(b.predicted_cost)));
   const map = el('div', {class: 'bandmap', id: 'bandmap'});
   for (const b of bands) {
     const h = Math.max(3, Math.round((b.y1 - b.y0) * scale));
-    const t = num(b.seconds) / slowest;
+    const t = renderSeconds(b) / slowest;
     const colour = b.state === 'done'
         ? `rgb(${255}, ${Math.round(235 - 200 * t)}, ${Math.round(180 - 160 * t)})`
         : (b.state === 'running' ? '#9cc3ea' : '#cfcfcb');
     const attempts = (b.attempts || []).length;
     const retried = attempts > 1 || (b.attempts || []).some((a) => a.outcome && a.outcome !== 'done');
     const label = `band ${b.band}: ${b.state}` +
-        (b.state === 'done' ? `, ${num(b.seconds).toFixed(2)} s by ${b.worker_name}` : '') +
+        (b.state === 'done' ? `, rendered in ${renderSeconds(b).toFixed(3)} s by ${b.worker_name}` : '') +
         (attempts > 1 ? `, ${attempts} attempts` : '');
     const strip = el('div', {class: 'strip' + (retried ? ' marked' : ''), title: label,
                              dataset: {band: b.band, state: b.state, retried: retried ? '1' : '0',
-                                       seconds: num(b.seconds)},
+                                       seconds: renderSeconds(b), cost: num(b.predicted_cost)},
                              style: `height:${h}px`, onclick: () => onPick(b)},
                      el('div', {class: 'time', style: `background:${colour}`},
                         h >= 12 ? el('span', {text: label}) : null),
@@ -213,7 +215,9 @@ function bandMap(frame, onPick) {
 
 async function bandDetail(job, frame, b, box) {
   const rows = [['rows', `${b.y0}-${b.y1}`], ['state', b.state],
-                ['worker', b.worker_name || '-'], ['seconds', num(b.seconds).toFixed(3)],
+                ['worker', b.worker_name || '-'],
+                ['render seconds', renderSeconds(b).toFixed(3)],
+                ['lease to result, seconds', num(b.seconds).toFixed(3)],
                 ['predicted cost', num(b.predicted_cost).toFixed(1)]];
   const s = b.stats || {};
   if (b.state === 'done') {
@@ -239,7 +243,9 @@ async function bandDetail(job, frame, b, box) {
   }
 }
 
-function jobView(jobId) {
+// `pinned`: the frame whose band map and image to show (#/job/J/F);
+// otherwise the frame in progress.
+function jobView(jobId, pinned) {
   const main = document.getElementById('main');
   const q = encodeURIComponent(jobId);
   const head = el('div');
@@ -328,9 +334,10 @@ function jobView(jobId) {
       if (thumbs.children.length !== num(j.frames_total)) {
         thumbs.replaceChildren();
         for (let f = j.frame_first; f <= j.frame_last; ++f) {
-          thumbs.append(el('a', {class: 'thumb', dataset: {frame: f},
-                                 href: `#/frame/${q}/${f}`},
-                           el('div', {class: 'ph'}), 'frame ' + f));
+          thumbs.append(el('div', {class: 'thumb', dataset: {frame: f}},
+                           el('div', {class: 'ph'}),
+                           link(`#/frame/${q}/${f}`, 'frame ' + f), ' ',
+                           link(`#/job/${q}/${f}`, 'bands')));
         }
       }
       for (const t of thumbs.children) {
@@ -342,11 +349,12 @@ function jobView(jobId) {
             .then(() => t.firstChild.replaceWith(img))
             .catch(() => thumbLoaded.delete(f));
       }
-      // The frame in progress: the lowest unwritten frame with work, else the last.
+      // The frame in progress: the lowest unwritten frame, else the last.
       let f = j.frame_last;
       for (let k = j.frame_first; k <= j.frame_last; ++k) {
         if (!written.has(k)) { f = k; break; }
       }
+      if (Number.isInteger(pinned) && pinned >= j.frame_first && pinned <= j.frame_last) f = pinned;
       await renderFrame(j, f);
       const ev = await api(`jobs/${q}/events?after=${after}`);
       for (const e of ev.events || []) {
@@ -452,7 +460,9 @@ function route() {
   const parts = hash.split('/').filter((p) => p);
   document.getElementById('main').hidden = false;
   document.getElementById('login').hidden = true;
-  if (parts[0] === 'job' && parts[1]) view = jobView(parts[1]);
+  if (parts[0] === 'job' && parts[1]) {
+    view = jobView(parts[1], parts[2] !== undefined ? Number(parts[2]) : undefined);
+  }
   else if (parts[0] === 'frame' && parts[1] && parts[2]) view = frameView(parts[1], Number(parts[2]));
   else if (parts[0] === 'worker' && parts[1]) view = workerView(parts[1]);
   else view = farmView();
