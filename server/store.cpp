@@ -488,12 +488,37 @@ Result<RecoveredState> JobStore::recover() {
   RecoveredState state;
   const double now = wall_now();
   {
+    // Each lease of the previous run ends in the job's history too, in one
+    // transaction with its outcome.
+    if (Status s = exec("BEGIN IMMEDIATE"); !s.ok()) return s;
+    struct Open {
+      std::string lease, job;
+      int frame, band;
+    };
+    std::vector<Open> open;
+    {
+      Statement st(*this, "SELECT lease_id, job_id, frame, band FROM attempts WHERE outcome IS NULL");
+      while (st.step() == SQLITE_ROW) {
+        open.push_back({st.text(0), st.text(1), static_cast<int>(st.integer(2)),
+                        static_cast<int>(st.integer(3))});
+      }
+    }
     Statement st(*this,
                  "UPDATE attempts SET ended_at = ?, outcome = 'void', "
                  "error = 'the coordinator restarted' WHERE outcome IS NULL");
     st.bind(now);
-    if (Status s = st.run(); !s.ok()) return s;
-    state.leases_voided = sqlite3_changes(db_);
+    Status s = st.run();
+    for (size_t i = 0; s.ok() && i < open.size(); ++i) {
+      s = add_history(open[i].job, open[i].frame, open[i].band,
+                      "lease " + open[i].lease +
+                          " void: the coordinator restarted; band back in the queue");
+    }
+    if (s.ok()) s = exec("COMMIT");
+    if (!s.ok()) {
+      exec("ROLLBACK");
+      return s;
+    }
+    state.leases_voided = static_cast<int64_t>(open.size());
   }
   {
     Statement st(*this, "SELECT value FROM meta WHERE key = 'next_worker'");

@@ -276,7 +276,19 @@ void WorkerClient::Impl::heartbeat_loop() {
     metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
     lk.lock();
     if (!gs.ok()) {
-      // The main loop reports outages and re-registers.
+      // The main loop reports outages and re-registers. An unknown worker
+      // (the coordinator restarted, or dropped this one) holds no lease
+      // any more: the band in hand is abandoned like a revoked one, so
+      // that its render stops and --abandon-grace applies.
+      if (gs.error_code() == grpc::StatusCode::NOT_FOUND && !lease_.empty() && !revoked_ &&
+          !sending_) {
+        revoked_ = true;
+        revoked_at_ = SteadyClock::now();
+        spdlog::info("lease {} void: the coordinator no longer knows this worker ({}); the band "
+                     "is abandoned",
+                     lease_, gs.error_message());
+        cv_.notify_all();
+      }
       lk.unlock();
       refused(rpc::FromGrpc(gs, peer_));
       lk.lock();
@@ -289,6 +301,7 @@ void WorkerClient::Impl::heartbeat_loop() {
         revoked_at_ = SteadyClock::now();
         spdlog::info("lease {} revoked (band cancelled, lapsed or hung); the band is abandoned",
                      id);
+        cv_.notify_all();
       }
     }
   }
@@ -379,7 +392,11 @@ void WorkerClient::Impl::handle(const BandLease& t) {
   BandLogCapture capture(t.job_id, t.frame, t.band);
   metrics_.band_started();
   if (o_.slow_band.count() > 0) {
-    pause(o_.slow_band);
+    {
+      // The test's slowness, like a render, ends when the band is revoked.
+      std::unique_lock lk(mu_);
+      cv_.wait_for(lk, o_.slow_band, [&] { return stopping_ || revoked_.load(); });
+    }
     bool stopping;
     {
       std::lock_guard lk(mu_);
