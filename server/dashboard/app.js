@@ -23,6 +23,14 @@ function el(tag, attrs, ...children) {
     else if (k === 'text') e.textContent = v;
     else if (k.startsWith('on')) e.addEventListener(k.slice(2), v);
     else if (k === 'dataset') Object.assign(e.dataset, v);
+    else if (k === 'style') {
+      // Through the CSSOM: the Content-Security-Policy refuses style
+      // attributes (style-src 'self').
+      for (const decl of String(v).split(';')) {
+        const at = decl.indexOf(':');
+        if (at > 0) e.style.setProperty(decl.slice(0, at).trim(), decl.slice(at + 1).trim());
+      }
+    }
     else e.setAttribute(k, v);
   }
   for (const c of children) {
@@ -161,19 +169,21 @@ function farmView() {
 // ---------------------------------------------------------------- job
 
 // The band map of one frame: a strip per band, its height its rows, its
-// colour its render time (the renderer's own seconds for the band, without
-// the network or the queue; pale: fast, dark red: slow); beside it the
+// colour its render time per row (the renderer's own seconds for the band,
+// without the network or the queue, over its rows: bands cut by predicted
+// cost have different heights; pale: fast, dark red: slow); beside it the
 // predicted cost of each row from the localization preview.
 const renderSeconds = (b) => num((b.stats || {}).seconds_render);
+const perRow = (b) => renderSeconds(b) / Math.max(1, b.y1 - b.y0);
 function bandMap(frame, onPick) {
   const maxH = 420, scale = Math.min(2, maxH / Math.max(1, frame.height));
   const bands = frame.bands || [];
-  const slowest = Math.max(1e-9, ...bands.map(renderSeconds));
+  const slowest = Math.max(1e-12, ...bands.map(perRow));
   const costliest = Math.max(1e-9, ...bands.map((b) => num(b.predicted_cost)));
   const map = el('div', {class: 'bandmap', id: 'bandmap'});
   for (const b of bands) {
     const h = Math.max(3, Math.round((b.y1 - b.y0) * scale));
-    const t = renderSeconds(b) / slowest;
+    const t = perRow(b) / slowest;
     const colour = b.state === 'done'
         ? `rgb(${255}, ${Math.round(235 - 200 * t)}, ${Math.round(180 - 160 * t)})`
         : (b.state === 'running' ? '#9cc3ea' : '#cfcfcb');
@@ -205,8 +215,9 @@ function bandMap(frame, onPick) {
   }
   return el('div', {class: 'row'},
             el('div', {}, el('div', {class: 'legend',
-                                     text: 'render time (pale fast, red slow) | predicted cost ' +
-                                           'of the band; dashed: retried or hung'}), map),
+                                     text: 'render time per row (pale fast, red slow) | ' +
+                                           'predicted cost of the band; dashed: retried or hung'}),
+               map),
             el('div', {}, el('div', {class: 'legend',
                                      text: costs.length ? 'predicted cost per row'
                                                         : 'no cost prediction (equal bands)'}),

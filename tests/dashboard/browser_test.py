@@ -212,6 +212,7 @@ def main():
         if strips:
             strips[0].click()
         wait_for(lambda: "Attempts" in driver.find_element(By.ID, "band-detail").text, 5)
+        driver.execute_script("document.getElementById('bandmap').scrollIntoView();")
         shot("bandmap")
 
         driver.get(a.url + "/#/worker/w0002")
