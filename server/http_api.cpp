@@ -283,6 +283,22 @@ bool HttpApi::allow(const std::string& remote) {
   return true;
 }
 
+HttpResponse HttpApi::reused(const std::string& key, const std::function<HttpResponse()>& make) {
+  const auto now = Clock::now();
+  {
+    std::lock_guard lk(reuse_mu_);
+    auto it = kept_.find(key);
+    if (it != kept_.end() && now - it->second.at < options_.reuse) return it->second.response;
+  }
+  HttpResponse r = make();
+  if (r.status == 200 && options_.reuse.count() > 0) {
+    std::lock_guard lk(reuse_mu_);
+    if (kept_.size() > 1000) kept_.clear();  // bounded: users x jobs being watched
+    kept_[key] = Kept{r, now};
+  }
+  return r;
+}
+
 HttpResponse HttpApi::handle(const HttpRequest& req) {
   HttpResponse r;
   try {
@@ -361,15 +377,26 @@ HttpResponse HttpApi::route(const HttpRequest& req, const std::vector<std::strin
   };
   if (p.empty()) return error(404, "NOT_FOUND", "no such API route; docs/http-api.md lists them");
 
-  // GET farm?since=V
+  // What one user may see is the same for all of that user's watchers.
+  const std::string who = caller.user + (caller.admin ? "|admin" : "|");
+  // GET farm?since=V: the snapshot, reused for options_.reuse; "unchanged"
+  // when the caller's cursor is the snapshot's version.
   if (p.size() == 1 && p[0] == "farm") {
     if (!get) return not_allowed();
-    v1::GetFarmRequest r;
     auto since = query_int("since", 0, INT64_MAX, 0);
     if (!since.ok()) return error(since.status());
-    r.set_since(static_cast<uint64_t>(*since));
-    v1::FarmSnapshot out;
-    return answer(h_.GetFarm(r, caller, &out), out);
+    const auto snapshot = [&] {
+      v1::FarmSnapshot out;
+      return answer(h_.GetFarm(v1::GetFarmRequest(), caller, &out), out);
+    };
+    HttpResponse r = reused("farm|" + who, snapshot);
+    if (r.status == 200 && *since > 0) {
+      const std::string mark = "\"version\":\"" + std::to_string(*since) + "\",";
+      if (r.body.rfind("{" + mark, 0) == 0) {
+        r.body = "{" + mark + "\"unchanged\":true,\"jobs\":[],\"workers\":[]}";
+      }
+    }
+    return r;
   }
   if (p.size() == 1 && p[0] == "jobs") {
     if (!get) return not_allowed();
@@ -402,10 +429,12 @@ HttpResponse HttpApi::route(const HttpRequest& req, const std::vector<std::strin
   const std::string& job = p[1];
   if (p.size() == 2) {
     if (!get) return not_allowed();
-    v1::GetJobRequest r;
-    r.set_job_id(job);
-    v1::JobStatus out;
-    return answer(h_.GetJob(r, caller, &out), out);
+    return reused("job|" + job + "|" + who, [&] {
+      v1::GetJobRequest r;
+      r.set_job_id(job);
+      v1::JobStatus out;
+      return answer(h_.GetJob(r, caller, &out), out);
+    });
   }
   const std::string& what = p[2];
   if (p.size() == 3 && (what == "events" || what == "logs")) {

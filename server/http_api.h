@@ -10,6 +10,7 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <string>
@@ -51,6 +52,10 @@ struct HttpOptions {
   size_t max_body = 64 * 1024;
   size_t max_path = 2048;
   int thumbnail_width = 160;  // thumbnails are at most this wide
+  // The farm's snapshot and a job's status, as JSON, are reused for this
+  // long by every watcher of the same user (a page polls once a second):
+  // 200 dashboards cost a few snapshots a second, not 200.
+  std::chrono::milliseconds reuse{250};
 };
 
 class HttpApi {
@@ -73,6 +78,9 @@ class HttpApi {
                      const farm::Caller& caller);
   HttpResponse image(const std::vector<std::string>& parts, const farm::Caller& caller);
   bool allow(const std::string& remote);
+  // The answer under `key` if made less than options_.reuse ago, else
+  // `make`'s (kept when it succeeded).
+  HttpResponse reused(const std::string& key, const std::function<HttpResponse()>& make);
 
   farm::Coordinator& c_;
   Handlers& h_;
@@ -84,6 +92,12 @@ class HttpApi {
     Clock::time_point at;
   };
   std::map<std::string, Bucket> buckets_;
+  std::mutex reuse_mu_;
+  struct Kept {
+    HttpResponse response;
+    Clock::time_point at;
+  };
+  std::map<std::string, Kept> kept_;
   std::mutex images_mu_;  // one image made at a time (they are cached)
 };
 
