@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "tests/fuzz/coordinator_target.h"
+#include "tests/fuzz/http_target.h"
 #include "tests/fuzz/fuzz_util.h"
 
 namespace locus::fuzz {
@@ -45,6 +46,7 @@ int replay(const std::string& dir, Target target) {
 TEST(FuzzRegression, NffInputs) { EXPECT_GE(replay("nff", fuzz_nff), 5); }
 TEST(FuzzRegression, SceneJsonInputs) { EXPECT_GE(replay("json", fuzz_scene_json), 4); }
 TEST(FuzzRegression, CoordinatorInputs) { EXPECT_GE(replay("coordinator", fuzz_coordinator), 3); }
+TEST(FuzzRegression, HttpInputs) { EXPECT_GE(replay("http", fuzz_http), 3); }
 
 }  // namespace
 }  // namespace locus::fuzz

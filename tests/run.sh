@@ -26,14 +26,14 @@ fi
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*'
+  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*'
 # libFuzzer targets (clang, ASan+UBSan): the NFF loader, the JSON scene
 # loader and the coordinator's request handling, each FUZZ_SECONDS (30) on
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and
 # leaves the input as build-fuzz/<target>-crash-* (docs/farm.md "Fuzzing").
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLOCUS_FUZZ=ON >/dev/null
-cmake --build build-fuzz -j "$(nproc)" --target fuzz_nff fuzz_scene_json fuzz_coordinator
-for pair in nff:nff scene_json:json coordinator:coordinator; do
+cmake --build build-fuzz -j "$(nproc)" --target fuzz_nff fuzz_scene_json fuzz_coordinator fuzz_http
+for pair in nff:nff scene_json:json coordinator:coordinator http:http; do
   target=fuzz_${pair%%:*} seeds=tests/fuzz/corpus/${pair##*:}
   mkdir -p "build-fuzz/corpus/$target"
   echo "fuzz: $target for ${FUZZ_SECONDS:-30} s"
