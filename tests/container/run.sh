@@ -10,6 +10,8 @@
 #     (linear float EXR, max error 0);
 #   - `locus workers` lists the two containers;
 #   - GET /metrics answers with every series docs/deploy.md lists;
+#   - the dashboard answers on its published HTTPS port: the page, 401
+#     without a token, the job with a client token;
 #   - Docker's HEALTHCHECK (`locus health`) says healthy, the worker's
 #     health service answers inside its container, logs are JSON lines
 #     with band ids, the containers run as uid 10001;
@@ -136,8 +138,9 @@ chmod 600 "$sec"/*
 free_port() { "$py" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 port=$(free_port)
 metrics_port=$(free_port)
+http_port=$(free_port)
 export LOCUS_SECRETS=$sec LOCUS_TAG=$tag LOCUS_PUBLISH=127.0.0.1 LOCUS_PORT=$port \
-  LOCUS_METRICS_PORT=$metrics_port LOCUS_LOG_FORMAT=json
+  LOCUS_METRICS_PORT=$metrics_port LOCUS_HTTP_PORT=$http_port LOCUS_LOG_FORMAT=json
 
 # ---- a coordinator and 2 workers
 compose_up=1
@@ -233,6 +236,33 @@ EOF
   ok "GET /metrics (127.0.0.1:$metrics_port) answers with every listed series"
 else
   bad "metrics"
+fi
+
+# ---- the dashboard through its published HTTPS port, with the TLS port's
+# certificate: the page for anyone, the API with a client token only
+if "$py" - "$http_port" "$tmp/tls/ca.pem" "$client_token" <<'EOF'; then
+import json, ssl, sys, urllib.error, urllib.request
+port, ca, token = sys.argv[1:4]
+ctx = ssl.create_default_context(cafile=ca)
+base = f"https://127.0.0.1:{port}"
+page = urllib.request.urlopen(base + "/", context=ctx, timeout=10)
+if "script-src 'self'" not in page.headers.get("Content-Security-Policy", ""):
+    sys.exit("the page has no Content-Security-Policy")
+try:
+    urllib.request.urlopen(base + "/api/v1/jobs", context=ctx, timeout=10)
+    sys.exit("the API answered without a token")
+except urllib.error.HTTPError as e:
+    if e.code != 401 or b"j0001" in e.read():
+        sys.exit(f"without a token: {e.code}")
+req = urllib.request.Request(base + "/api/v1/jobs", headers={"Authorization": "Bearer " + token})
+jobs = json.loads(urllib.request.urlopen(req, context=ctx, timeout=10).read())["jobs"]
+if not jobs or jobs[0]["state"] != "JOB_STATE_SUCCEEDED":
+    sys.exit(f"jobs: {jobs}")
+print(f"dashboard: {len(jobs)} job(s) over HTTPS")
+EOF
+  ok "the dashboard (https://127.0.0.1:$http_port): the page, 401 without a token, the job with one"
+else
+  bad "dashboard"
 fi
 
 # ---- health checks, logs, user

@@ -196,6 +196,16 @@ def main(argv):
           "Service: its selector does not select the coordinator's pods")
     check(not all(dep_labels.get(k) == v for k, v in selector.items()),
           "Service: its selector also selects the workers")
+    # The dashboard: --http on a container port, its startup probe on it.
+    if check("--http" in cf, "StatefulSet: no --http flag (the dashboard)"):
+        http = port_of(cf["--http"])
+        check(http in cports, f"StatefulSet: the --http port {http} is not a container port")
+        probe = coord.get("startupProbe", {}).get("httpGet", {})
+        target = probe.get("port")
+        target = {name: port for port, name in cports.items()}.get(target, target)
+        check(target == http, f"StatefulSet: the startupProbe is not on the --http port {http}")
+        check(probe.get("scheme") == ("HTTPS" if "--tls-cert" in cf else "HTTP"),
+              "StatefulSet: the startupProbe's scheme does not match the port's TLS")
     named = {name: port for port, name in cports.items()}
     svc_ports = {}
     for p in svc["spec"]["ports"]:
@@ -213,6 +223,9 @@ def main(argv):
               f"Deployment: --coordinator {host} is not the Service {service}")
         check(svc_ports.get(int(port)) == port_of(cf.get("--listen", ":0")),
               f"Deployment: port {port} of the Service does not reach the coordinator's --listen")
+    if "--http" in cf:
+        check(port_of(cf["--http"]) in svc_ports.values(),
+              "Service: no port reaches the coordinator's --http (the dashboard)")
     check(deploy["spec"].get("strategy", {}).get("rollingUpdate", {}).get("maxUnavailable", 1) == 0,
           "Deployment: a rolling update should keep every worker until its successor is ready")
 
