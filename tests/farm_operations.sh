@@ -178,29 +178,7 @@ workers_up() { [ "$(cli root workers 2>/dev/null | tail -n +2 | wc -l)" -ge "$1"
 wait_workers() { poll 20 workers_up "$1" || bad "fewer than $1 workers registered after 20 s"; }
 worker_up() { cli root workers 2>/dev/null | awk -v pid="$1" '$2 ~ (":" pid "$") {f = 1} END {exit !f}'; }
 
-# signal_busy SIG PID...: freezes each worker in turn and sends SIG to the
-# first one seen holding a band (frozen, it cannot finish it meanwhile);
-# sets $victim.
-victim=
-signal_busy() {
-  local sig=$1 p
-  shift
-  victim=
-  for _ in $(seq 100); do
-    for p in "$@"; do
-      kill -STOP "$p"
-      if holding_band "$p"; then
-        victim=$p
-        kill "-$sig" "$p"
-        kill -CONT "$p"
-        return 0
-      fi
-      kill -CONT "$p"
-    done
-    sleep 0.02
-  done
-  return 1
-}
+. "$(dirname "${BASH_SOURCE[0]}")/farm_lib.sh"  # signal_busy
 
 # freeze / thaw: the two ordinary workers stopped (SIGSTOP) around a CLI
 # action that must land mid-job however slow the CLI is on a loaded

@@ -20,6 +20,8 @@
 #include <thread>
 #include <vector>
 
+#include "tests/raw_http.h"
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -28,24 +30,8 @@ extern "C" void on_signal(int) { g_stop = true; }
 
 // One request and its whole answer ("" when the connection failed).
 std::string get(const sockaddr_in& to, const std::string& path, const std::string& token) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return "";
-  if (::connect(fd, reinterpret_cast<const sockaddr*>(&to), sizeof to) != 0) {
-    ::close(fd);
-    return "";
-  }
-  const std::string req = "GET " + path + " HTTP/1.1\r\nHost: bench\r\nAuthorization: Bearer " +
-                          token + "\r\nConnection: close\r\n\r\n";
-  ::send(fd, req.data(), req.size(), MSG_NOSIGNAL);
-  std::string out;
-  char buf[16384];
-  for (;;) {
-    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-    if (n <= 0) break;
-    out.append(buf, static_cast<size_t>(n));
-  }
-  ::close(fd);
-  return out;
+  return locus::testing::raw_http(to, "GET " + path + " HTTP/1.1\r\nHost: bench\r\nAuthorization: Bearer " +
+                                          token + "\r\nConnection: close\r\n\r\n");
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include "server/http_api.h"
 #include "server/http_server.h"
 #include "tests/farm_fixture.h"
+#include "tests/raw_http.h"
 
 namespace locus::farm::testing_farm {
 namespace {
@@ -248,32 +249,11 @@ TEST_F(HttpApiTest, FramesThumbnailsBandsAndTheFarmsCursor) {
 
 // A raw HTTP/1.1 exchange with 127.0.0.1:port: the whole answer.
 std::string http_exchange(int port, const std::string& request) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in a{};
   a.sin_family = AF_INET;
   a.sin_port = htons(static_cast<uint16_t>(port));
   a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
-    ::close(fd);
-    return "";
-  }
-  timeval tv{5, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  size_t sent = 0;
-  while (sent < request.size()) {
-    const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
-    if (n <= 0) break;
-    sent += static_cast<size_t>(n);
-  }
-  std::string out;
-  char buf[4096];
-  for (;;) {
-    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-    if (n <= 0) break;
-    out.append(buf, static_cast<size_t>(n));
-  }
-  ::close(fd);
-  return out;
+  return locus::testing::raw_http(a, request);
 }
 
 TEST_F(HttpApiTest, TheServerOnLoopbackAnswersAndSurvivesHostileRequests) {

@@ -113,27 +113,7 @@ wait_bands() {  # wait_bands JOB N: until N bands are done (10 s at most)
 sql() { sqlite3 -readonly "$data/locus.db" "$1"; }
 # holding_band PID: whether that worker holds a lease now (its name is host:pid).
 holding_band() { [ -n "$(sql "SELECT 1 FROM leases WHERE worker_name LIKE '%:$1' LIMIT 1")" ]; }
-# signal_busy SIG PID...: freezes each worker in turn and sends SIG to the
-# first one seen holding a band (frozen, it cannot finish it meanwhile);
-# sets $victim.
-signal_busy() {
-  local sig=$1 p; shift
-  victim=
-  for _ in $(seq 50); do
-    for p in "$@"; do
-      kill -STOP "$p"
-      if holding_band "$p"; then
-        victim=$p
-        kill "-$sig" "$p"
-        kill -CONT "$p"
-        return 0
-      fi
-      kill -CONT "$p"
-    done
-    sleep 0.02
-  done
-  return 1
-}
+. "$(dirname "${BASH_SOURCE[0]}")/../farm_lib.sh"  # signal_busy
 
 # The reference: one clean single-process render.
 "$bin/locus" render "$scene" "${job_args[@]}" --workers 0 -o "$tmp/ref/f_####.exr" 2>"$tmp/ref.log" ||
