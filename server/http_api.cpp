@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "common/base/image.h"
+#include "common/base/log.h"
 #include "server/dashboard_assets.h"
 
 namespace locus::rpc {
@@ -47,24 +48,19 @@ const CodeWords& words(Code code) {
   return kCodes[std::size(kCodes) - 1];
 }
 
+// A JSON string (log.h's escaping, which also mends invalid UTF-8), with
+// <, > and & as \u escapes so that no HTML can be read into it.
 std::string json_string(const std::string& s) {
   std::string out = "\"";
-  for (unsigned char c : s) {
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      default:
-        if (c < 0x20 || c == '<' || c == '>' || c == '&') {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += static_cast<char>(c);
-        }
+  for (const char c : json_escape(s)) {
+    if (c == '<') {
+      out += "\\u003c";
+    } else if (c == '>') {
+      out += "\\u003e";
+    } else if (c == '&') {
+      out += "\\u0026";
+    } else {
+      out += c;
     }
   }
   return out + "\"";
