@@ -2,6 +2,7 @@
 
 #include <civetweb.h>
 #include <spdlog/spdlog.h>
+#include <dlfcn.h>
 #include <sys/stat.h>
 
 #include <cstring>
@@ -84,6 +85,17 @@ Result<std::unique_ptr<HttpServer>> HttpServer::start(const HttpServerOptions& o
     }
     ::umask(old);
     ::chmod(s->pem_.c_str(), 0600);
+    // civetweb loads OpenSSL itself, by its unversioned names: say so
+    // plainly when they are missing instead of failing to serve.
+    for (const char* lib : {"libssl.so", "libcrypto.so"}) {
+      void* h = ::dlopen(lib, RTLD_LAZY);
+      if (!h) {
+        return FailedPrecondition(std::string("--http with TLS: civetweb needs ") + lib +
+                                  ", which this host lacks (install libssl-dev, or link it to "
+                                  "the versioned library, e.g. libssl.so.3)");
+      }
+      ::dlclose(h);
+    }
     ports += "s";
     s->tls_ = true;
   }
