@@ -15,6 +15,9 @@ PACKAGES=(
   chromium chromium-driver python3-selenium
   sqlite3 iproute2
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio python3-yaml
+  # The Python client (client/python, docs/python.md); its stubs come from
+  # protobuf-compiler-grpc's grpc_python_plugin, above.
+  python3-grpcio python3-protobuf
   # TLS test certificates (tests/tls/make_certs.sh); libFuzzer targets:
   # clang, and libFuzzer itself (libclang_rt.fuzzer) from libclang-rt-14-dev.
   openssl clang libclang-rt-14-dev
