@@ -108,7 +108,6 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   if (o.dashboard) {
     rpc::HttpServerOptions http;
     http.address = "127.0.0.1:0";
-    http.scratch_dir = farm->dir_;
     auto dashboard = farm->server_->serve_http(http);
     if (!dashboard.ok()) return dashboard.status();
     farm->dashboard_url_ =

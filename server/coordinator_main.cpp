@@ -245,7 +245,6 @@ Result<std::unique_ptr<farm::MetricsEndpoint>> serve_operations(
   if (!f.http_address.empty()) {
     locus::rpc::HttpServerOptions o;
     o.address = f.http_address;
-    o.scratch_dir = f.data;
     locus::rpc::HttpOptions api;
     api.rate = f.http_rate;
     api.burst = 2 * f.http_rate;

@@ -363,7 +363,7 @@ Result<int> CoordinatorServer::start(const std::string& address, ServerSecurity 
 
 Result<int> CoordinatorServer::serve_http(HttpServerOptions options, HttpOptions api) {
   if (!server_) return FailedPrecondition("serve_http() before start()");
-  options.tls_cert = tls_cert_;
+  options.tls_cert = tls_cert_;  // the same certificate as the gRPC port
   options.tls_key = tls_key_;
   http_api_ = std::make_unique<HttpApi>(coordinator_, handlers_, auth_, api);
   auto http = HttpServer::start(options, *http_api_);

@@ -1,5 +1,5 @@
 // The coordinator's HTTP face (issue #24): the dashboard's pages and its
-// JSON API, as a plain function of a request: no sockets (the civetweb
+// JSON API, as a plain function of a request: no sockets (the cpp-httplib
 // adapter is server/http_server.cpp), so tests and the fuzzer call it
 // directly. Every API route is a ClientService RPC: its request message is
 // built from the path, the query and the JSON body, handed to the same

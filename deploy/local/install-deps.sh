@@ -9,8 +9,8 @@ PACKAGES=(
   libglm-dev libopenimageio-dev openimageio-tools libspdlog-dev libgtest-dev libcli11-dev
   libtinyobjloader-dev libsqlite3-dev libssl-dev
   # Metrics (prometheus-cpp: core and the pull endpoint); the dashboard's
-  # HTTP server (civetweb, which prometheus-cpp's pull endpoint also uses).
-  prometheus-cpp-dev libcivetweb-dev
+  # HTTP server (cpp-httplib, header-only, on OpenSSL).
+  prometheus-cpp-dev libcpp-httplib-dev
   # The dashboard's browser test (tests/dashboard/run.sh).
   chromium chromium-driver python3-selenium
   sqlite3 iproute2

@@ -94,6 +94,40 @@ in_ns /usr/bin/python3 "$src/tests/dashboard/browser_test.py" --url http://127.0
   --farm $farm --bin "$bin" --tokens "$tmp" --job "$job" --hung-pid "$hung" --out "$out" \
   --work "$tmp"
 rc=$?
+
+# HTTPS: a second coordinator with TLS serves the dashboard with the gRPC
+# port's certificate (made here); the page, 401 without a token, data with.
+bash "$src/tests/tls/make_certs.sh" "$tmp/tls" >/dev/null 2>&1 || fail "make_certs.sh"
+in_ns "$bin/locus-coordinator" --listen 127.0.0.1:7071 --http 127.0.0.1:7081 --data "$tmp/data-tls" \
+  --tls-cert "$tmp/tls/server.pem" --tls-key "$tmp/tls/server.key" \
+  --client-tokens "$tmp/clients" --worker-tokens "$tmp/worker.tok" >/dev/null 2>"$tmp/tls.log" &
+pids+=($!)
+if in_ns /usr/bin/python3 - "$tmp/tls/ca.pem" "$(cat "$tmp/ann.tok")" <<'PY'; then
+import json, ssl, sys, time, urllib.error, urllib.request
+ctx = ssl.create_default_context(cafile=sys.argv[1])
+base = "https://127.0.0.1:7081"
+for _ in range(100):
+    try:
+        page = urllib.request.urlopen(base + "/", context=ctx, timeout=5)
+        break
+    except OSError:
+        time.sleep(0.1)
+else:
+    sys.exit("the TLS coordinator's dashboard did not answer")
+assert "script-src 'self'" in page.headers["Content-Security-Policy"]
+try:
+    urllib.request.urlopen(base + "/api/v1/farm", context=ctx, timeout=5)
+    sys.exit("data without a token")
+except urllib.error.HTTPError as e:
+    assert e.code == 401, e.code
+req = urllib.request.Request(base + "/api/v1/farm", headers={"Authorization": "Bearer " + sys.argv[2]})
+farm = json.loads(urllib.request.urlopen(req, context=ctx, timeout=5).read())
+assert farm["jobs"] == [], farm
+PY
+  echo "ok: HTTPS with the gRPC port's certificate: the page, 401 without a token, the farm with one"
+else
+  echo "FAILED: the dashboard over HTTPS"; tail -5 "$tmp/tls.log"; rc=1
+fi
 if [ $rc -ne 0 ]; then
   echo "--- coordinator log (tail)"; tail -n 30 "$tmp/coordinator.log"
   echo "--- workers log (tail)"; tail -n 30 "$tmp/workers.log"
