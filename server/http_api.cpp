@@ -339,6 +339,12 @@ HttpResponse HttpApi::handle(const HttpRequest& req) {
           r = error(403, "PERMISSION_DENIED", "a request from another origin is refused");
         } else {
           r = route(req, std::vector<std::string>(parts.begin() + 2, parts.end()), *caller);
+          if (req.method == "POST" && r.status == 200) {
+            // An action changed the farm: what was kept is stale for
+            // everyone (a script reading the job right after sees it).
+            std::lock_guard lk(reuse_mu_);
+            kept_.clear();
+          }
           if (r.status == 403) {
             spdlog::warn("http: {} {} by {}: permission denied", req.method,
                          req.path.substr(0, 64), caller->user);

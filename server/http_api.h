@@ -54,7 +54,8 @@ struct HttpOptions {
   int thumbnail_width = 160;  // thumbnails are at most this wide
   // The farm's snapshot and a job's status, as JSON, are reused for this
   // long by every watcher of the same user (a page polls once a second):
-  // 200 dashboards cost a few snapshots a second, not 200.
+  // 200 dashboards cost a few snapshots a second, not 200. An action
+  // through the API forgets them at once.
   std::chrono::milliseconds reuse{250};
 };
 

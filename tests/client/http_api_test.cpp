@@ -103,9 +103,12 @@ TEST_F(HttpApiTest, NoTokenNoDataAndTheActionsFollowTheOwnersRules) {
   EXPECT_NE(denied.body.find("PERMISSION_DENIED"), std::string::npos);
   EXPECT_NE(denied.body.find("belongs to ann"), std::string::npos) << denied.body;
   EXPECT_EQ(call("POST", "/api/v1/jobs/" + job + "/cancel", kBob).status, 403);
+  EXPECT_NE(call("GET", "/api/v1/jobs/" + job).body.find("JOB_STATE_QUEUED"), std::string::npos);
   const rpc::HttpResponse paused = call("POST", "/api/v1/jobs/" + job + "/pause");
   ASSERT_EQ(paused.status, 200) << paused.body;
   EXPECT_NE(paused.body.find("JOB_STATE_PAUSED"), std::string::npos) << paused.body;
+  // Read at once after the action: not the status kept from before it.
+  EXPECT_NE(call("GET", "/api/v1/jobs/" + job).body.find("JOB_STATE_PAUSED"), std::string::npos);
   EXPECT_EQ(call("POST", "/api/v1/jobs/" + job + "/resume", kRoot).status, 200);
   EXPECT_EQ(call("POST", "/api/v1/jobs/" + job + "/priority", kAnn, R"({"priority": 80})").status,
             200);
