@@ -285,6 +285,10 @@ class Scheduler {
     return job.info.spec.frame_first + job_band / job.info.spec.bands;
   }
   int band_of(const Job& job, int job_band) const { return job_band % job.info.spec.bands; }
+  // The job band (the index into Job::bands) of band `band` of `frame`.
+  static int64_t job_band_of(const JobSpec& s, int frame, int band) {
+    return static_cast<int64_t>(frame - s.frame_first) * s.bands + band;
+  }
   std::string band_name(const Job& job, int job_band) const;
 
   SchedulerOptions options_;

@@ -13,11 +13,6 @@
 namespace locus::farm {
 namespace {
 
-// The job band (the index into Job::bands) of band `band` of `frame`.
-int64_t job_band_of(const JobSpec& s, int frame, int band) {
-  return static_cast<int64_t>(frame - s.frame_first) * s.bands + band;
-}
-
 // A store row names a band of this job (a damaged row may not).
 bool in_job(const JobSpec& s, int frame, int band) {
   return frame >= s.frame_first && frame <= s.frame_last && band >= 0 && band < s.bands;

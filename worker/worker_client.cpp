@@ -73,6 +73,16 @@ class WorkerClient::Impl {
   // Exits (o_.on_wedged) when a revoked band's render outlives
   // abandon_grace; mu_ held through `lk`.
   void check_wedged(std::unique_lock<std::mutex>& lk);
+  // The coordinator took the band in hand (lease `id`) back: its render
+  // stops (the cancellation flag, and the test's slowness), its result is
+  // not sent, and --abandon-grace starts; mu_ held.
+  void abandon_locked(const std::string& id, const std::string& why) {
+    if (id.empty() || id != lease_ || revoked_ || sending_) return;
+    revoked_ = true;
+    revoked_at_ = SteadyClock::now();
+    spdlog::info("lease {} {}; the band is abandoned", id, why);
+    cv_.notify_all();
+  }
   // Renders the leased band and returns it (or gives it back when stopping).
   void handle(const BandLease& band);
   // Nothing when the scene is at hand; otherwise how the band ended.
@@ -280,14 +290,9 @@ void WorkerClient::Impl::heartbeat_loop() {
       // (the coordinator restarted, or dropped this one) holds no lease
       // any more: the band in hand is abandoned like a revoked one, so
       // that its render stops and --abandon-grace applies.
-      if (gs.error_code() == grpc::StatusCode::NOT_FOUND && !lease_.empty() && !revoked_ &&
-          !sending_) {
-        revoked_ = true;
-        revoked_at_ = SteadyClock::now();
-        spdlog::info("lease {} void: the coordinator no longer knows this worker ({}); the band "
-                     "is abandoned",
-                     lease_, gs.error_message());
-        cv_.notify_all();
+      if (gs.error_code() == grpc::StatusCode::NOT_FOUND) {
+        abandon_locked(lease_, "void: the coordinator no longer knows this worker (" +
+                                   gs.error_message() + ")");
       }
       lk.unlock();
       refused(rpc::FromGrpc(gs, peer_));
@@ -296,13 +301,7 @@ void WorkerClient::Impl::heartbeat_loop() {
     }
     if (resp.drain()) drain_locked();
     for (const std::string& id : resp.revoked_lease_ids()) {
-      if (id == lease_ && !revoked_ && !sending_) {
-        revoked_ = true;
-        revoked_at_ = SteadyClock::now();
-        spdlog::info("lease {} revoked (band cancelled, lapsed or hung); the band is abandoned",
-                     id);
-        cv_.notify_all();
-      }
+      abandon_locked(id, "revoked (band cancelled, lapsed or hung)");
     }
   }
 }
