@@ -421,6 +421,10 @@ scenario5() {
     bad "[5] the first hung worker did not hear that its band is void"
   kill -9 "$h1"
   wait "$h1" 2>/dev/null
+  # The ordinary workers back first (gRPC's reconnect backoff takes up to
+  # several seconds): with the hung worker alone, a farm of one, its band
+  # would go back to it until the attempt limit fails the job.
+  poll 20 worker_up "$w1" && poll 20 worker_up "$w2" || bad "[5] the workers did not come back"
   start_worker hung2 600000 --abandon-grace 600
   h2=$last_worker
   poll 40 job_is "$T" succeeded || bad "[5] $T: $(state_of "$T") after 40 s"
