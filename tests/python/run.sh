@@ -60,7 +60,10 @@ start_coordinator coord --insecure --lease-ms 3000 --heartbeat-ms 300
 farm_port=$port
 # A TLS coordinator without workers, for the client's TLS rules.
 bash "$src/tests/tls/make_certs.sh" "$tmp/tls"
-start_coordinator tls --tls-cert "$tmp/tls/server.pem" --tls-key "$tmp/tls/server.key"
+# gRPC's handshake trace, so that a failed TLS handshake says why on the
+# server's side too (CI once saw "Handshake read failed" from the client).
+GRPC_VERBOSITY=DEBUG GRPC_TRACE=handshaker \
+  start_coordinator tls --tls-cert "$tmp/tls/server.pem" --tls-key "$tmp/tls/server.key"
 tls_port=$port
 for i in 1 2; do
   LOCUS_TOKEN=$worker "$bin/locus-worker" --coordinator "127.0.0.1:$farm_port" --threads 1 \
@@ -81,7 +84,9 @@ rc=$?
 if [ $rc -ne 0 ]; then
   echo "---- coordinator log (last 40 lines)"
   tail -40 "$tmp/coord.log"
-  echo "---- TLS coordinator log (last 10 lines)"
-  tail -10 "$tmp/tls.log"
+  echo "---- TLS coordinator log (last 80 lines)"
+  tail -80 "$tmp/tls.log"
+  echo "---- sockets on the TLS port $tls_port"
+  ss -tanp | grep -F ":$tls_port " || true
 fi
 exit $rc
