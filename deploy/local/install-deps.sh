@@ -24,6 +24,10 @@ PACKAGES=(
   # Containers (tests/container/run.sh, deploy/): the engine, compose, and
   # debootstrap for the base image (deploy/docker/make-base.sh).
   docker.io docker-compose debootstrap
+  # Workers on Slurm (deploy/slurm/, tests/slurm/run.sh): a one-node Slurm
+  # started by the test itself (controller, node daemon, sbatch/srun/scancel)
+  # and munge for its authentication.
+  munge slurmctld slurmd slurm-client
 )
 
 missing=()
