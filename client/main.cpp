@@ -24,6 +24,7 @@
 #include "client/progress.h"
 #include "common/base/log.h"
 #include "common/farm/auth.h"
+#include "common/farm/movie.h"
 #include "common/render.h"
 #include "common/scene/animation.h"
 #include "common/scene/scene_io.h"
@@ -46,6 +47,10 @@ struct JobArgs {
   std::string frames;
   double orbit = 0;
   int bands = 0;
+  // --movie: the frames as a movie (.mp4, .webm, .gif) at --fps, once all
+  // are written (common/farm/movie.h).
+  std::string movie;
+  int fps = 0;
 };
 
 struct RenderArgs {
@@ -141,6 +146,15 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
     return InvalidArgument("--bands " + std::to_string(a.bands) + ": the frame has only " +
                            std::to_string(r.height) + " rows; a band is at least one row");
   }
+  if (!a.movie.empty()) {
+    const std::string name = fs::path(a.movie).filename().string();
+    if (Status s = farm::check_movie(name, a.fps, a.output); !s.ok()) {
+      return InvalidArgument("--movie " + a.movie + ": " + s.message());
+    }
+    // The farm gets the file name alone, like the frames'.
+    r.movie = name;
+    r.fps = a.fps > 0 ? a.fps : farm::kDefaultFps;
+  }
   if (for_farm) r.scene = scene_to_proto(job.scene);
   return job;
 }
@@ -157,6 +171,25 @@ void make_parent_dirs(const std::string& path) {
   std::error_code ec;
   const fs::path parent = fs::path(path).parent_path();
   if (!parent.empty()) fs::create_directories(parent, ec);
+}
+
+// --movie of `locus render --workers 0`: the frames just written, made
+// into the movie here, as a farm's coordinator would.
+Status make_movie_here(const JobArgs& a, const farm::SubmitRequest& r) {
+  farm::MovieInput in;
+  const fs::path frames(a.output);
+  in.frames_dir = frames.has_parent_path() ? frames.parent_path().string() : ".";
+  in.pattern = frames.filename().string();
+  in.first = r.frame_first;
+  in.last = r.frame_last;
+  in.fps = r.fps;
+  in.out_path = a.movie;
+  make_parent_dirs(a.movie);
+  auto made = farm::assemble_movie(in, nullptr);
+  if (!made.ok()) return made.status();
+  spdlog::info("movie {} written ({} frames at {} fps, {} bytes)", a.movie,
+               r.frame_last - r.frame_first + 1, r.fps, *made);
+  return Status::Ok();
 }
 
 // --workers 0: every frame rendered here, through the same frame_scene()
@@ -184,6 +217,9 @@ int render_in_process(const RenderArgs& a) {
   spdlog::info("rendered {} ({}x{}, {} frame{}) in {:.3f} s -> {}", a.job.scene, r.width, r.height,
                r.frame_last - r.frame_first + 1, r.frame_last > r.frame_first ? "s" : "", seconds,
                a.job.output);
+  if (!a.job.movie.empty()) {
+    if (Status st = make_movie_here(a.job, r); !st.ok()) return fail(st);
+  }
   return 0;
 }
 
@@ -206,6 +242,18 @@ int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted,
                           [&](int frame, const std::string&) { return frame_path(output, frame); });
   if (!files.ok()) return fail(files.status());
   return 0;
+}
+
+// The movie job of a render job that follow_and_fetch() saw succeed:
+// followed too, and its file fetched to `movie` (the client's path).
+int follow_movie(client::FarmClient& farm, const farm::JobInfo& render, const std::string& movie) {
+  if (movie.empty()) return 0;
+  if (render.movie_job.empty()) return fail("job " + render.job_id + " has no movie job");
+  auto job = farm.job(render.movie_job);
+  if (!job.ok()) return fail(job.status());
+  std::fprintf(stderr, "locus: job %s makes the movie %s\n", job->job_id.c_str(), movie.c_str());
+  make_parent_dirs(movie);
+  return follow_and_fetch(farm, *job, movie, false, nullptr);
 }
 
 int render_on_local_farm(const RenderArgs& a, int workers) {
@@ -238,8 +286,8 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     return fail(submitted.status());
   }
   farm::JobInfo info;
-  const int rc =
-      follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info);
+  int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info);
+  if (rc == 0) rc = follow_movie(farm, info, a.job.movie);
   if (rc != 0) (*local)->keep_logs();
   const std::string logs = (*local)->dir();
   local->reset();
@@ -289,6 +337,7 @@ struct SubmitArgs {
   double band_timeout = 0;  // seconds; 0: the coordinator's
   std::vector<std::string> require;
   std::vector<std::string> after;
+  std::string notify_url;
 };
 
 int run_submit(const std::string& address, const farm::Credentials& creds, const SubmitArgs& a) {
@@ -300,6 +349,7 @@ int run_submit(const std::string& address, const farm::Credentials& creds, const
   job->request.frame_order = a.frame_order;
   job->request.require = a.require;
   job->request.after = a.after;
+  job->request.notify_url = a.notify_url;
   job->request.band_timeout =
       farm::Millis(static_cast<int64_t>(std::llround(a.band_timeout * 1000)));
   client::FarmClient farm(address, creds);
@@ -307,8 +357,14 @@ int run_submit(const std::string& address, const farm::Credentials& creds, const
   if (!submitted.ok()) return fail(submitted.status());
   std::printf("%s\n", submitted->job_id.c_str());
   std::fflush(stdout);
+  if (!submitted->movie_job.empty()) {
+    std::fprintf(stderr, "locus: job %s makes the movie %s after it\n",
+                 submitted->movie_job.c_str(), job->request.movie.c_str());
+  }
   if (!a.wait) return 0;
-  return follow_and_fetch(farm, *submitted, a.job.output, true, nullptr);
+  farm::JobInfo info;
+  const int rc = follow_and_fetch(farm, *submitted, a.job.output, true, &info);
+  return rc != 0 ? rc : follow_movie(farm, info, a.job.movie);
 }
 
 void print_job(const farm::JobInfo& j) {
@@ -316,8 +372,20 @@ void print_job(const farm::JobInfo& j) {
   std::printf("  owner    %s, priority %d%s\n", j.spec.owner.empty() ? "-" : j.spec.owner.c_str(),
               j.spec.priority,
               j.spec.frame_order == farm::FrameOrder::kInOrder ? "" : ", frames first-middle-last");
-  std::printf("  scene    %s, %dx%d, frames %d-%d, %d bands per frame\n", j.spec.scene_name.c_str(),
-              j.spec.width, j.spec.height, j.spec.frame_first, j.spec.frame_last, j.spec.bands);
+  if (j.spec.kind == farm::JobKind::kMovie) {
+    std::printf("  movie    %s of the frames of job %s, at %d fps (made by the coordinator)\n",
+                j.spec.output.c_str(), j.spec.after.empty() ? "?" : j.spec.after[0].c_str(),
+                j.spec.fps);
+  } else {
+    std::printf("  scene    %s, %dx%d, frames %d-%d, %d bands per frame\n",
+                j.spec.scene_name.c_str(), j.spec.width, j.spec.height, j.spec.frame_first,
+                j.spec.frame_last, j.spec.bands);
+  }
+  if (!j.movie_job.empty()) {
+    std::printf("  movie    %s at %d fps, by job %s\n", j.spec.movie.c_str(), j.spec.fps,
+                j.movie_job.c_str());
+  }
+  if (!j.spec.notify_url.empty()) std::printf("  notify   %s\n", j.spec.notify_url.c_str());
   std::printf("  progress %lld/%lld bands, %d/%d frames written, %s elapsed\n",
               static_cast<long long>(j.bands_done), static_cast<long long>(j.spec.bands_total()),
               j.frames_done, j.spec.frames(), client::format_duration(j.seconds_elapsed).c_str());
@@ -376,7 +444,12 @@ int run_status(const std::string& address, const farm::Credentials& creds,
     std::printf("%-8s %-10s %-4d %-12s %-13s %-15s %-10s %s\n", j.job_id.c_str(),
                 farm::job_state_name(j.state), j.spec.priority,
                 j.spec.owner.empty() ? "-" : j.spec.owner.c_str(), frames.c_str(), bands.c_str(),
-                client::format_duration(j.seconds_elapsed).c_str(), j.spec.scene_name.c_str());
+                client::format_duration(j.seconds_elapsed).c_str(),
+                j.spec.kind == farm::JobKind::kMovie
+                    ? ("movie " + j.spec.output + " of " +
+                       (j.spec.after.empty() ? std::string("?") : j.spec.after[0]))
+                          .c_str()
+                    : j.spec.scene_name.c_str());
   }
   std::printf("\n%-12s %14s %12s %12s %12s\n", "USER", "BAND-SECONDS", "FAILED", "LOST",
               "CPU-SECONDS");
@@ -562,6 +635,12 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
                   "The camera orbits `at` about `up` by DEG degrees over the frames");
   cmd->add_option("--bands", a.bands, "Bands per frame (default: several per worker)")
       ->check(CLI::Range(1, 1 << 20));
+  cmd->add_option("--movie", a.movie,
+                  "Also make a movie of the frames once all are written: FILE.mp4 (H.264, "
+                  "yuv420p), .webm (VP9) or .gif; the frames must be PNG or TIFF. On a farm the "
+                  "coordinator makes it, as a job of its own after this one");
+  cmd->add_option("--fps", a.fps, "The movie's frames per second (default 24)")
+      ->check(CLI::Range(1, farm::kMaxFps));
 }
 
 std::string default_farm() {
@@ -635,6 +714,10 @@ int main(int argc, char** argv) {
                    "Job ids (comma-separated or repeated) this job waits for: it starts when "
                    "all have succeeded and fails if one fails or is cancelled")
       ->delimiter(',');
+  submit->add_option("--notify-url", sa.notify_url,
+                     "POST the job's final status as JSON to this URL when it ends (with --movie, "
+                     "when the movie is made), retried with back-off; the coordinator's "
+                     "--notify-urls must allow it");
 
   std::string job_id, dir;
   auto* status = app.add_subcommand("status", "Show one job, or list them all");

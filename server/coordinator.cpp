@@ -15,6 +15,7 @@
 
 #include "common/base/image.h"
 #include "common/base/log.h"
+#include "common/farm/movie.h"
 #include "common/scene/animation.h"
 #include "server/band_files.h"
 #include "server/metrics.h"
@@ -55,6 +56,7 @@ Status Coordinator::start() {
   started_ = true;
   ticker_ = std::thread([this] { tick_loop(); });
   writer_ = std::thread([this] { write_loop(); });
+  movie_maker_ = std::thread([this] { movie_loop(); });
   return Status::Ok();
 }
 
@@ -112,6 +114,11 @@ Status Coordinator::recover() {
       return FailedPrecondition(db + ": " + st.message());
   }
   for (FrameReady& f : scheduler_.restore(*state)) to_write_.push_back(std::move(f));
+  // Ends still to be told when the previous run stopped.
+  for (const RecoveredJob& j : state->jobs) {
+    if (!j.notify_pending || !job_ended_ || !is_terminal(j.state)) continue;
+    if (auto info = scheduler_.job(j.record.job_id); info.ok()) job_ended_(*info);
+  }
   for (const auto& [hash, scene] : scenes_) scenes_stored_.insert(hash);
   if (!state->jobs.empty()) {
     spdlog::info("job store {}: {} jobs, {} leases of the previous run voided, {} frames to write",
@@ -121,12 +128,40 @@ Status Coordinator::recover() {
 }
 
 Status Coordinator::persist() {
-  const std::vector<Event> events = scheduler_.take_events();
+  std::vector<Event> events = scheduler_.take_events();
   if (crashed_) return Status(Code::kAborted, "crashed (test)");
   metrics_->observe(events);
+  // A job that ends and is to be told so: pending in the same transaction.
+  std::vector<JobInfo> ended;
+  if (job_ended_) {
+    const size_t n = events.size();
+    for (size_t i = 0; i < n; ++i) {
+      const auto* c = std::get_if<event::JobStateChanged>(&events[i]);
+      if (!c || !is_terminal(c->state)) continue;
+      auto info = scheduler_.job(c->job_id);
+      if (!info.ok() || (!notify_every_job_ && info->spec.notify_url.empty())) continue;
+      events.push_back(event::JobNotified{c->job_id, event::NotifyPhase::kPending, ""});
+      ended.push_back(std::move(*info));
+    }
+  }
   Status s = store_ ? store_->apply(events) : Status::Ok();
   if (!s.ok()) spdlog::error("{} ({} changes not recorded)", s.message(), events.size());
+  for (const JobInfo& j : ended) job_ended_(j);
   return s;
+}
+
+void Coordinator::on_job_ended(std::function<void(const JobInfo&)> fn, bool every_job) {
+  std::lock_guard lk(mu_);
+  job_ended_ = std::move(fn);
+  notify_every_job_ = every_job;
+}
+
+void Coordinator::record_notified(const std::string& job_id, const std::string& text, bool done) {
+  std::lock_guard lk(mu_);
+  if (crashed_ || !store_) return;
+  const event::JobNotified e{job_id, done ? event::NotifyPhase::kDone : event::NotifyPhase::kNote,
+                             text};
+  if (Status s = store_->apply({e}); !s.ok()) spdlog::error("{}", s.message());
 }
 
 LatencySummary Coordinator::dispatch_latency() {
@@ -189,6 +224,7 @@ void Coordinator::shutdown() {
   write_ready_.notify_all();
   if (ticker_.joinable()) ticker_.join();
   if (writer_.joinable()) writer_.join();
+  if (movie_maker_.joinable()) movie_maker_.join();
   std::lock_guard lk(mu_);
   const LatencySummary d = dispatch_.summary();
   if (d.count > 0) {
@@ -214,6 +250,7 @@ void Coordinator::crash_for_test() {
   write_ready_.notify_all();
   if (ticker_.joinable()) ticker_.join();
   if (writer_.joinable()) writer_.join();
+  if (movie_maker_.joinable()) movie_maker_.join();
   // Closing the connection checkpoints nothing that a reopen would not
   // recover from the WAL anyway.
   std::lock_guard lk(mu_);
@@ -316,6 +353,75 @@ void Coordinator::write_loop() {
   }
 }
 
+void Coordinator::movie_loop() {
+  std::unique_lock lk(mu_);
+  while (!stopping_) {
+    std::optional<Scheduler::MovieTask> task;
+    if (!draining_) task = scheduler_.next_movie();
+    if (!task) {
+      // Woken by every change (a render job that succeeds among them); a
+      // movie backing off is looked at again when its time comes.
+      auto wait = Millis(1000);
+      if (auto at = scheduler_.next_movie_time()) {
+        wait = std::clamp(std::chrono::duration_cast<Millis>(*at - options_.now()), Millis(10),
+                          wait);
+      }
+      changed_.wait_for(lk, wait);
+      continue;
+    }
+    persist();
+    changed_.notify_all();
+    const std::string dir = job_dir(task->job_id);
+    MovieInput in;
+    in.frames_dir = job_dir(task->source_id);
+    in.pattern = task->source.output;
+    in.first = task->source.frame_first;
+    in.last = task->source.frame_last;
+    in.fps = task->movie.fps;
+    in.out_path = (fs::path(dir) / task->movie.output).string();
+    lk.unlock();
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    // Stopped when the job no longer wants it (cancelled, deleted,
+    // reopened) or the coordinator stops: a stop leaves the job running in
+    // the store, and the next start makes the movie again.
+    auto made = assemble_movie(in, [&] {
+      std::lock_guard g(mu_);
+      return stopping_ || !scheduler_.movie_wanted(task->job_id, task->run);
+    });
+    lk.lock();
+    if (stopping_ && !made.ok()) break;
+    const Status st = made.ok() ? Status::Ok() : made.status();
+    if (made.ok()) {
+      spdlog::info("job {}: movie {} written ({} bytes, frames {}-{} of job {})", task->job_id,
+                   in.out_path, *made, in.first, in.last, task->source_id);
+    }
+    scheduler_.movie_done(task->job_id, task->run, st);
+    persist();
+    changed_.notify_all();
+  }
+}
+
+JobSpec Coordinator::movie_spec(const JobSpec& render, const std::string& render_id) const {
+  JobSpec m;
+  m.kind = JobKind::kMovie;
+  m.scene_hash = render.scene_hash;
+  m.scene_name = render.scene_name;
+  m.width = render.width;
+  m.height = render.height;
+  m.frame_first = m.frame_last = 1;  // one output: the movie
+  m.bands = 0;
+  m.output = render.movie;
+  m.fps = render.fps;
+  m.priority = render.priority;
+  m.owner = render.owner;
+  m.after = {render_id};
+  // Told when all is done: the movie's end is the job's end (a render job
+  // that fails fails its movie job too, with the reason).
+  m.notify_url = render.notify_url;
+  return m;
+}
+
 // ---------------------------------------------------------------- clients
 
 Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& owner) {
@@ -338,6 +444,9 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
     return resubmitted(*earlier, r.request_id, fingerprint);
   }
   if (Status s = scheduler_.check_after(job->spec.after); !s.ok()) return s;
+  if (!job->spec.notify_url.empty()) {
+    if (Status s = check_notify_url(job->spec.notify_url, options_.notify_urls); !s.ok()) return s;
+  }
   if (Status s = cut_into_bands(r.bands, *job); !s.ok()) return s;
   const int max_jobs = options_.limits.max_jobs;
   if (scheduler_.unfinished_jobs() >= static_cast<size_t>(max_jobs)) {
@@ -383,14 +492,24 @@ Result<JobInfo> Coordinator::record_job(const JobSpec& spec, std::shared_ptr<con
     return Status(Code::kUnavailable, "cannot record the job: " + st.message());
   }
   scenes_stored_.insert(spec.scene_hash);
-  const std::string id = scheduler_.add_job(spec, request_id, fingerprint);
+  // With a movie, its notification goes with the movie job (the end of it all).
+  JobSpec render = spec;
+  if (!spec.movie.empty()) render.notify_url.clear();
+  const std::string id = scheduler_.add_job(render, request_id, fingerprint);
+  // The movie job in the same transaction: both jobs or neither.
+  const std::string movie_id =
+      spec.movie.empty() ? std::string() : scheduler_.add_job(movie_spec(spec, id));
   if (Status st = persist(); !st.ok()) {
+    if (!movie_id.empty()) scheduler_.forget_job(movie_id);
     scheduler_.forget_job(id);
     return Status(Code::kUnavailable, "cannot record the job: " + st.message());
   }
   scenes_.emplace(spec.scene_hash, std::move(scene));
   spdlog::info("job {}: {} {}x{} frames {}-{} x {} bands -> {}", id, spec.scene_name, spec.width,
                spec.height, spec.frame_first, spec.frame_last, spec.bands, spec.output);
+  if (!movie_id.empty()) {
+    spdlog::info("job {}: the movie {} of job {} at {} fps", movie_id, spec.movie, id, spec.fps);
+  }
   changed_.notify_all();
   return scheduler_.job(id);
 }

@@ -61,6 +61,10 @@ struct CoordinatorOptions {
   // --private-jobs: a job's status, history and frames are its owner's and
   // admins' only (by default every client reads every job).
   bool private_jobs = false;
+  // --notify-urls: the URLs a job may ask to be told at when it ends
+  // (JobSpec::notify_url must fall under one; check_notify_url). Empty:
+  // none may.
+  std::vector<std::string> notify_urls;
   NowFn now = [] { return SteadyClock::now(); };
 };
 
@@ -165,6 +169,17 @@ class Coordinator {
                                           const Caller& caller);
   // Whether the worker was asked to drain (told in heartbeats and polls).
   bool worker_draining(const std::string& worker_id);
+
+  // ---- notifications (server/notifier.h) ----
+  // `fn` gets each job that ends (its final status), under the
+  // coordinator's lock: it must only queue. `every_job`: every job's end
+  // (the coordinator's --notify-cmd); else only those of jobs with a
+  // notify URL. Their ends are recorded as pending with the state change,
+  // so start() hands `fn` those a stop left pending. Set before start().
+  void on_job_ended(std::function<void(const JobInfo&)> fn, bool every_job);
+  // A line of the job's history about telling its end; `done`: nothing
+  // is left to tell.
+  void record_notified(const std::string& job_id, const std::string& text, bool done);
   // Sends the job's status now, then on each change (throttled), until the
   // job ends, `max` passes, the client cancels or the sink refuses.
   Status watch(const std::string& job_id, const Caller& caller, Millis max,
@@ -214,6 +229,11 @@ class Coordinator {
                              const std::string& fingerprint);
   void tick_loop();
   void write_loop();
+  // Makes the movie jobs (Scheduler::next_movie) with ffmpeg, one at a
+  // time, outside the lock (common/farm/movie.h).
+  void movie_loop();
+  // A render job's movie job (JobSpec::movie), recorded with it; mu_ held.
+  JobSpec movie_spec(const JobSpec& render, const std::string& render_id) const;
   void drop_unused_scenes();  // mu_ held
   // The scene into scenes_ from the store, unless there; mu_ held.
   Status load_scene(const std::string& hash, const std::string& job_id);
@@ -253,6 +273,9 @@ class Coordinator {
   bool started_ = false;
   std::thread ticker_;
   std::thread writer_;
+  std::thread movie_maker_;
+  std::function<void(const JobInfo&)> job_ended_;  // on_job_ended()
+  bool notify_every_job_ = false;
 };
 
 }  // namespace locus::farm

@@ -18,6 +18,7 @@
 #include "server/coordinator.h"
 #include "server/grpc_service.h"
 #include "server/metrics.h"
+#include "server/notifier.h"
 
 namespace {
 
@@ -52,6 +53,7 @@ struct Flags {
   farm::CoordinatorOptions options;  // the flags that map one to one
   locus::rpc::ServerSecurity security;
   std::string client_tokens, worker_tokens, admin_tokens;
+  std::string notify_cmd;
 };
 
 void add_farm_flags(CLI::App& app, Flags& f) {
@@ -101,6 +103,15 @@ void add_farm_flags(CLI::App& app, Flags& f) {
   app.add_option("--user-max-running", f.options.user_max_running,
                  "Most bands one user's jobs may run at once (0: no cap)")
       ->check(CLI::Range(0, 1000000));
+  app.add_option("--notify-urls", f.options.notify_urls,
+                 "URLs a job's --notify-url may fall under (same scheme, host and port, a path "
+                 "below), comma-separated or repeated, e.g. https://hooks.studio.example/locus "
+                 "(default: none; a job's end is then told to nobody)")
+      ->delimiter(',');
+  app.add_option("--notify-cmd", f.notify_cmd,
+                 "A shell command run when any job ends, with LOCUS_JOB_ID, LOCUS_JOB_STATE, "
+                 "LOCUS_JOB_KIND, LOCUS_JOB_OWNER, LOCUS_JOB_ERROR and LOCUS_JOB_DIR in its "
+                 "environment (at most 60 s; its outcome in the job's history)");
   app.add_flag("--no-fsync", f.no_fsync,
                "Do not fsync band and frame files (faster; a crash of the coordinator is still "
                "survived, a power loss may cost finished bands)");
@@ -293,6 +304,10 @@ int main(int argc, char** argv) {
   const sigset_t signals = block_signals();
 
   farm::Coordinator coordinator(coordinator_options(f));
+  // Before start(): it tells the ends a stop left untold.
+  locus::rpc::NotifierOptions notify;
+  notify.command = f.notify_cmd;
+  locus::rpc::Notifier notifier(coordinator, notify);
   if (Status st = coordinator.start(); !st.ok()) {
     std::fprintf(stderr, "locus-coordinator: %s\n", st.message().c_str());
     return 1;

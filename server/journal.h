@@ -140,12 +140,22 @@ struct JobNote {
   std::string job_id;
   std::string text;
 };
+// The job's end is to be told (--notify-url, --notify-cmd: kPending, with
+// its state change), a line of how the telling went (`text`), or all of it
+// done (kDone): a restart tells what was still pending.
+enum class NotifyPhase { kPending, kNote, kDone };
+struct JobNotified {
+  std::string job_id;
+  NotifyPhase phase = NotifyPhase::kNote;
+  std::string text;  // a line of the job's history; empty: none
+};
 }  // namespace event
 
 using Event =
     std::variant<event::JobAdded, event::JobStateChanged, event::LeaseGranted, event::LeaseEnded,
                  event::BandDone, event::FrameWritten, event::WorkerAdded, event::PriorityChanged,
-                 event::JobNote, event::WorkerDisabled, event::BandLog, event::JobReopened>;
+                 event::JobNote, event::WorkerDisabled, event::BandLog, event::JobReopened,
+                 event::JobNotified>;
 
 // A job as the store remembers it, for Scheduler::restore().
 struct RecoveredJob {
@@ -159,6 +169,7 @@ struct RecoveredJob {
   int64_t results_discarded = 0;
   int64_t speculative_leases = 0;
   std::vector<int> frames_written;
+  bool notify_pending = false;  // its end is still to be told (event::JobNotified)
   // Jobs that did not succeed: the bands whose pixels are on disk;
   // unfinished jobs only: the charged failures (for the attempt limit,
   // "another worker where possible" and quarantine).

@@ -66,6 +66,8 @@ std::string Scheduler::add_job(JobSpec spec, const std::string& request_id,
   job.bands.resize(job.info.spec.bands_total());
   events_.push_back(event::JobAdded{job.record});
   if (!request_id.empty()) requests_[request_id] = id;
+  if (job.info.spec.kind == JobKind::kMovie && !job.info.spec.after.empty())
+    movies_[job.info.spec.after.front()] = id;
   jobs_.emplace(id, std::move(job));
   order_.push_back(id);
   ++version_;
@@ -77,6 +79,10 @@ void Scheduler::forget_job(const std::string& job_id) {
   if (!job) return;
   drop_leases_of(*job);
   if (!job->record.request_id.empty()) requests_.erase(job->record.request_id);
+  movies_.erase(job_id);
+  for (auto it = movies_.begin(); it != movies_.end();) {
+    it = it->second == job_id ? movies_.erase(it) : std::next(it);
+  }
   order_.erase(std::remove(order_.begin(), order_.end(), job_id), order_.end());
   jobs_.erase(job_id);
   ++version_;
@@ -107,6 +113,7 @@ JobInfo Scheduler::snapshot(const Job& job) const {
   JobInfo info = job.info;
   info.bands_running = job.running;
   info.waiting = waiting_reason(job);
+  if (auto m = movies_.find(job.info.job_id); m != movies_.end()) info.movie_job = m->second;
   const TimePoint end = is_terminal(job.info.state) ? job.finished : now_();
   info.seconds_elapsed = seconds(end - job.submitted);
   return info;
@@ -118,6 +125,12 @@ std::string Scheduler::waiting_reason(const Job& job) const {
   if (const Job* before = waiting_for(job)) {
     return "waiting for job " + before->info.job_id + " (" + job_state_name(before->info.state) +
            ")";
+  }
+  if (job.info.spec.kind == JobKind::kMovie) {
+    if (job.movie_run != 0 || job.movie_attempts == 0) return "";
+    const double in = std::max(0.0, seconds(job.movie_not_before - now_()));
+    return "the movie's attempt " + std::to_string(job.movie_attempts) + " failed; attempt " +
+           std::to_string(job.movie_attempts + 1) + " in " + format_seconds(in);
   }
   const auto& need = job.info.spec.require;
   if (need.empty()) return "";
@@ -171,6 +184,7 @@ void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   job.info.state = state;
   job.info.error = error;
   job.finished = now_();
+  job.movie_run = 0;  // a movie in the making is no longer wanted
   events_.push_back(event::JobStateChanged{job.info.job_id, state, error});
   drop_leases_of(job);
   // A finished job keeps its JobInfo in memory, and, when it failed or was

@@ -114,6 +114,30 @@ class Scheduler {
   // the frame's band files must then stay, for a retry to stitch it again.
   bool frame_written(const std::string& job_id, int frame, const Status& status);
 
+  // ---- movies (JobKind::kMovie: no bands; the coordinator makes them) ----
+  struct MovieTask {
+    std::string job_id;  // the movie job
+    JobSpec movie;       // output: the movie's file name; fps
+    JobSpec source;      // the render job's (its frames' pattern and range)
+    std::string source_id;
+    uint64_t run = 0;  // this attempt, for movie_done()
+    int attempt = 1;
+  };
+  // The next movie job that may run now: its render job succeeded, it is
+  // neither paused nor backing off after a failure, and nobody makes it
+  // yet. It is running from here on. Nothing when none may.
+  std::optional<MovieTask> next_movie();
+  // How the attempt `run` of a movie task ended. OK: the movie is written
+  // and the job succeeds. An error: the job tries again after 1 s, 2 s,
+  // 4 s ... up to max_attempts attempts, then fails with it. False when the
+  // job no longer expects this attempt (it ended, was reopened or deleted).
+  bool movie_done(const std::string& job_id, uint64_t run, const Status& status);
+  // Whether the attempt `run` of the movie job still counts (the
+  // coordinator stops ffmpeg when it does not).
+  bool movie_wanted(const std::string& job_id, uint64_t run) const;
+  // The earliest moment a movie job backing off may run again, if any.
+  std::optional<TimePoint> next_movie_time() const;
+
   // ---- workers ----
   // `tags` (the worker's pools) are checked by the caller.
   std::string add_worker(const std::string& name, int threads,
@@ -201,6 +225,11 @@ class Scheduler {
     std::deque<double> durations;                // seconds of the last accepted bands
     int running = 0;                             // live leases
     TimePoint waiting_since;                     // its last lease, submission or resume (ageing)
+    // Movie jobs: an attempt in hand (its run number; 0: none), the
+    // attempts so far, and when the next may start after a failure.
+    uint64_t movie_run = 0;
+    int movie_attempts = 0;
+    TimePoint movie_not_before;
   };
   // The coordinator's record of a lease; the worker gets it as a BandLease
   // (make_lease).
@@ -299,6 +328,8 @@ class Scheduler {
   std::map<std::string, Lease> leases_;
   std::map<std::string, Worker> workers_;
   std::map<std::string, int> user_running_;  // live leases by job owner
+  std::map<std::string, std::string> movies_;  // render job id -> its movie job's id
+  uint64_t next_movie_run_ = 1;
   std::set<std::string> disabled_;           // worker names
   std::vector<Event> events_;
   uint64_t next_job_ = 1;

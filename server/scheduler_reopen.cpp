@@ -30,6 +30,9 @@ std::vector<FrameReady> Scheduler::reopen_ended(Job& job, const std::vector<int>
   job.worker_failures.clear();
   job.info.quarantined.clear();
   job.durations.clear();
+  job.movie_run = 0;
+  job.movie_attempts = 0;
+  job.movie_not_before = {};
   for (size_t i = 0; i < job.bands.size(); ++i) {
     BandState& b = job.bands[i];
     b.failures = 0;

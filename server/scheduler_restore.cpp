@@ -43,6 +43,8 @@ std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
     }
     next_job_ = std::max<uint64_t>(next_job_, static_cast<uint64_t>(r.record.seq) + 1);
     if (!r.record.request_id.empty()) requests_[r.record.request_id] = job.info.job_id;
+    if (job.info.spec.kind == JobKind::kMovie && !job.info.spec.after.empty())
+      movies_[job.info.spec.after.front()] = job.info.job_id;
     order_.push_back(job.info.job_id);
     const std::string id = job.info.job_id;
     jobs_.emplace(id, std::move(job));

@@ -251,7 +251,12 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
         {"jobs", "after_jobs", "after_jobs TEXT NOT NULL DEFAULT ''"},
         {"jobs", "band_seconds", "band_seconds REAL NOT NULL DEFAULT 0"},
         {"jobs", "band_seconds_failed", "band_seconds_failed REAL NOT NULL DEFAULT 0"},
-        {"jobs", "band_seconds_lost", "band_seconds_lost REAL NOT NULL DEFAULT 0"}}) {
+        {"jobs", "band_seconds_lost", "band_seconds_lost REAL NOT NULL DEFAULT 0"},
+        {"jobs", "kind", "kind TEXT NOT NULL DEFAULT 'render'"},
+        {"jobs", "movie", "movie TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "fps", "fps INTEGER NOT NULL DEFAULT 0"},
+        {"jobs", "notify_url", "notify_url TEXT NOT NULL DEFAULT ''"},
+        {"jobs", "notify_pending", "notify_pending INTEGER NOT NULL DEFAULT 0"}}) {
     Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info(?) WHERE name = ?");
     has.bind(table, column);
     if (has.step() != SQLITE_ROW) return has.error();
@@ -304,15 +309,17 @@ Status JobStore::apply_one(const Event& e) {
                   "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
                   "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
                   "spp, state, submitted_at, aa, tess_tol, band_edges, priority, frame_order, "
-                  "band_timeout_ms, owner, require_tags, after_jobs, row_costs) "
-                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                  "band_timeout_ms, owner, require_tags, after_jobs, row_costs, kind, movie, fps, "
+                  "notify_url) "
+                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,
              s.render.aa, s.render.tess_tol, band_edges_text(s.band_edges), s.priority,
              std::string(label_name(kFrameOrderLabels, s.frame_order)),
              static_cast<int64_t>(s.band_timeout.count()), s.owner, words_text(s.require),
-             words_text(s.after), costs_text(s.row_costs));
+             words_text(s.after), costs_text(s.row_costs),
+             std::string(label_name(kJobKindLabels, s.kind)), s.movie, s.fps, s.notify_url);
     if (Status st = ins.run(); !st.ok()) return st;
     return add_history(
         r.job_id, -1, -1,
@@ -436,6 +443,14 @@ Status JobStore::apply_one(const Event& e) {
   }
   if (const auto* n = std::get_if<event::JobNote>(&e))
     return add_history(n->job_id, -1, -1, n->text);
+  if (const auto* n = std::get_if<event::JobNotified>(&e)) {
+    if (n->phase != event::NotifyPhase::kNote) {
+      Statement st(*this, "UPDATE jobs SET notify_pending = ? WHERE id = ?");
+      st.bind(n->phase == event::NotifyPhase::kPending, n->job_id);
+      if (Status s = st.run(); !s.ok()) return s;
+    }
+    return n->text.empty() ? Status::Ok() : add_history(n->job_id, -1, -1, n->text);
+  }
   if (const auto* b = std::get_if<event::BandLog>(&e)) {
     for (const std::string& line : b->lines) {
       Statement st(*this,
@@ -535,7 +550,8 @@ Result<RecoveredState> JobStore::recover() {
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
       "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges, priority, "
       "frame_order, band_timeout_ms, owner, require_tags, after_jobs, band_seconds, "
-      "band_seconds_failed, band_seconds_lost, row_costs FROM jobs ORDER BY seq");
+      "band_seconds_failed, band_seconds_lost, row_costs, kind, movie, fps, notify_url, notify_pending "
+      "FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
     if (rc == SQLITE_DONE) break;
@@ -584,6 +600,11 @@ Result<RecoveredState> JobStore::recover() {
     j.account = {jobs.real(30), jobs.real(31), jobs.real(32)};
     s.row_costs = costs_from_text(jobs.text(33));
     if (static_cast<int>(s.row_costs.size()) != s.height) s.row_costs.clear();
+    s.kind = label_value(kJobKindLabels, jobs.text(34)).value_or(JobKind::kRender);
+    s.movie = jobs.text(35);
+    s.fps = static_cast<int>(jobs.integer(36));
+    s.notify_url = jobs.text(37);
+    j.notify_pending = jobs.integer(38) != 0;
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {

@@ -8,6 +8,7 @@
 
 #include "common/base/text.h"
 #include "common/farm/band_split.h"
+#include "common/farm/movie.h"
 #include "common/farm/paths.h"
 #include "common/scene/animation.h"
 #include "common/scene/scene_io.h"
@@ -162,6 +163,22 @@ Status check_scheduling(const SubmitRequest& r, JobSpec& spec) {
   return Status::Ok();
 }
 
+// The movie (common/farm/movie.h) and the notification URL's form (which
+// URLs the farm allows is the coordinator's --notify-urls).
+Status check_movie_and_notify(const SubmitRequest& r, JobSpec& spec) {
+  if (Status s = check_movie(r.movie, r.fps, spec.output); !s.ok()) return s;
+  if (!r.movie.empty() && r.movie == spec.output) {
+    return InvalidArgument("movie " + r.movie + ": the frames' file name; name the movie apart");
+  }
+  spec.movie = r.movie;
+  spec.fps = r.movie.empty() ? 0 : r.fps > 0 ? r.fps : kDefaultFps;
+  if (!r.notify_url.empty()) {
+    if (auto u = parse_http_url(r.notify_url, "notify URL"); !u.ok()) return u.status();
+  }
+  spec.notify_url = r.notify_url;
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<CheckedSubmission> check_submission(const SubmitRequest& r, const Limits& limits,
@@ -187,6 +204,7 @@ Result<CheckedSubmission> check_submission(const SubmitRequest& r, const Limits&
   if (Status s = check_bands(r.bands, spec); !s.ok()) return s;
   if (Status s = check_request_id(r.request_id); !s.ok()) return s;
   if (Status s = check_scheduling(r, spec); !s.ok()) return s;
+  if (Status s = check_movie_and_notify(r, spec); !s.ok()) return s;
   return job;
 }
 
@@ -202,6 +220,8 @@ std::string scheduling_fingerprint(const JobSpec& spec) {
     out += "|band-timeout " + std::to_string(spec.band_timeout.count());
   if (!spec.require.empty()) out += "|require " + words_text(spec.require);
   if (!spec.after.empty()) out += "|after " + words_text(spec.after);
+  if (!spec.movie.empty()) out += "|movie " + spec.movie + " " + std::to_string(spec.fps);
+  if (!spec.notify_url.empty()) out += "|notify " + spec.notify_url;
   return out;
 }
 }  // namespace
@@ -234,6 +254,91 @@ std::vector<int> cost_band_edges(const CheckedSubmission& job, std::vector<float
   }
   if (row_costs) row_costs->assign(costs->begin(), costs->end());
   return split_rows_by_cost(*costs, spec.bands);
+}
+
+}  // namespace locus::farm
+
+namespace locus::farm {
+
+Result<HttpUrl> parse_http_url(const std::string& url, const std::string& what) {
+  std::string shown(1, '\'');  // appended: GCC 12 misreads "'" + string as an overlapping copy
+  shown.append(url, 0, 128).append(url.size() > 128 ? "...'" : "'");
+  const auto bad = [&](const std::string& why) {
+    return InvalidArgument(what + " " + shown + ": " + why +
+                           " (expected http://HOST[:PORT]/PATH or https://...)");
+  };
+  if (url.size() > 2048) return bad("longer than 2048 characters");
+  if (std::any_of(url.begin(), url.end(), [](unsigned char c) { return c <= 0x20 || c >= 0x7f; }))
+    return bad("spaces or characters outside printable ASCII");
+  HttpUrl u;
+  size_t at;
+  if (url.rfind("http://", 0) == 0) {
+    at = 7;
+  } else if (url.rfind("https://", 0) == 0) {
+    u.https = true;
+    u.port = 443;
+    at = 8;
+  } else {
+    return bad("not an http:// or https:// URL");
+  }
+  const size_t end = url.find_first_of("/?#", at);
+  const std::string authority = url.substr(at, end == std::string::npos ? end : end - at);
+  if (authority.find('@') != std::string::npos) return bad("user information is not allowed");
+  std::string port;
+  if (!authority.empty() && authority.front() == '[') {
+    const size_t close = authority.find(']');
+    if (close == std::string::npos) return bad("an IPv6 address without its ']'");
+    u.host = authority.substr(1, close - 1);
+    if (u.host.empty() || u.host.find_first_not_of("0123456789abcdefABCDEF:.") != std::string::npos)
+      return bad("not an IPv6 address in brackets");
+    const std::string rest = authority.substr(close + 1);
+    if (!rest.empty()) {
+      if (rest.front() != ':') return bad("junk after the IPv6 address");
+      port = rest.substr(1);
+    }
+  } else {
+    const size_t colon = authority.find(':');
+    u.host = authority.substr(0, colon);
+    if (colon != std::string::npos) port = authority.substr(colon + 1);
+    if (u.host.empty() || u.host.size() > 253 ||
+        u.host.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-") !=
+            std::string::npos)
+      return bad("no host, or a host that is neither a name nor an address");
+  }
+  if (!port.empty() || (authority.size() && authority.back() == ':')) {
+    if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+        std::stoi(port) < 1 || std::stoi(port) > 65535)
+      return bad("the port must be 1..65535");
+    u.port = std::stoi(port);
+  }
+  if (end != std::string::npos && url[end] == '#') return bad("a fragment (#...) is not sent");
+  u.path = end == std::string::npos ? "/" : url.substr(end);
+  if (u.path.front() == '?') u.path.insert(0, "/");
+  if (u.path.find('#') != std::string::npos) return bad("a fragment (#...) is not sent");
+  return u;
+}
+
+Status check_notify_url(const std::string& url, const std::vector<std::string>& allowed) {
+  auto u = parse_http_url(url, "notify URL");
+  if (!u.ok()) return u.status();
+  const auto lower = [](std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+    return s;
+  };
+  for (const std::string& entry : allowed) {
+    auto a = parse_http_url(entry, "--notify-urls");
+    if (!a.ok() || a->https != u->https || a->port != u->port || lower(a->host) != lower(u->host))
+      continue;
+    // Under the allowed path: the same path, or one below it.
+    if (a->path == "/" || u->path == a->path) return Status::Ok();
+    if (u->path.rfind(a->path, 0) == 0 &&
+        (a->path.back() == '/' || u->path[a->path.size()] == '/' || u->path[a->path.size()] == '?'))
+      return Status::Ok();
+  }
+  return Status(Code::kPermissionDenied,
+                "notify URL " + std::string(url, 0, 128) + " is not allowed on this farm" +
+                    (allowed.empty() ? " (its coordinator allows none: --notify-urls)"
+                                     : " (its coordinator's --notify-urls lists the allowed ones)"));
 }
 
 }  // namespace locus::farm

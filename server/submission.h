@@ -45,4 +45,21 @@ std::string submission_fingerprint(const SubmitRequest& request, const JobSpec& 
 std::vector<int> cost_band_edges(const CheckedSubmission& job,
                                  std::vector<float>* row_costs = nullptr);
 
+// A notification URL (`--notify-url`, the coordinator's --notify-urls) in
+// parts: http or https, a host (a name, an IPv4 address or [an IPv6
+// one]) without user information, a port (80 or 443 when absent) and a
+// path ("/" when absent). InvalidArgument naming `what` and the problem.
+struct HttpUrl {
+  bool https = false;
+  std::string host;  // as written, brackets of IPv6 removed
+  int port = 80;
+  std::string path;  // with its query
+};
+Result<HttpUrl> parse_http_url(const std::string& url, const std::string& what);
+// Whether a job may ask to be told at `url`: it must fall under one of the
+// coordinator's --notify-urls (same scheme, host and port, and a path
+// under the allowed one). PermissionDenied naming the URL otherwise (no
+// list: no notification URL is allowed).
+Status check_notify_url(const std::string& url, const std::vector<std::string>& allowed);
+
 }  // namespace locus::farm

@@ -100,6 +100,13 @@ enum class FrameOrder { kInOrder, kFirstMiddleLast };
 inline constexpr Labels<FrameOrder, 2> kFrameOrderLabels = {
     {{FrameOrder::kInOrder, "in-order"}, {FrameOrder::kFirstMiddleLast, "first-middle-last"}}};
 
+// What a job makes: frames, rendered band by band by the workers; or a
+// movie of another job's frames, made by the coordinator once they are all
+// written (docs/farm.md "Movies"; common/farm/movie.h).
+enum class JobKind { kRender, kMovie };
+inline constexpr Labels<JobKind, 2> kJobKindLabels = {
+    {{JobKind::kRender, "render"}, {JobKind::kMovie, "movie"}}};
+
 // A validated job as the scheduler sees it. The scene itself lives in the
 // coordinator's scene store under `scene_hash`.
 struct JobSpec {
@@ -134,6 +141,16 @@ struct JobSpec {
   // Dependencies: the job waits until these jobs have succeeded, and fails
   // if one of them fails or is cancelled.
   std::vector<std::string> after;
+  // kRender: the movie to make of the frames once they are written (a
+  // file name such as "shot.mp4"; empty: none), at `fps` frames a second;
+  // it becomes a job of its own, of kind kMovie, after this one.
+  // kMovie: `output` is the movie's file name, `after` the render job's
+  // id alone, `fps` its rate; one "frame" (1), the movie, and no bands.
+  JobKind kind = JobKind::kRender;
+  std::string movie;
+  int fps = 0;
+  // POSTed the job's final status (JSON) when it ends; empty: nobody.
+  std::string notify_url;
 
   int frames() const { return frame_last - frame_first + 1; }
   int64_t bands_total() const { return static_cast<int64_t>(frames()) * bands; }
@@ -222,6 +239,8 @@ struct JobInfo {
   // (running)", "waiting for a worker tagged bigmem"; empty otherwise.
   std::string waiting;
   BandSeconds account;  // the CPU seconds of accepted results are stats.seconds_render_cpu
+  // A render job's movie job (JobSpec::movie), once made; empty: none.
+  std::string movie_job;
 };
 
 struct WorkerInfo {
@@ -350,6 +369,9 @@ struct SubmitRequest {
   Millis band_timeout{0};            // 0: the coordinator's
   std::vector<std::string> require;  // worker tags
   std::vector<std::string> after;    // job ids
+  std::string movie;                 // JobSpec::movie: a file name; empty: no movie
+  int fps = 0;                       // of the movie; 0: kDefaultFps
+  std::string notify_url;            // JobSpec::notify_url
   // The client's token for this submission, reused on retries: a second
   // submission with the same id returns the first one's job.
   std::string request_id;

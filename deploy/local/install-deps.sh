@@ -14,6 +14,9 @@ PACKAGES=(
   # The dashboard's browser test (tests/dashboard/run.sh).
   chromium chromium-driver python3-selenium
   sqlite3 iproute2
+  # Movies of a job's frames (the coordinator's and `locus render`'s
+  # --movie: H.264 MP4, WebM, GIF); ffprobe for the movie tests.
+  ffmpeg
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio python3-yaml
   # The Python client (client/python, docs/python.md); its stubs come from
   # protobuf-compiler-grpc's grpc_python_plugin, above.
@@ -24,6 +27,11 @@ PACKAGES=(
   # Containers (tests/container/run.sh, deploy/): the engine, compose, and
   # debootstrap for the base image (deploy/docker/make-base.sh).
   docker.io docker-compose debootstrap
+  # The Debian package (deploy/debian/, tests/package/run.sh): dpkg-shlibdeps
+  # for its dependencies, help2man for its man pages, systemd-analyze to
+  # verify its units and man, which it runs to find their Documentation=
+  # pages (debootstrap, above, makes the root it installs into).
+  dpkg-dev help2man systemd man-db
   # Workers on Slurm (deploy/slurm/, tests/slurm/run.sh): a one-node Slurm
   # started by the test itself (controller, node daemon, sbatch/srun/scancel)
   # and munge for its authentication.
@@ -41,5 +49,7 @@ echo "install-deps: installing ${missing[*]}"
 SUDO=""
 [ "$(id -u)" -eq 0 ] || SUDO="sudo"
 export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+# Wait for another apt (a second install-deps.sh, unattended upgrades)
+# rather than fail on its lock.
+$SUDO apt-get -o DPkg::Lock::Timeout=600 update -qq
+$SUDO apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends "${missing[@]}"

@@ -352,6 +352,11 @@ v1::JobStatus ToProto(const farm::JobInfo& j) {
   p.set_band_seconds(j.account.done);
   p.set_band_seconds_failed(j.account.failed);
   p.set_band_seconds_lost(j.account.lost);
+  p.set_kind(std::string(label_name(farm::kJobKindLabels, j.spec.kind)));
+  p.set_movie(j.spec.kind == farm::JobKind::kMovie ? j.spec.output : j.spec.movie);
+  p.set_fps(j.spec.fps);
+  p.set_movie_job(j.movie_job);
+  p.set_notify_url(j.spec.notify_url);
   return p;
 }
 
@@ -386,6 +391,11 @@ farm::JobInfo FromProto(const v1::JobStatus& p) {
   j.spec.after.assign(p.after().begin(), p.after().end());
   j.waiting = p.waiting();
   j.account = {p.band_seconds(), p.band_seconds_failed(), p.band_seconds_lost()};
+  j.spec.kind = label_value(farm::kJobKindLabels, p.kind()).value_or(farm::JobKind::kRender);
+  if (j.spec.kind == farm::JobKind::kRender) j.spec.movie = p.movie();
+  j.spec.fps = p.fps();
+  j.movie_job = p.movie_job();
+  j.spec.notify_url = p.notify_url();
   return j;
 }
 
@@ -537,6 +547,9 @@ farm::SubmitRequest FromProto(const v1::JobSpec& p) {
   r.band_timeout = farm::Millis(p.band_timeout_ms());
   r.require.assign(p.require().begin(), p.require().end());
   r.after.assign(p.after().begin(), p.after().end());
+  r.movie = p.movie();
+  r.fps = p.fps();
+  r.notify_url = p.notify_url();
   return r;
 }
 
@@ -557,6 +570,9 @@ v1::JobSpec ToProto(const farm::SubmitRequest& r) {
   p.set_band_timeout_ms(r.band_timeout.count());
   for (const std::string& t : r.require) p.add_require(t);
   for (const std::string& a : r.after) p.add_after(a);
+  p.set_movie(r.movie);
+  p.set_fps(r.fps);
+  p.set_notify_url(r.notify_url);
   return p;
 }
 
