@@ -72,11 +72,12 @@ if [ "${LOCUS_SLURM_TEST_NS:-}" != inside ]; then
   for b in locus locus-coordinator locus-worker; do
     [ -x "$bin/$b" ] || setup_failed "$bin/$b is missing"
   done
+  err=$(unshare --net --pid --fork --mount-proc true 2>&1) ||
+    setup_failed "cannot make the test's namespaces (unshare --net --pid --mount-proc): $err"
   # --kill-child: if unshare is killed (a CTest timeout), so is this
   # script inside, and with it the whole PID namespace.
   LOCUS_SLURM_TEST_NS=inside exec unshare --net --pid --fork --mount-proc --kill-child \
     "$0" "$bin" "$src"
-  setup_failed "cannot run unshare --net --pid --fork --mount-proc"
 fi
 
 # ---- inside: process 1 of a PID namespace, alone on a network namespace
@@ -278,22 +279,22 @@ poll 20 done_ge 2 || bad "job $J: not 2 bands done after 20 s"
 # holding a band (frozen, it cannot finish it meanwhile); sets $victim
 # (its pid) and $victim_name. Status 1 when none did within 10 s.
 busy_worker() {
-  local end=$(($(now_ms) + 10000)) line name pid band
-  victim= victim_name=
+  local end=$(($(now_ms) + 10000)) name pid band
+  victim='' victim_name=''
   while [ "$(now_ms)" -lt "$end" ]; do
     workers_now || { sleep 0.1; continue; }
-    while read -r name band; do
+    while read -r name; do
       pid=${name##*:}
       kill -STOP "$pid" 2>/dev/null || continue
       workers_now
-      line=$(awk -v n="$name" '$2 == n {print $5}' "$tmp/workers")
-      if [ -n "$line" ] && [ "$line" != - ]; then
+      band=$(awk -v n="$name" '$2 == n {print $5}' "$tmp/workers")
+      if [ -n "$band" ] && [ "$band" != - ]; then
         victim=$pid victim_name=$name
         return 0
       fi
       kill -CONT "$pid"
     done < <(awk -v a="$*" 'BEGIN {n = split(a, p, " ")}
-                            {for (i = 1; i <= n; i++) if (index($2, p[i]) == 1) print $2, $5}' "$tmp/workers")
+                            {for (i = 1; i <= n; i++) if (index($2, p[i]) == 1) print $2}' "$tmp/workers")
     sleep 0.1
   done
   return 1
@@ -301,7 +302,7 @@ busy_worker() {
 task_of() { local s=${1#slurm-}; echo "${s%%.*}"; }  # slurm-12_3.0@node:pid -> 12_3
 
 # ---- SIGKILL of one array task's worker mid-band
-killed_task= killed_name=
+killed_task='' killed_name=''
 if busy_worker "slurm-${A}_0." "slurm-${A}_1." "slurm-${A}_2." "slurm-${A}_3."; then
   killed_task=$(task_of "$victim_name") killed_name=$victim_name
   if scancel --signal=KILL "$killed_task.0" 2>"$tmp/log/scancel.err"; then
@@ -354,7 +355,7 @@ warned() {
 # ---- the time-limit warning to another array task whose worker waits
 # (--test-slow-band-ms) before rendering its band: the first SIGTERM gives
 # it back.
-warn_task= warn_name=
+warn_task='' warn_name=''
 others=()
 for t in 0 1 2 3; do [ "${A}_$t" = "$killed_task" ] || others+=("slurm-${A}_$t."); done
 if busy_worker "${others[@]}"; then
@@ -407,7 +408,7 @@ if [ -n "$killed_name" ]; then
   read -r kl kf kb <<<"$(last_lease "$killed_name")"
   outcome=$(how_ended "$kl")
   read -r rl rname <<<"$(released_to "$kf" "$kb" "$kl")"
-  if [ -n "$kl" ] && [ -n "$outcome" ] && [ "$outcome" != done ] && [ "$outcome" != "handed back" ] &&
+  if [ -n "$kl" ] && [ -n "$outcome" ] && [ "$outcome" != "done" ] && [ "$outcome" != "handed back" ] &&
     [ -n "$rl" ] && [ "$rname" != "$killed_name" ]; then
     ok "locus events: the killed worker's lease $kl (frame $kf band $kb) ended '$outcome'; the band was leased again (lease $rl) to $rname, which returned it"
   else
@@ -424,7 +425,7 @@ if [ -n "$warn_name" ]; then
   read -r rl rname <<<"$(released_to "$tf" "$tb" "$tl")"
   if [ "$outcome" = "handed back" ] && [ -n "$rl" ] && [ "$rname" != "$warn_name" ]; then
     ok "locus events: the warned worker handed its band back (lease $tl, frame $tf band $tb, not charged); leased again (lease $rl) to $rname, which returned it"
-  elif [ "$outcome" = done ]; then
+  elif [ "$outcome" = "done" ]; then
     ok "locus events: the warned worker finished its band within the grace and returned it (lease $tl, frame $tf band $tb)"
   else
     bad "locus events: the warned worker's last lease '$tl' ended '$outcome'; leased again and done: '$rl $rname'"
