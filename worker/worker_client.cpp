@@ -132,6 +132,7 @@ class WorkerClient::Impl {
   std::mutex mu_;
   std::condition_variable cv_;
   bool stopping_ = false;
+  bool finished_ = false;  // run() is returning: no band in hand
   std::string worker_id_;
   Millis heartbeat_{1000};
   std::string lease_;  // the band in hand
@@ -260,6 +261,7 @@ int WorkerClient::Impl::run() {
   {
     std::lock_guard lk(mu_);
     stopping_ = true;
+    finished_ = true;  // nothing in hand any more: the heartbeats end
     cv_.notify_all();
   }
   set_ready(false);
@@ -268,11 +270,14 @@ int WorkerClient::Impl::run() {
 }
 
 void WorkerClient::Impl::heartbeat_loop() {
+  // Until run() returns, stopping or not: a worker that drains (SIGTERM,
+  // `locus drain`) finishes the band in hand, whose lease must not lapse
+  // meanwhile.
   std::unique_lock lk(mu_);
-  while (!stopping_) {
+  while (!finished_) {
     const std::string known = worker_id_;
-    cv_.wait_for(lk, heartbeat_, [&] { return stopping_ || worker_id_ != known; });
-    if (stopping_ || worker_id_.empty()) continue;
+    cv_.wait_for(lk, heartbeat_, [&] { return finished_ || worker_id_ != known; });
+    if (finished_ || worker_id_.empty()) continue;
     check_wedged(lk);
     v1::HeartbeatRequest req;
     req.set_worker_id(worker_id_);

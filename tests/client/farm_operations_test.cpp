@@ -76,6 +76,36 @@ TEST_F(FarmTest, AHungBandIsTakenBackAndTheWorkerThatCannotStopItExits) {
   EXPECT_GE(SteadyClock::now() - t0, Millis(2000));  // timeout 1 s + heartbeat + grace 1 s
 }
 
+TEST_F(FarmTest, AStoppingWorkerKeepsItsLeaseAliveUntilItsBandIsReturned) {
+  // SIGTERM (or `locus drain`, or Slurm's warning before a time limit)
+  // mid-band: the worker finishes the band, and its heartbeats go on
+  // meanwhile, so the lease does not lapse and the result is accepted.
+  start(Millis(400));  // heartbeats every 100 ms; the render takes ~1.4 s
+  std::atomic<bool> rendering{false};
+  set_row_hook_for_test([&](int) {
+    rendering = true;
+    std::this_thread::sleep_for(Millis(60));
+  });
+  ClearRowHook clear;
+  add_workers(1);
+  SubmitRequest r = request(kSpheres, 16, 24, 1, 1, 1, "drain.png");
+  r.render.method = "raytrace";  // no cost preview at submit, which would meet the hook
+  auto job = client_->submit(r);
+  ASSERT_TRUE(job.ok()) << job.status().message();
+  for (int i = 0; i < 1000 && !rendering.load(); ++i) std::this_thread::sleep_for(Millis(5));
+  ASSERT_TRUE(rendering.load());
+  workers_[0]->stop();
+  JobInfo now;
+  for (int i = 0; i < 400; ++i) {  // the one worker is stopping: nobody else renders it
+    now = *client_->job(job->job_id);
+    if (is_terminal(now.state)) break;
+    std::this_thread::sleep_for(Millis(25));
+  }
+  expect_identical(now, r);
+  EXPECT_EQ(count_events(*client_, job->job_id, " lapsed"), 0);
+  EXPECT_EQ(count_events(*client_, job->job_id, "attempt 2"), 0);
+}
+
 TEST_F(FarmTest, APausedJobLeasesNothingUntilResumedAndItsFramesAreUnchanged) {
   start();
   SubmitRequest r = request(kSpheres, 32, 24, 1, 2, 2, "paused_####.png");
