@@ -302,6 +302,28 @@ class FarmTest(unittest.TestCase):
             self.assertFalse(locus.is_loopback(address), address)
         self.assertFarmError(C.FAILED_PRECONDITION, locus.Farm, FARM, ca="/nonexistent/ca.pem")
 
+    def test_a_movie_job_follows_the_render_job_and_is_fetched(self):
+        job = self.farm.submit(SPHERES, frames=(1, 3), out="mv_####.png", size=(32, 24),
+                               movie="out/mv.mp4", fps=6)
+        render = self.farm.wait(job)
+        self.assertEqual(render.state, "succeeded")
+        self.assertTrue(render.movie_job)
+        self.assertEqual(render.movie, "mv.mp4")
+        movie = self.farm.wait(render.movie_job)
+        self.assertEqual(movie.state, "succeeded", movie.error)
+        self.assertEqual((movie.kind, movie.movie, movie.fps, list(movie.after)),
+                         ("movie", "mv.mp4", 6, [job]))
+        out = self.tmpdir()
+        self.farm.fetch(render.movie_job, out)
+        probe = subprocess.run(
+            ["ffprobe", "-v", "error", "-select_streams", "v:0", "-count_frames", "-show_entries",
+             "stream=codec_name,width,height,nb_read_frames", "-of", "csv=p=0",
+             os.path.join(out, "mv.mp4")], capture_output=True, text=True, check=True)
+        self.assertEqual(probe.stdout.strip(), "h264,32,24,3")
+        with self.assertRaises(locus.FarmError) as e:
+            self.farm.submit(SPHERES, out="x.exr", movie="x.mp4")
+        self.assertEqual(e.exception.code, C.INVALID_ARGUMENT)
+
     def test_tls_with_the_farms_ca(self):
         ca = os.path.join(TLS, "ca.pem")
         with locus.Farm(TLS_FARM, token=ANN, ca=ca) as f:

@@ -266,7 +266,7 @@ class Farm:
     def submit(self, scene, frames=(1, 1), out="frame_####.png", size=None, bands=0,
                priority=50, after=(), require=(), method=None, spp=None, aa=None, orbit=0.0,
                request_id=None, boxes=None, tess_tol=None, frame_order=None,
-               band_timeout=None, scene_name=None):
+               band_timeout=None, scene_name=None, movie=None, fps=None, notify_url=None):
         """Submits a job; returns its id ("j0007").
 
         scene: a locus.v1.Scene (locus.Scene), the path of a scene file in
@@ -285,6 +285,13 @@ class Farm:
         orbit: degrees the camera turns about `at` over the frames.
         frame_order: "in-order" (default) or "first-middle-last".
         band_timeout: seconds a band may stay leased (None: the farm's).
+        movie: a movie of the frames once all are written, "shot.mp4"
+            (H.264), ".webm" or ".gif" (frames PNG or TIFF), at `fps` (default
+            24): the coordinator makes it as a job of its own after this one;
+            job(id).movie_job names it, and fetch() of that job downloads it.
+        notify_url: POSTed the job's final status as JSON when it ends (with
+            a movie, when the movie is made); the farm's --notify-urls must
+            allow it.
         request_id: the submission's idempotency key; default a fresh uuid4,
             sent again on every retry of this call, so the job is created
             once however many attempts reached the farm. A retry with the
@@ -301,7 +308,9 @@ class Farm:
                                  output=os.path.basename(os.fspath(out)),
                                  orbit_degrees=orbit, priority=priority,
                                  frame_order=frame_order or "", require=list(require),
-                                 after=list(after))
+                                 after=list(after),
+                                 movie=os.path.basename(os.fspath(movie)) if movie else "",
+                                 fps=fps or 0, notify_url=notify_url or "")
         if size is not None:
             width, height = _size(size)
             # As the CLI does: the scene's camera gets the size too.
