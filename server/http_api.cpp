@@ -12,6 +12,7 @@
 
 #include "common/base/image.h"
 #include "common/base/log.h"
+#include "common/farm/movie.h"
 #include "server/dashboard_assets.h"
 
 namespace locus::rpc {
@@ -251,7 +252,7 @@ const Headers& HttpApi::security_headers() {
   static const Headers h = {
       {"Content-Security-Policy",
        "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; "
-       "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"},
+       "media-src 'self' blob:; connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"},
       {"X-Content-Type-Options", "nosniff"},
       {"X-Frame-Options", "DENY"},
       {"Referrer-Policy", "no-referrer"},
@@ -523,6 +524,7 @@ HttpResponse HttpApi::route(const HttpRequest& req, const std::vector<std::strin
 // GET jobs/J/frames/F/thumbnail  a box-filtered downscale, at most
 //                                thumbnail_width wide
 // GET jobs/J/frames/F/bands/B/image  an accepted band of a frame in progress
+// GET jobs/J/frames/1/movie      a movie job's movie (MP4, WebM or GIF)
 HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Caller& caller) {
   const std::string& job = p[1];
   auto frame = number(p[3], "frame", INT32_MIN, INT32_MAX);
@@ -542,12 +544,30 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
     r.headers.emplace_back("Cache-Control", "no-cache");
     return r;
   }
-  if (p.size() != 5 || (p[4] != "image" && p[4] != "thumbnail")) {
-    return error(404, "NOT_FOUND", "frames: the images are image, thumbnail and bands/B/image");
+  if (p.size() != 5 || (p[4] != "image" && p[4] != "thumbnail" && p[4] != "movie")) {
+    return error(404, "NOT_FOUND",
+                 "frames: the images are image, thumbnail and bands/B/image; a movie job's file "
+                 "is frames/1/movie");
   }
   auto path = c_.frame_file(job, f, caller);
   if (!path.ok()) return error(path.status());
   const fs::path source = *path;
+  // A movie job's one output (docs/farm.md "Movies"), served as it is.
+  const auto movie = farm::movie_format(source.string(), "movie");
+  if (p[4] == "movie" || movie.ok()) {
+    if (p[4] != "movie" || !movie.ok()) {
+      return error(404, "NOT_FOUND",
+                   movie.ok() ? "job " + job + " is a movie job: GET jobs/" + job + "/frames/1/movie"
+                              : "job " + job + " is not a movie job: its frames are frames/F/image");
+    }
+    HttpResponse r;
+    r.content_type = *movie == farm::MovieFormat::kMp4    ? "video/mp4"
+                     : *movie == farm::MovieFormat::kWebm ? "video/webm"
+                                                          : "image/gif";
+    r.file = source.string();
+    r.headers.emplace_back("Cache-Control", "no-cache");
+    return r;
+  }
   const fs::path cache = fs::path(c_.job_dir(job)) / ".dashboard";
   std::lock_guard lk(images_mu_);
   if (p[4] == "image") {

@@ -321,6 +321,12 @@ Status JobStore::apply_one(const Event& e) {
              words_text(s.after), costs_text(s.row_costs),
              std::string(label_name(kJobKindLabels, s.kind)), s.movie, s.fps, s.notify_url);
     if (Status st = ins.run(); !st.ok()) return st;
+    if (s.kind == JobKind::kMovie) {
+      return add_history(r.job_id, -1, -1,
+                         fmt::format("submitted{}: the movie {} of job {} at {} fps",
+                                     s.owner.empty() ? "" : " by " + s.owner, s.output,
+                                     s.after.empty() ? "?" : s.after.front(), s.fps));
+    }
     return add_history(
         r.job_id, -1, -1,
         fmt::format("submitted{}: {} at {}x{}, frames {}-{}, {} bands per frame, "

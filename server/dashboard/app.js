@@ -274,6 +274,7 @@ function jobView(jobId, pinned) {
                        el('h2', {text: 'Events'}), el('div', {class: 'events'}, events));
   let after = 0, shownFrame = null, strips = {};
   const thumbLoaded = new Set();
+  const movieBox = el('div', {class: 'movie', id: 'movie'});
 
   async function renderFrame(j, f) {
     const frame = await api(`jobs/${q}/frames/${f}`);
@@ -340,6 +341,52 @@ function jobView(jobId, pinned) {
              el('button', {id: 'priority', onclick: () => act(`jobs/${q}/priority`, {
                priority: Number(document.getElementById('priority-value').value)}, 'priority')},
                 'Set')));
+      if (j.kind === 'movie') {
+        await renderMovie(j);
+      } else {
+        await renderFrames(j);
+      }
+      const ev = await api(`jobs/${q}/events?after=${after}`);
+      for (const e of ev.events || []) {
+        events.append(new Date(num(e.unix_seconds) * 1000).toLocaleTimeString() + '  ' + e.text + '\n');
+        after = Math.max(after, num(e.seq));
+      }
+    },
+  };
+
+  // A movie job (docs/farm.md "Movies"): no frames nor bands of its own;
+  // the movie, once made, played from the farm.
+  async function renderMovie(j) {
+    if (!movieBox.isConnected) {
+      main.replaceChildren(head, el('h2', {text: 'Movie'}), movieBox,
+                           el('h2', {text: 'Events'}), el('div', {class: 'events'}, events));
+    }
+    document.getElementById('job-summary').textContent =
+        `The movie ${j.movie} of the frames of job ${(j.after || [])[0] || '?'} at ${j.fps} fps,` +
+        ` made by the coordinator; owner ${j.owner || '-'}; ${fmtSeconds(j.seconds_elapsed)}` +
+        (j.waiting ? `; ${j.waiting}` : '') + (j.error ? `; ${j.error}` : '');
+    if (jobState(j) !== 'succeeded') {
+      movieBox.replaceChildren(el('p', {class: 'muted', text: 'Not made yet.'}));
+      delete movieBox.dataset.loaded;
+      return;
+    }
+    if (movieBox.dataset.loaded) return;
+    movieBox.dataset.loaded = '1';
+    const url = URL.createObjectURL(await api(`jobs/${q}/frames/1/movie`));
+    const gif = String(j.movie).toLowerCase().endsWith('.gif');
+    const player = gif ? el('img', {id: 'movie-player', alt: j.movie})
+                       : el('video', {id: 'movie-player', controls: '', loop: ''});
+    player.src = url;
+    movieBox.replaceChildren(player, el('p', {},
+        el('a', {href: url, download: j.movie, text: 'Download ' + j.movie})));
+  }
+
+  async function renderFrames(j) {
+      if (j.movie_job) {
+        const p = document.getElementById('job-summary');
+        p.append('; movie ', link(`#/job/${encodeURIComponent(j.movie_job)}`, j.movie),
+                 ` (job ${j.movie_job})`);
+      }
       // Thumbnails: every frame, filled in as it is written.
       const written = new Set((j.frames_written || []).map(Number));
       if (thumbs.children.length !== num(j.frames_total)) {
@@ -367,13 +414,7 @@ function jobView(jobId, pinned) {
       }
       if (Number.isInteger(pinned) && pinned >= j.frame_first && pinned <= j.frame_last) f = pinned;
       await renderFrame(j, f);
-      const ev = await api(`jobs/${q}/events?after=${after}`);
-      for (const e of ev.events || []) {
-        events.append(new Date(num(e.at) * 1000).toLocaleTimeString() + '  ' + e.text + '\n');
-        after = Math.max(after, num(e.seq));
-      }
-    },
-  };
+  }
 }
 
 // ---------------------------------------------------------------- frame

@@ -259,6 +259,36 @@ std::string http_exchange(int port, const std::string& request, int timeout_seco
   return locus::testing::raw_http(a, request, timeout_seconds);
 }
 
+TEST_F(HttpApiTest, AMovieJobsMovieIsServedAsVideoAndItsFramesAreNotImages) {
+  start();
+  make_api();
+  add_workers(2);
+  SubmitRequest r = request(kSpheres, 32, 24, 1, 3, 1, "mv_####.png");
+  r.movie = "mv.mp4";
+  const std::string job = submit(r, "ann");
+  const std::string movie = coordinator_->job(job)->movie_job;
+  ASSERT_FALSE(movie.empty());
+  auto done = client_->watch(movie, [](const JobInfo&) {});
+  ASSERT_TRUE(done.ok());
+  ASSERT_EQ(done->state, JobState::kSucceeded) << done->error;
+  const auto status = call("GET", "/api/v1/jobs/" + movie);
+  EXPECT_NE(status.body.find("\"kind\":\"movie\""), std::string::npos) << status.body;
+  EXPECT_NE(call("GET", "/api/v1/jobs/" + job).body.find("\"movie_job\":\"" + movie + "\""),
+            std::string::npos);
+  const auto video = call("GET", "/api/v1/jobs/" + movie + "/frames/1/movie");
+  EXPECT_EQ(video.status, 200) << video.body;
+  EXPECT_EQ(video.content_type, "video/mp4");
+  EXPECT_EQ(video.file, coordinator_->job_dir(movie) + "/mv.mp4");
+  EXPECT_GT(fs::file_size(video.file), 0u);
+  EXPECT_EQ(call("GET", "/api/v1/jobs/" + movie + "/frames/1/movie", "").status, 401);
+  // Not an image; and a render job has no movie of its own.
+  const auto thumb = call("GET", "/api/v1/jobs/" + movie + "/frames/1/thumbnail");
+  EXPECT_EQ(thumb.status, 404);
+  EXPECT_NE(thumb.body.find("frames/1/movie"), std::string::npos) << thumb.body;
+  EXPECT_EQ(call("GET", "/api/v1/jobs/" + job + "/frames/1/movie").status, 404);
+  EXPECT_TRUE(has_header(video, "Content-Security-Policy", "media-src 'self' blob:"));
+}
+
 TEST_F(HttpApiTest, TheServerOnLoopbackAnswersAndSurvivesHostileRequests) {
   start();
   make_api();

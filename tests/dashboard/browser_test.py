@@ -60,7 +60,7 @@ def wait_for(predicate, seconds, step=0.1):
 
 def main():
     ap = argparse.ArgumentParser()
-    for flag in ("url", "farm", "bin", "tokens", "job", "hung-pid", "out", "work"):
+    for flag in ("url", "farm", "bin", "tokens", "job", "hung-pid", "out", "work", "scene"):
         ap.add_argument("--" + flag, required=True)
     a = ap.parse_args()
     ann = open(os.path.join(a.tokens, "ann.tok")).read().strip()
@@ -218,6 +218,27 @@ def main():
         driver.get(a.url + "/#/worker/w0002")
         wait_for(lambda: driver.find_elements(By.CSS_SELECTOR, "#worker-attempts tr td"), 10)
         shot("worker")
+
+        # ---- a movie job (--movie): its page plays the movie the coordinator made
+        render_job = locus("submit", a.scene, "--size", "64x48", "--frames", "1-4", "-o",
+                           "mv_####.png", "--movie", "mv.mp4", "--fps", "4").stdout.strip()
+        movie_job = wait_for(lambda: api(f"jobs/{render_job}")["movie_job"], 10)
+        made = movie_job and wait_for(lambda: "succeeded" in locus("status", movie_job).stdout, 60, 0.5)
+        check(made, f"the movie job {movie_job} of job {render_job} succeeds")
+        driver.get(a.url + "/#/job/" + str(movie_job))
+        shape = wait_for(lambda: driver.execute_script(
+            "const v = document.getElementById('movie-player');"
+            "return v && v.readyState >= 1 && [v.videoWidth, v.videoHeight, v.duration];"), 15)
+        check(shape and shape[0] == 64 and shape[1] == 48 and abs(shape[2] - 1.0) < 0.1,
+              f"the movie job's page plays its H.264 movie (64x48, 4 frames at 4 fps): {shape}",
+              driver.execute_script("const v = document.getElementById('movie-player');"
+                                    "return v && v.error && v.error.message;"))
+        events = wait_for(lambda: "the movie mv.mp4 of job" in driver.find_element(By.ID, "events").text
+                          and driver.find_element(By.ID, "events").text, 10) or ""
+        epoch = driver.execute_script("return new Date(0).toLocaleTimeString();")
+        check(events and not events.startswith(epoch),
+              "its events say what it makes, at their times (not the epoch's)", events[:120])
+        shot("movie")
 
         # ---- without a token: no data, on the page or from the API
         driver.execute_script("sessionStorage.clear();")

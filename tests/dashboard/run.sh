@@ -92,7 +92,7 @@ worker '<img src=x onerror="window.xss=1">' 80
 echo "job $job; dashboard at http://127.0.0.1:7080 in namespace $ns"
 in_ns /usr/bin/python3 "$src/tests/dashboard/browser_test.py" --url http://127.0.0.1:7080 \
   --farm $farm --bin "$bin" --tokens "$tmp" --job "$job" --hung-pid "$hung" --out "$out" \
-  --work "$tmp"
+  --work "$tmp" --scene "$src/scenes/simple/spheres.json"
 rc=$?
 
 # HTTPS: a second coordinator with TLS serves the dashboard with the gRPC
