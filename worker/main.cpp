@@ -2,7 +2,9 @@
 // bands, renders them and returns the pixels until SIGTERM/SIGINT, after
 // which it finishes the band in hand and exits. It is a gRPC client of the
 // coordinator; --health serves the standard health service (for probes)
-// and --metrics its Prometheus series (docs/deploy.md).
+// and --metrics its Prometheus series (docs/deploy.md). `locus-worker
+// health ADDR` asks a health service, like `locus health`: the worker's
+// image (deploy/docker/Dockerfile) carries no other binary for its probe.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -25,14 +27,22 @@ int fail(const std::string& message) {
   return 2;
 }
 
+// Exit status 0 when SERVING (Docker's HEALTHCHECK), 1 otherwise.
+int run_health(const std::string& address, const std::string& service) {
+  auto serving = locus::rpc::check_health(address, service, {}, locus::farm::Millis(5000));
+  if (!serving.ok()) return fail(serving.status().message());
+  std::printf("%s\n", *serving ? "SERVING" : "NOT_SERVING");
+  return *serving ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"locus-worker: renders bands for a Locus coordinator"};
   locus::farm::WorkerOptions options;
   int poll_ms = 10000;
-  app.add_option("--coordinator", options.coordinator, "Coordinator address, HOST:PORT")
-      ->required();
+  // Required unless the `health` subcommand is given (checked below).
+  app.add_option("--coordinator", options.coordinator, "Coordinator address, HOST:PORT");
   app.add_option("--threads", options.threads,
                  "Threads per band (0 = all cores); run one worker per core by default")
       ->check(CLI::Range(0, 1024));
@@ -73,7 +83,16 @@ int main(int argc, char** argv) {
   app.add_option("--log-format", log_format, "Log lines as text or json (one object per line)")
       ->check(CLI::IsMember(locus::label_names(locus::kLogFormatLabels)));
   app.add_option("--log-level", log_level, locus::label_choices(locus::kLogLevelLabels));
+  std::string probe_address, probe_service;
+  auto* health_cmd = app.add_subcommand(
+      "health", "Ask a worker's (or coordinator's) gRPC health service, plaintext, and exit 0 when "
+                "SERVING (probes); no worker runs");
+  health_cmd->add_option("address", probe_address, "HOST:PORT of its --health port")->required();
+  health_cmd->add_option("--service", probe_service,
+                         "\"\" (default): ready; \"liveness\": the process runs");
   CLI11_PARSE(app, argc, argv);
+  if (health_cmd->parsed()) return run_health(probe_address, probe_service);
+  if (options.coordinator.empty()) return fail("--coordinator is required");
   // Logs go to stderr: stdout carries what scripts read.
   if (auto st = locus::setup_logging(*locus::parse_log_format(log_format), log_level); !st.ok())
     return fail(st.message());
