@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # tests/container/run.sh BINDIR SOURCE: the farm in containers (CTest
-# `container_farm`, label container). Builds the image
+# `container_farm`, label container). Builds the two images
 # (deploy/docker/Dockerfile, on a Debian 12 base made by
-# deploy/docker/make-base.sh), runs a coordinator and 2 workers with
+# deploy/docker/make-base.sh; the worker's must stay within
+# LOCUS_WORKER_IMAGE_MIB, 250 MiB), runs a coordinator and 2 workers with
 # deploy/compose.yaml (TLS, worker certificates and tokens, as secrets),
 # submits a 3-frame job from this host through the coordinator's port
 # published on 127.0.0.1, and checks:
@@ -12,28 +13,30 @@
 #   - GET /metrics answers with every series docs/deploy.md lists;
 #   - the dashboard answers on its published HTTPS port: the page, 401
 #     without a token, the job with a client token;
-#   - Docker's HEALTHCHECK (`locus health`) says healthy, the worker's
-#     health service answers inside its container, logs are JSON lines
-#     with band ids, the containers run as uid 10001;
+#   - Docker's HEALTHCHECK (`locus health`, `locus-worker health`) says
+#     healthy, the worker's health service answers inside its container,
+#     logs are JSON lines with band ids, the containers run as uid 10001;
 #   - SIGTERM drains the coordinator, which exits 0.
 # No Docker daemon running: starts Debian's dockerd (root), with its
-# networks in 10.79.0.0/16, and stops it at the end. Exit 77 (skipped, with
-# a message) only when no container engine can run here. Traffic: the
+# networks in 10.79.0.0/16, and stops it at the end. No skip: an engine
+# that cannot start or run a container fails the test. Traffic: the
 # containers talk on their own bridge network; this host reaches the
 # coordinator on 127.0.0.1 only; image builds use the host's network for
 # Debian's mirror. Prints each phase's time and "N passed, M failed".
 #
 # tests/container/run.sh --prepare BINDIR SOURCE: the engine and the images
-# only (tests/run.sh starts it in the background early, so that debootstrap
-# and apt, which mostly wait on the network and dpkg, overlap the other
-# builds; the test itself then finds every layer cached).
+# only (tests/run.sh starts it in the background before its builds, so that
+# debootstrap and apt, which mostly wait on the network and dpkg, overlap
+# them; the test itself then finds every layer cached). BINDIR need not
+# exist yet.
 set -uo pipefail
 prepare=
 if [ "${1:-}" = --prepare ]; then
   prepare=1
   shift
 fi
-bin=$(cd "$1" && pwd) src=$(cd "$2" && pwd)
+src=$(cd "$2" && pwd)
+[ -n "$prepare" ] || bin=$(cd "$1" && pwd)
 tag=${LOCUS_TEST_TAG:-test}
 # Debian's python3, with its numpy and OpenImageIO (install-deps.sh).
 py=/usr/bin/python3
@@ -41,20 +44,22 @@ py=/usr/bin/python3
 base=${LOCUS_BASE:-locus-debian:12}
 start=$SECONDS
 phase() { echo "container: $1 ($((SECONDS - start)) s)"; }
-skip() {
-  echo "SKIP: container test: $1"
-  exit 77
-}
 passed=0 failed=0
 ok() { echo "ok: $1"; passed=$((passed + 1)); }
 bad() { echo "FAILED: $1"; failed=$((failed + 1)); }
+# No engine is a failure, not a skip: CI runs this test everywhere.
+no_engine() {
+  bad "container engine: $1"
+  echo "$passed passed, $failed failed"
+  exit 1
+}
 
 # Debian's client with Debian's daemon, where both are installed.
 docker=${DOCKER:-docker}
 [ -z "${DOCKER:-}" ] && [ -x /usr/bin/docker ] && docker=/usr/bin/docker
 export DOCKER=$docker
-command -v "$docker" >/dev/null || skip "no docker client (deploy/local/install-deps.sh installs docker.io)"
-command -v docker-compose >/dev/null || skip "no docker-compose (deploy/local/install-deps.sh installs it)"
+command -v "$docker" >/dev/null || no_engine "no docker client (deploy/local/install-deps.sh installs docker.io)"
+command -v docker-compose >/dev/null || no_engine "no docker-compose (deploy/local/install-deps.sh installs it)"
 
 tmp=$(mktemp -d /var/tmp/locus-container-test.XXXXXX)
 dockerd_pid=
@@ -77,8 +82,8 @@ trap 'exit 143' TERM INT
 
 # ---- the engine
 if ! "$docker" info >/dev/null 2>&1; then
-  command -v dockerd >/dev/null || skip "no Docker daemon running, and no dockerd to start"
-  [ "$(id -u)" -eq 0 ] || skip "no Docker daemon running, and starting dockerd needs root"
+  command -v dockerd >/dev/null || no_engine "no Docker daemon running, and no dockerd to start"
+  [ "$(id -u)" -eq 0 ] || no_engine "no Docker daemon running, and starting dockerd needs root"
   log=/var/log/locus-test-dockerd.log
   setsid dockerd --bip 10.79.0.1/24 --default-address-pool base=10.79.0.0/16,size=24 \
     </dev/null >"$log" 2>&1 &
@@ -90,7 +95,7 @@ if ! "$docker" info >/dev/null 2>&1; then
   done
   if ! "$docker" info >/dev/null 2>&1; then
     tail -5 "$log"
-    skip "dockerd could not start here (see $log)"
+    no_engine "dockerd could not start here (see $log)"
   fi
   phase "started dockerd (pid $dockerd_pid)"
 fi
@@ -100,20 +105,46 @@ bash "$src/deploy/docker/make-base.sh" "$base" || { bad "base image $base"; exit
 phase "base image $base"
 if ! "$docker" run --rm --network none "$base" true 2>"$tmp/run.err"; then
   cat "$tmp/run.err"
-  skip "the engine cannot run a container here"
+  no_engine "the engine cannot run a container here"
 fi
-# Both targets share every layer but their last: the second build is cached.
-for target in coordinator worker; do
-  if ! "$docker" build --network host -f "$src/deploy/docker/Dockerfile" --build-arg "BASE=$base" \
-    --target "$target" -t "locus-$target:$tag" "$src" >"$tmp/build-$target.log" 2>&1; then
-    tail -40 "$tmp/build-$target.log"
-    bad "docker build --target $target"
-    echo "$passed passed, $failed failed"
-    exit 1
-  fi
+# The two targets side by side, with BuildKit (the engine's own builder):
+# it runs independent stages at once and shares the steps both builds have
+# in common, so the worker's image (its compile a part of the
+# coordinator's) is done while the coordinator's compile goes on.
+build_pids=()
+for target in worker coordinator; do
+  DOCKER_BUILDKIT=1 "$docker" build --progress plain --network host -f "$src/deploy/docker/Dockerfile" \
+    --build-arg "BASE=$base" --target "$target" -t "locus-$target:$tag" "$src" \
+    >"$tmp/build-$target.log" 2>&1 &
+  build_pids+=($!)
 done
-ok "image built: locus-coordinator:$tag, locus-worker:$tag ($(("$("$docker" image inspect -f '{{.Size}}' "locus-worker:$tag")" / 1048576)) MiB)"
+built=0
+for i in 0 1; do
+  target=$([ "$i" = 0 ] && echo worker || echo coordinator)
+  if wait "${build_pids[$i]}"; then
+    built=$((built + 1))
+  else
+    tail -40 "$tmp/build-$target.log"
+    echo "FAILED: docker build --target $target"
+  fi
+  # Where the time went: the build's steps of 10 s or more.
+  awk -v t="$target" '/^#[0-9]+ \[/ { name[$1] = substr($0, length($1) + 2, 70) }
+    /^#[0-9]+ DONE/ && $3 + 0 >= 10 { printf "container: %s build: %s %s\n", t, $3, name[$1] }' \
+    "$tmp/build-$target.log"
+done
+[ "$built" -eq 2 ] || { bad "docker build"; echo "$passed passed, $failed failed"; exit 1; }
+mib() { echo $(("$("$docker" image inspect -f '{{.Size}}' "$1")" / 1048576)); }
+ok "images built: locus-coordinator:$tag ($(mib "locus-coordinator:$tag") MiB), locus-worker:$tag"
 phase "images built"
+# Every node of a worker pool pulls the worker's image: it holds
+# locus-worker and the libraries it loads, nothing of the coordinator's.
+limit=${LOCUS_WORKER_IMAGE_MIB:-250}
+size=$("$docker" image inspect -f '{{.Size}}' "locus-worker:$tag")
+if [ "$size" -le $((limit * 1048576)) ]; then
+  ok "the worker's image is $((size / 1048576)) MiB (at most $limit)"
+else
+  bad "the worker's image is $((size / 1048576)) MiB, over $limit"
+fi
 if [ -n "$prepare" ]; then
   echo "$passed passed, $failed failed"
   exit 0
@@ -276,10 +307,11 @@ for _ in $(seq 60); do
   sleep 1
 done
 [ "$healthy" -eq 3 ] && ok "Docker HEALTHCHECK: 3 containers healthy" || bad "HEALTHCHECK: $healthy of 3 healthy"
-compose exec -T --index=1 worker locus health 127.0.0.1:7001 --service liveness >/dev/null &&
+compose exec -T --index=1 worker locus-worker health 127.0.0.1:7001 --service liveness >/dev/null &&
   ok "a worker's health service answers in its container" || bad "worker health in its container"
-[ "$(compose exec -T coordinator id -u | tr -d '\r')" = 10001 ] && ok "the coordinator runs as uid 10001" ||
-  bad "coordinator user"
+[ "$(compose exec -T coordinator id -u | tr -d '\r')" = 10001 ] &&
+  [ "$(compose exec -T --index=1 worker id -u | tr -d '\r')" = 10001 ] &&
+  ok "the coordinator and the workers run as uid 10001" || bad "the containers' user"
 compose logs --no-color worker >"$tmp/worker.log" 2>&1
 if "$py" - "$tmp/worker.log" <<'EOF'; then
 import json, sys
