@@ -312,6 +312,10 @@ compose exec -T --index=1 worker locus-worker health 127.0.0.1:7001 --service li
 [ "$(compose exec -T coordinator id -u | tr -d '\r')" = 10001 ] &&
   [ "$(compose exec -T --index=1 worker id -u | tr -d '\r')" = 10001 ] &&
   ok "the coordinator and the workers run as uid 10001" || bad "the containers' user"
+# The coordinator makes movies (--movie): its image carries ffmpeg with H.264.
+encoders=$(compose exec -T coordinator ffmpeg -hide_banner -encoders 2>/dev/null)
+grep -q libx264 <<<"$encoders" &&
+  ok "the coordinator's image has ffmpeg with libx264 (movies)" || bad "no ffmpeg in the coordinator's image"
 compose logs --no-color worker >"$tmp/worker.log" 2>&1
 if "$py" - "$tmp/worker.log" <<'EOF'; then
 import json, sys
