@@ -15,6 +15,7 @@
 
 #include "common/base/log.h"
 #include "common/farm/auth.h"
+#include "server/backup.h"
 #include "server/coordinator.h"
 #include "server/grpc_service.h"
 #include "server/metrics.h"
@@ -287,6 +288,25 @@ void drain_on_signal(locus::rpc::CoordinatorServer& server, const sigset_t& sign
   spdlog::info("stopped");
 }
 
+// `backup OUT`: the data directory copied while a coordinator may run on it
+// (server/backup.h); what it took on stdout.
+int run_backup(const Flags& f, const std::string& out) {
+  farm::BackupOptions o;
+  o.data_dir = f.data;
+  o.output_root = f.options.output_root;
+  o.out = out;
+  auto r = farm::backup_data_dir(o);
+  if (!r.ok()) return fail(r.status().message());
+  for (const std::string& band : r->rendered_again)
+    spdlog::warn("{}: accepted during the backup, its frame written since; rendered again on restore",
+                 band);
+  std::printf("backup %s: %d jobs, %lld store pages, %d band files, %d frame files (%d linked, %d "
+              "copied); restore with locus-coordinator --data %s\n",
+              out.c_str(), r->jobs, static_cast<long long>(r->pages), r->band_files, r->job_files,
+              r->linked, r->copied, out.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -295,10 +315,18 @@ int main(int argc, char** argv) {
   add_farm_flags(app, f);
   add_security_flags(app, f);
   add_operations_flags(app, f);
+  std::string backup_out;
+  CLI::App* backup = app.add_subcommand(
+      "backup",
+      "Copy the job store (--data) and its jobs' band and frame files (--output-root) into OUT "
+      "while the coordinator runs, then exit; restore: locus-coordinator --data OUT");
+  backup->add_option("OUT", backup_out, "A new directory for the backup")->required();
+  backup->fallthrough();  // --data and --output-root also after OUT
   CLI11_PARSE(app, argc, argv);
   // Logs go to stderr: stdout carries what scripts read.
   if (auto st = locus::setup_logging(*locus::parse_log_format(f.log_format), f.log_level); !st.ok())
     return fail(st.message());
+  if (*backup) return run_backup(f, backup_out);
   if (Status st = check_lease_timing(f); !st.ok()) return fail(st.message());
   if (Status st = set_up_security(f); !st.ok()) return fail(st.message());
   const sigset_t signals = block_signals();
