@@ -56,6 +56,7 @@ Status Coordinator::start() {
   ticker_ = std::thread([this] { tick_loop(); });
   writer_ = std::thread([this] { write_loop(); });
   movie_maker_ = std::thread([this] { movie_loop(); });
+  dispatcher_ = std::thread([this] { dispatch_loop(); });
   return Status::Ok();
 }
 
@@ -224,6 +225,7 @@ void Coordinator::shutdown() {
   if (ticker_.joinable()) ticker_.join();
   if (writer_.joinable()) writer_.join();
   if (movie_maker_.joinable()) movie_maker_.join();
+  if (dispatcher_.joinable()) dispatcher_.join();
   std::lock_guard lk(mu_);
   const LatencySummary d = dispatch_.summary();
   if (d.count > 0) {
@@ -250,6 +252,7 @@ void Coordinator::crash_for_test() {
   if (ticker_.joinable()) ticker_.join();
   if (writer_.joinable()) writer_.join();
   if (movie_maker_.joinable()) movie_maker_.join();
+  if (dispatcher_.joinable()) dispatcher_.join();
   // Closing the connection checkpoints nothing that a reopen would not
   // recover from the WAL anyway.
   std::lock_guard lk(mu_);
@@ -274,7 +277,8 @@ void Coordinator::tick_loop() {
   uint64_t seen = scheduler_.version();
   auto retained = SteadyClock::now() - std::chrono::hours(1);
   while (!stopping_) {
-    changed_.wait_for(lk, options_.tick);
+    // Its own rhythm: woken by every change it would run once per band.
+    changed_.wait_for(lk, options_.tick, [&] { return stopping_; });
     scheduler_.expire();
     persist();
     if (SteadyClock::now() - retained >= options_.retention_check) {
@@ -570,6 +574,7 @@ Result<std::string> Coordinator::drain_worker(const std::string& worker, const C
   std::lock_guard lk(mu_);
   auto r = scheduler_.drain_worker(worker);
   if (!r.ok()) return r.status();
+  polls_all_ = true;
   changed_.notify_all();  // its long poll, if any, returns at once and says so
   return r->name;
 }
@@ -759,40 +764,160 @@ Result<Registration> Coordinator::register_worker(const std::string& name, int t
   return r;
 }
 
-Result<std::optional<BandLease>> Coordinator::lease_band(const std::string& worker_id, Millis wait,
-                                                         const CancelledFn& cancelled) {
-  auto since = SteadyClock::now();
-  const auto end = since + std::clamp(wait, Millis(0), options_.max_poll);
+std::optional<Coordinator::PollAnswer> Coordinator::try_lease(const std::string& worker_id) {
+  // A worker polling a coordinator that is going away waits elsewhere (its
+  // retry backoff) rather than here.
+  if (closing_) return PollAnswer(Status(Code::kUnavailable, "the coordinator is shutting down"));
+  if (stopping_) return PollAnswer(std::optional<BandLease>());
+  // Draining: no new leases; the poll waits out its time as on an idle farm
+  // (the worker still counts as seen).
+  PollAnswer r = std::optional<BandLease>();
+  if (!draining_) {
+    r = scheduler_.next_band(worker_id);
+  } else if (Status alive = scheduler_.touch(worker_id); !alive.ok()) {
+    r = alive;
+  }
+  if (!r.ok() || r->has_value()) return r;
+  // A drained worker hears of it now (GetTaskResponse.drain), not at the
+  // poll's end.
+  if (scheduler_.draining(worker_id)) return r;
+  return std::nullopt;
+}
+
+uint64_t Coordinator::poll_band(const std::string& worker_id, Millis wait, PollDone done) {
+  const TimePoint since = SteadyClock::now();
+  const TimePoint end = since + std::clamp(wait, Millis(0), options_.max_poll);
   std::unique_lock lk(mu_);
+  std::optional<PollAnswer> now = try_lease(worker_id);
+  if (!now && SteadyClock::now() >= end) now = PollAnswer(std::optional<BandLease>());
+  if (now) {
+    if (now->ok() && now->value().has_value()) {
+      persist();
+      dispatch_.add(SteadyClock::now() - since);  // from the call to the lease
+      changed_.notify_all();
+    }
+    lk.unlock();
+    done(std::move(*now));
+    return 0;
+  }
+  // Parked: dispatch_loop() answers it. Its end is seen within a tick.
+  const uint64_t ticket = next_poll_++;
+  polls_.emplace(ticket, Poll{worker_id, end, since, std::move(done)});
+  poll_ends_.emplace(end, ticket);
+  return ticket;
+}
+
+void Coordinator::cancel_poll(uint64_t ticket) {
+  std::unique_lock lk(mu_);
+  auto it = polls_.find(ticket);
+  if (it == polls_.end()) return;
+  PollDone done = std::move(it->second.done);
+  poll_ends_.erase({it->second.end, ticket});
+  polls_.erase(it);
+  lk.unlock();
+  done(std::optional<BandLease>());
+}
+
+Coordinator::PollAnswer Coordinator::lease_band(const std::string& worker_id, Millis wait,
+                                                const CancelledFn& cancelled) {
+  struct Answer {
+    std::mutex mu;
+    std::condition_variable cv;
+    std::optional<PollAnswer> value;
+  };
+  auto answer = std::make_shared<Answer>();
+  const uint64_t ticket = poll_band(worker_id, wait, [answer](PollAnswer a) {
+    std::lock_guard lk(answer->mu);
+    answer->value = std::move(a);
+    answer->cv.notify_all();
+  });
+  std::unique_lock lk(answer->mu);
+  while (!answer->cv.wait_for(lk, Millis(200), [&] { return answer->value.has_value(); })) {
+    if (cancelled && cancelled()) {
+      lk.unlock();
+      cancel_poll(ticket);
+      lk.lock();
+    }
+  }
+  return std::move(*answer->value);
+}
+
+void Coordinator::serve_polls(bool all, std::vector<std::pair<PollDone, PollAnswer>>& answers) {
+  if (polls_.empty()) return;
+  // Oldest poll first. Only while bands are queued: an idle farm's parked
+  // polls cost nothing per pass. Speculation (a second lease of a
+  // straggler, Scheduler::next_band) needs no queued band; the oldest
+  // poll asks for it once per tick.
+  bool queued = scheduler_.has_queued_bands();
+  int speculation = speculate_due_ ? 1 : 0;
+  speculate_due_ = false;
+  const TimePoint pass = SteadyClock::now();
+  bool leased = false;
+  for (auto it = polls_.begin(); it != polls_.end();) {
+    if (!all && !queued && speculation-- <= 0) break;
+    std::optional<PollAnswer> a = try_lease(it->second.worker_id);
+    if (!a) {
+      ++it;
+      continue;
+    }
+    if (a->ok() && a->value().has_value()) {
+      leased = true;
+      // From the wake-up that found the band to the lease.
+      dispatch_.add(SteadyClock::now() - std::max(pass, it->second.since));
+      queued = scheduler_.has_queued_bands();
+    }
+    poll_ends_.erase({it->second.end, it->first});
+    answers.emplace_back(std::move(it->second.done), std::move(*a));
+    it = polls_.erase(it);
+  }
+  if (leased) persist();
+}
+
+void Coordinator::dispatch_loop() {
+  std::unique_lock lk(mu_);
+  uint64_t seen = scheduler_.version();
+  TimePoint touched = SteadyClock::now();
+  TimePoint ticked = touched;
+  // A parked poll keeps its worker seen (Scheduler::expire drops workers
+  // silent past the lease time), as the poll's own calls did.
+  const Millis touch_every = std::clamp(options_.lease / 4, Millis(1), Millis(1000));
   for (;;) {
-    // A worker polling a coordinator that is going away waits elsewhere
-    // (its retry backoff) rather than here.
-    if (closing_) return Status(Code::kUnavailable, "the coordinator is shutting down");
-    // Checked before leasing: a band leased to a poll whose worker has gone
-    // would sit idle until its lease lapsed.
-    if (stopping_ || (cancelled && cancelled())) return std::optional<BandLease>();
-    // Draining: no new leases; the poll waits out its time as on an idle farm
-    // (the worker still counts as seen).
-    Result<std::optional<BandLease>> r = std::optional<BandLease>();
-    if (!draining_) {
-      r = scheduler_.next_band(worker_id);
-    } else if (Status alive = scheduler_.touch(worker_id); !alive.ok()) {
-      r = alive;
+    const bool stop = stopping_;
+    const bool all = stop || polls_all_ || closing_;
+    polls_all_ = false;
+    TimePoint now = SteadyClock::now();
+    if (now - ticked >= options_.tick) {
+      ticked = now;
+      speculate_due_ = true;
     }
-    if (!r.ok() || r->has_value()) {
-      if (r.ok()) {
-        persist();
-        // From the call (or the wake-up that found the band) to the lease.
-        dispatch_.add(SteadyClock::now() - since);
-        changed_.notify_all();
-      }
-      return r;
+    std::vector<std::pair<PollDone, PollAnswer>> answers;
+    if (all || speculate_due_ || scheduler_.version() != seen) serve_polls(all, answers);
+    seen = scheduler_.version();
+    now = SteadyClock::now();
+    while (!poll_ends_.empty() && poll_ends_.begin()->first <= now) {
+      auto it = polls_.find(poll_ends_.begin()->second);
+      poll_ends_.erase(poll_ends_.begin());
+      answers.emplace_back(std::move(it->second.done), std::optional<BandLease>());
+      polls_.erase(it);
     }
-    // A drained worker hears of it now (GetTaskResponse.drain), not at the
-    // poll's end.
-    if (SteadyClock::now() >= end || scheduler_.draining(worker_id)) return r;
-    changed_.wait_until(lk, std::min(end, SteadyClock::now() + Millis(200)));
-    since = SteadyClock::now();
+    if (now - touched >= touch_every) {
+      touched = now;
+      for (const auto& [ticket, poll] : polls_) scheduler_.touch(poll.worker_id);
+    }
+    if (!answers.empty()) {
+      lk.unlock();
+      for (auto& [done, answer] : answers) done(std::move(answer));
+      answers.clear();
+      lk.lock();
+      continue;
+    }
+    if (stop) return;
+    TimePoint wake = ticked + options_.tick;
+    if (!poll_ends_.empty()) wake = std::min(wake, poll_ends_.begin()->first);
+    changed_.wait_until(lk, wake, [&] {
+      return stopping_ || polls_all_ || (closing_ && !polls_.empty()) ||
+             scheduler_.version() != seen;
+    });
   }
 }
 

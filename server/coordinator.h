@@ -192,10 +192,22 @@ class Coordinator {
   // InvalidArgument for bad tags (check_tags).
   Result<Registration> register_worker(const std::string& name, int threads,
                                        const std::vector<std::string>& tags = {});
-  // GetTask, the long poll: the next band leased to the worker as soon as
-  // there is one, or nothing once `wait` (capped by max_poll) has passed.
-  Result<std::optional<BandLease>> lease_band(const std::string& worker_id, Millis wait,
-                                              const CancelledFn& cancelled);
+  // GetTask, the long poll, without holding a thread (the gRPC callback
+  // service): `done` gets the band leased to the worker as soon as there is
+  // one, nothing once `wait` (capped by max_poll) has passed, or the error;
+  // exactly once, never under the coordinator's lock: on this thread when
+  // the answer is known at once, else on the dispatch thread. A waiting
+  // poll costs an entry in a map, not a thread. Returns a ticket for
+  // cancel_poll().
+  using PollAnswer = Result<std::optional<BandLease>>;
+  using PollDone = std::function<void(PollAnswer)>;
+  uint64_t poll_band(const std::string& worker_id, Millis wait, PollDone done);
+  // The caller went away: its poll ends now with nothing (a no-op once
+  // it was answered).
+  void cancel_poll(uint64_t ticket);
+  // poll_band() for a caller with a thread to spare (tests, tools):
+  // returns its answer; `cancelled` is asked every 200 ms.
+  PollAnswer lease_band(const std::string& worker_id, Millis wait, const CancelledFn& cancelled);
   Result<std::shared_ptr<const v1::Scene>> get_scene(const std::string& worker_id,
                                                      const std::string& hash);
   Result<CompleteOutcome> complete_band(BandOutput output);
@@ -228,6 +240,16 @@ class Coordinator {
                              const std::string& bytes, const std::string& request_id,
                              const std::string& fingerprint);
   void tick_loop();
+  // Answers the parked polls (poll_band) as bands become available, their
+  // time runs out or the coordinator stops.
+  void dispatch_loop();
+  // What a poll gets now: a lease, an error, "nothing, and stop waiting"
+  // (a drained worker), or nullopt to keep waiting; mu_ held.
+  std::optional<PollAnswer> try_lease(const std::string& worker_id);
+  // One pass of dispatch_loop() over the parked polls; `all`: every poll
+  // is looked at (a drain, a stop), else only while bands are queued.
+  // The answers are run by the caller once mu_ is released.
+  void serve_polls(bool all, std::vector<std::pair<PollDone, PollAnswer>>& answers);
   void write_loop();
   // Makes the movie jobs (Scheduler::next_movie) with ffmpeg, one at a
   // time, outside the lock (common/farm/movie.h).
@@ -271,7 +293,20 @@ class Coordinator {
   bool stopping_ = false;
   bool crashed_ = false;  // crash_for_test()
   bool started_ = false;
+  // Parked GetTask calls (poll_band), oldest first, and by their end.
+  struct Poll {
+    std::string worker_id;
+    TimePoint end;
+    TimePoint since;  // the call, or the last pass that looked at it
+    PollDone done;
+  };
+  std::map<uint64_t, Poll> polls_;
+  std::set<std::pair<TimePoint, uint64_t>> poll_ends_;
+  uint64_t next_poll_ = 1;
+  bool polls_all_ = false;       // every parked poll must be looked at (drain, stop)
+  bool speculate_due_ = false;   // a tick has passed: the oldest poll may speculate
   std::thread ticker_;
+  std::thread dispatcher_;
   std::thread writer_;
   std::thread movie_maker_;
   std::function<void(const JobInfo&)> job_ended_;  // on_job_ended()

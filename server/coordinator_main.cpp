@@ -6,6 +6,7 @@
 // (the farm's port, then --health and --metrics), and on SIGINT or SIGTERM
 // drain and shut down (docs/deploy.md "Stopping").
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -218,6 +219,18 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
   return options;
 }
 
+// Each connected worker holds a connection (a file descriptor): the soft
+// limit on open files (1024 on most systems) is raised to the hard one, so
+// that a farm of thousands of workers is not refused at the 1024th.
+void raise_open_files_limit() {
+  rlimit r{};
+  if (::getrlimit(RLIMIT_NOFILE, &r) != 0 || r.rlim_cur >= r.rlim_max) return;
+  const rlim_t was = r.rlim_cur;
+  r.rlim_cur = r.rlim_max;
+  if (::setrlimit(RLIMIT_NOFILE, &r) == 0)
+    spdlog::debug("open files: limit raised from {} to {}", was, r.rlim_cur);
+}
+
 // Signals are taken synchronously by the main thread (drain_on_signal);
 // blocked before gRPC starts its threads so none of those gets them.
 sigset_t block_signals() {
@@ -330,6 +343,7 @@ int main(int argc, char** argv) {
   if (Status st = check_lease_timing(f); !st.ok()) return fail(st.message());
   if (Status st = set_up_security(f); !st.ok()) return fail(st.message());
   const sigset_t signals = block_signals();
+  raise_open_files_limit();
 
   farm::Coordinator coordinator(coordinator_options(f));
   // Before start(): it tells the ends a stop left untold.

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <atomic>
 #include <chrono>
 #include <exception>
 #include <fstream>
@@ -14,7 +15,7 @@ namespace locus::rpc {
 namespace {
 
 // The first value of a call's `authorization` header, "" when absent.
-std::string_view authorization(const grpc::ServerContext& ctx) {
+std::string_view authorization(const grpc::ServerContextBase& ctx) {
   const auto& md = ctx.client_metadata();
   auto it = md.find("authorization");
   return it == md.end() ? std::string_view()
@@ -22,7 +23,7 @@ std::string_view authorization(const grpc::ServerContext& ctx) {
 }
 
 // TLS verified a client certificate against --tls-ca.
-bool peer_certificate_verified(const grpc::ServerContext& ctx) {
+bool peer_certificate_verified(const grpc::ServerContextBase& ctx) {
   const auto auth = ctx.auth_context();
   return auth && auth->IsPeerAuthenticated() &&
          !auth->FindPropertyValues(GRPC_X509_PEM_CERT_PROPERTY_NAME).empty();
@@ -62,18 +63,26 @@ void log_refusal(const std::string& peer, const Status& why) {
 // the end of the coordinator. The request's bytes and the response's
 // (`response` null for a stream, whose writes count their own) go to the
 // metrics.
-template <typename F>
-grpc::Status serve(const farm::Authenticator& auth, farm::CoordinatorMetrics& metrics,
-                   const grpc::ServerContext& ctx, farm::Role role, const char* rpc,
-                   const google::protobuf::Message& request,
-                   const google::protobuf::Message* response, F&& body) {
-  const Result<farm::Caller> caller =
+// The caller's credentials, checked; a refusal is logged and counted.
+Result<farm::Caller> admit(const farm::Authenticator& auth, farm::CoordinatorMetrics& metrics,
+                           const grpc::ServerContextBase& ctx, farm::Role role, const char* rpc,
+                           const google::protobuf::Message& request) {
+  Result<farm::Caller> caller =
       auth.identify(role, authorization(ctx), peer_certificate_verified(ctx), rpc);
   if (!caller.ok()) {
     metrics.add_bytes(rpc, request.ByteSizeLong(), 0);
     log_refusal(ctx.peer(), caller.status());
-    return ToGrpc(caller.status());
   }
+  return caller;
+}
+
+template <typename F>
+grpc::Status serve(const farm::Authenticator& auth, farm::CoordinatorMetrics& metrics,
+                   const grpc::ServerContextBase& ctx, farm::Role role, const char* rpc,
+                   const google::protobuf::Message& request,
+                   const google::protobuf::Message* response, F&& body) {
+  const Result<farm::Caller> caller = admit(auth, metrics, ctx, role, rpc, request);
+  if (!caller.ok()) return ToGrpc(caller.status());
   grpc::Status status;
   try {
     if constexpr (std::is_invocable_v<F, const farm::Caller&>) {
@@ -252,45 +261,121 @@ class CoordinatorServer::ClientImpl final : public v1::ClientService::Service {
   farm::CoordinatorMetrics& m_;
 };
 
-class CoordinatorServer::WorkerImpl final : public v1::WorkerService::Service {
+// GetTask on the callback API: the long poll parks in the coordinator
+// (Coordinator::poll_band) and holds no thread; it is answered when a band
+// comes, its time runs out, the coordinator stops or the worker goes
+// (OnCancel). Deleted when gRPC is done with it and start() has returned,
+// whichever is last.
+class PollReactor final : public grpc::ServerUnaryReactor {
  public:
-  WorkerImpl(Handlers& h, const farm::Authenticator& auth, farm::CoordinatorMetrics& m)
-      : h_(h), auth_(auth), m_(m) {}
+  explicit PollReactor(farm::Coordinator& c) : c_(c) {}
+  // The poll started (its ticket; 0: answered already).
+  void started(uint64_t ticket) {
+    bool cancelled;
+    {
+      std::lock_guard lk(mu_);
+      ticket_ = ticket;
+      cancelled = cancelled_;
+    }
+    if (cancelled && ticket != 0) c_.cancel_poll(ticket);
+    release();
+  }
+  void OnCancel() override {
+    uint64_t ticket;
+    {
+      std::lock_guard lk(mu_);
+      cancelled_ = true;
+      ticket = ticket_;
+    }
+    if (ticket != 0) c_.cancel_poll(ticket);
+  }
+  void OnDone() override { release(); }
 
-  grpc::Status Register(grpc::ServerContext* ctx, const v1::RegisterRequest* req,
-                        v1::RegisterResponse* resp) override {
-    return serve(auth_, m_, *ctx, kWorker, "WorkerService.Register", *req, resp,
-                 [&] { return h_.Register(*req, ctx->peer(), resp); });
+ private:
+  void release() {
+    if (refs_.fetch_sub(1) == 1) delete this;
+  }
+  farm::Coordinator& c_;
+  std::mutex mu_;
+  uint64_t ticket_ = 0;
+  bool cancelled_ = false;
+  std::atomic<int> refs_{2};
+};
+
+// The worker service on gRPC's callback API, so that a thousand connected
+// workers cost memory, not threads (the synchronous server holds a thread
+// per call in progress). The calls other than GetTask answer at once on
+// gRPC's thread.
+class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackService {
+ public:
+  WorkerImpl(Handlers& h, farm::Coordinator& c, const farm::Authenticator& auth,
+             farm::CoordinatorMetrics& m)
+      : h_(h), c_(c), auth_(auth), m_(m) {}
+
+  grpc::ServerUnaryReactor* Register(grpc::CallbackServerContext* ctx,
+                                     const v1::RegisterRequest* req,
+                                     v1::RegisterResponse* resp) override {
+    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.Register", *req, resp,
+                          [&] { return h_.Register(*req, ctx->peer(), resp); }));
   }
 
-  grpc::Status GetTask(grpc::ServerContext* ctx, const v1::GetTaskRequest* req,
-                       v1::GetTaskResponse* resp) override {
-    return serve(auth_, m_, *ctx, kWorker, "WorkerService.GetTask", *req, resp, [&] {
-      return h_.GetTask(
-          *req, [ctx] { return ctx->IsCancelled(); }, resp);
-    });
+  grpc::ServerUnaryReactor* GetTask(grpc::CallbackServerContext* ctx,
+                                    const v1::GetTaskRequest* req,
+                                    v1::GetTaskResponse* resp) override {
+    static constexpr const char* kRpc = "WorkerService.GetTask";
+    const Result<farm::Caller> caller = admit(auth_, m_, *ctx, kWorker, kRpc, *req);
+    if (!caller.ok()) return now(ctx, ToGrpc(caller.status()));
+    auto* reactor = new PollReactor(c_);
+    auto answered = std::make_shared<std::atomic<bool>>(false);
+    auto done = [this, reactor, req, resp, answered](Status s) {
+      answered->store(true);
+      m_.add_bytes(kRpc, req->ByteSizeLong(), s.ok() ? resp->ByteSizeLong() : 0);
+      reactor->Finish(ToGrpc(s));
+    };
+    uint64_t ticket = 0;
+    try {
+      ticket = h_.StartGetTask(*req, resp, done);
+    } catch (const std::exception& e) {
+      spdlog::error("{}: {}", kRpc, e.what());
+      if (!answered->load()) {
+        reactor->Finish(grpc::Status(grpc::StatusCode::INTERNAL, std::string(kRpc) + ": " + e.what()));
+      }
+    }
+    reactor->started(ticket);
+    return reactor;
   }
 
-  grpc::Status GetScene(grpc::ServerContext* ctx, const v1::GetSceneRequest* req,
-                        v1::GetSceneResponse* resp) override {
-    return serve(auth_, m_, *ctx, kWorker, "WorkerService.GetScene", *req, resp,
-                 [&] { return h_.GetScene(*req, resp); });
+  grpc::ServerUnaryReactor* GetScene(grpc::CallbackServerContext* ctx,
+                                     const v1::GetSceneRequest* req,
+                                     v1::GetSceneResponse* resp) override {
+    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.GetScene", *req, resp,
+                          [&] { return h_.GetScene(*req, resp); }));
   }
 
-  grpc::Status CompleteBand(grpc::ServerContext* ctx, const v1::CompleteBandRequest* req,
-                            v1::CompleteBandResponse* resp) override {
-    return serve(auth_, m_, *ctx, kWorker, "WorkerService.CompleteBand", *req, resp,
-                 [&] { return h_.CompleteBand(*req, resp); });
+  grpc::ServerUnaryReactor* CompleteBand(grpc::CallbackServerContext* ctx,
+                                         const v1::CompleteBandRequest* req,
+                                         v1::CompleteBandResponse* resp) override {
+    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.CompleteBand", *req, resp,
+                          [&] { return h_.CompleteBand(*req, resp); }));
   }
 
-  grpc::Status Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req,
-                         v1::HeartbeatResponse* resp) override {
-    return serve(auth_, m_, *ctx, kWorker, "WorkerService.Heartbeat", *req, resp,
-                 [&] { return h_.Heartbeat(*req, resp); });
+  grpc::ServerUnaryReactor* Heartbeat(grpc::CallbackServerContext* ctx,
+                                      const v1::HeartbeatRequest* req,
+                                      v1::HeartbeatResponse* resp) override {
+    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.Heartbeat", *req, resp,
+                          [&] { return h_.Heartbeat(*req, resp); }));
   }
 
  private:
+  // A call answered on the spot.
+  static grpc::ServerUnaryReactor* now(grpc::CallbackServerContext* ctx,
+                                       const grpc::Status& status) {
+    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+    reactor->Finish(status);
+    return reactor;
+  }
   Handlers& h_;
+  farm::Coordinator& c_;
   const farm::Authenticator& auth_;
   farm::CoordinatorMetrics& m_;
 };
@@ -299,7 +384,7 @@ CoordinatorServer::CoordinatorServer(farm::Coordinator& coordinator)
     : coordinator_(coordinator),
       handlers_(coordinator),
       client_(std::make_unique<ClientImpl>(handlers_, auth_, coordinator.metrics())),
-      worker_(std::make_unique<WorkerImpl>(handlers_, auth_, coordinator.metrics())) {}
+      worker_(std::make_unique<WorkerImpl>(handlers_, coordinator, auth_, coordinator.metrics())) {}
 
 CoordinatorServer::~CoordinatorServer() { shutdown(farm::Millis(0)); }
 

@@ -30,6 +30,24 @@ std::string printable(const std::string& text, size_t max_bytes = kMaxNameBytes)
   return out;
 }
 
+// A result's pixels as floats, decoded from the encoding they travelled in
+// (common/farm/band_codec.h); what does not decode is named in `malformed`,
+// with no pixels, for the scheduler to refuse. A failed or handed-back band
+// has no pixels to decode.
+void decode_pixels(farm::BandOutput& o) {
+  if (o.handed_back || !o.error.empty()) return;
+  if (o.encoded.encoding == farm::BandEncoding::kFloat32 && o.encoded.bytes.empty()) return;
+  if (!o.rgb.empty()) {
+    o.malformed = "both float rgb and encoded pixels";
+  } else if (auto rgb = farm::decode_band(o.encoded); rgb.ok()) {
+    o.rgb = std::move(*rgb);
+    return;
+  } else {
+    o.malformed = rgb.status().message();
+  }
+  o.rgb.clear();
+}
+
 }  // namespace
 
 Status Handlers::SubmitJob(const v1::SubmitJobRequest& req, const farm::Caller& caller,
@@ -252,14 +270,34 @@ Status Handlers::Register(const v1::RegisterRequest& req, const std::string& pee
   return Status::Ok();
 }
 
+Status Handlers::answer_poll(const std::string& worker_id, farm::Coordinator::PollAnswer answer,
+                            v1::GetTaskResponse* resp) {
+  if (!answer.ok()) return answer.status();
+  if (answer->has_value()) *resp->mutable_task() = ToProto(**answer);
+  resp->set_drain(c_.worker_draining(worker_id));
+  return Status::Ok();
+}
+
+uint64_t Handlers::StartGetTask(const v1::GetTaskRequest& req, v1::GetTaskResponse* resp,
+                                std::function<void(Status)> done) {
+  if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) {
+    done(s);
+    return 0;
+  }
+  return c_.poll_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())),
+                      [this, worker_id = req.worker_id(), resp,
+                       done = std::move(done)](farm::Coordinator::PollAnswer answer) {
+                        done(answer_poll(worker_id, std::move(answer), resp));
+                      });
+}
+
 Status Handlers::GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
                          v1::GetTaskResponse* resp) {
   if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
-  auto r = c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled);
-  if (!r.ok()) return r.status();
-  if (r->has_value()) *resp->mutable_task() = ToProto(**r);
-  resp->set_drain(c_.worker_draining(req.worker_id()));
-  return Status::Ok();
+  return answer_poll(req.worker_id(),
+                     c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())),
+                                   cancelled),
+                     resp);
 }
 
 Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp) {
@@ -279,7 +317,16 @@ Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBa
   farm::BandOutput output = FromProto(req);
   output.error = output.error.substr(0, 4096);
   for (std::string& l : output.log_lines) l = printable(l, kMaxBandLogLineBytes);
+  decode_pixels(output);
+  const std::string malformed = output.malformed;
   auto r = c_.complete_band(std::move(output));
+  if (!malformed.empty() && (r.ok() || r.status().code() == Code::kInvalidArgument)) {
+    // The scheduler has charged it (as pixels of the wrong size) if the
+    // lease stood; the worker hears what was wrong either way.
+    std::string m = "lease '";
+    m.append(req.lease_id()).append("': malformed pixels: ").append(malformed);
+    return InvalidArgument(m);
+  }
   if (!r.ok()) return r.status();
   resp->set_accepted(r->accepted);
   resp->set_reason(r->reason);

@@ -71,7 +71,13 @@ class Handlers {
   // `peer` names an unnamed worker.
   Status Register(const v1::RegisterRequest& req, const std::string& peer,
                   v1::RegisterResponse* resp);
-  // Leases a band (Coordinator::lease_band); the RPC keeps its wire name.
+  // Leases a band (Coordinator::poll_band); the RPC keeps its wire name.
+  // `done` gets the status once `resp` is filled, exactly once, perhaps
+  // before this returns. Returns the poll's ticket for
+  // Coordinator::cancel_poll (0: answered already).
+  uint64_t StartGetTask(const v1::GetTaskRequest& req, v1::GetTaskResponse* resp,
+                        std::function<void(Status)> done);
+  // The same, waiting here (tests, the fuzzer).
   Status GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
                  v1::GetTaskResponse* resp);
   Status GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp);
@@ -79,6 +85,9 @@ class Handlers {
   Status Heartbeat(const v1::HeartbeatRequest& req, v1::HeartbeatResponse* resp);
 
  private:
+  // GetTask's response from the poll's answer.
+  Status answer_poll(const std::string& worker_id, farm::Coordinator::PollAnswer answer,
+                     v1::GetTaskResponse* resp);
   farm::Coordinator& c_;
 };
 

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# bench/farm/scale.sh [BUILD_DIR]: the coordinator with many simulated
+# workers on 127.0.0.1 (issue #25). Starts a coordinator (durable, as
+# deployed, unless COORDINATOR_FLAGS says otherwise) and runs
+# locus-farm-scale against it; prints its "key value" lines.
+#   WORKERS (1000) JOBS (20) FRAMES (50) BANDS (64, of ROWS=4 rows of WIDTH=256)
+#   DELAY_MS (0) DELAY_SIGMA (0) DIE STALL LATE (0) TIMEOUT (600)
+#   KEEP=1 keeps the data directory (its path is printed).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+build=${1:-$root/build}
+bin=$build/bin
+tmp=$(mktemp -d)
+coord=
+cleanup() {
+  [ -n "$coord" ] && kill -9 "$coord" 2>/dev/null || true
+  wait 2>/dev/null || true
+  if [ "${KEEP:-0}" = 1 ]; then echo "data_dir $tmp"; else rm -rf "$tmp"; fi
+}
+trap cleanup EXIT
+"$bin/locus-coordinator" --insecure --listen 127.0.0.1:0 --data "$tmp/data" \
+  ${COORDINATOR_FLAGS:-} >"$tmp/coord.out" 2>"$tmp/coord.log" &
+coord=$!
+port=
+for _ in $(seq 200); do
+  port=$(sed -n 's/^listening on port //p' "$tmp/coord.out")
+  [ -n "$port" ] && break
+  sleep 0.05
+done
+[ -n "$port" ] || { echo "the coordinator did not start"; cat "$tmp/coord.log"; exit 1; }
+status=0
+"$bin/locus-farm-scale" --farm "127.0.0.1:$port" --data "$tmp/data" --coordinator-pid "$coord" \
+  --scene "$root/scenes/simple/spheres.json" --workers "${WORKERS:-1000}" --jobs "${JOBS:-20}" \
+  --frames "${FRAMES:-50}" --bands "${BANDS:-64}" --rows "${ROWS:-4}" --width "${WIDTH:-256}" \
+  --delay-ms "${DELAY_MS:-0}" --delay-sigma "${DELAY_SIGMA:-0}" --die "${DIE:-0}" \
+  --stall "${STALL:-0}" --late "${LATE:-0}" --timeout "${TIMEOUT:-600}" || status=$?
+if [ "$status" != 0 ]; then
+  echo "--- coordinator log (last 40 lines)"
+  tail -40 "$tmp/coord.log"
+fi
+exit "$status"
