@@ -664,6 +664,7 @@ BandLease Scheduler::make_lease(const Job& job, int job_band, const Lease& lease
   out.orbit_degrees = s.orbit_degrees;
   out.frame_first = s.frame_first;
   out.frame_last = s.frame_last;
+  out.encoding = band_encoding_for(s.output);
   return out;
 }
 
@@ -800,7 +801,10 @@ std::optional<BandTarget> Scheduler::result_target(const BandOutput& out) const 
   const JobSpec& s = job.info.spec;
   const int band = band_of(job, it->second.job_band);
   const Band rows = band_rows(s, band);
-  if (out.rgb.size() != static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3) return std::nullopt;
+  if (!out.malformed.empty() ||
+      out.rgb.size() != static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3) {
+    return std::nullopt;
+  }
   return BandTarget{job.info.job_id, frame_of(job, it->second.job_band), band, s.width, rows.y0,
                     rows.y1};
 }
@@ -847,6 +851,12 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   const int frame = frame_of(job, lease.job_band);
   const Band rows = band_rows(s, band);
   const size_t expected = static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3;
+  if (!out.malformed.empty()) {  // encoded pixels that did not decode (band_codec.h)
+    const std::string why =
+        "band " + std::to_string(band) + " of frame " + std::to_string(frame) + ": " + out.malformed;
+    release(out.lease_id, LeaseOutcome::kMalformed, who + " sent malformed pixels: " + why);
+    return InvalidArgument(why);
+  }
   if (out.rgb.size() != expected) {
     const std::string why = "band " + std::to_string(band) + " of frame " + std::to_string(frame) +
                             ": expected " + std::to_string(expected) + " floats (" +

@@ -84,6 +84,13 @@ Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bo
   out.stats.seconds_prepare = prepare_seconds;
   // Like prepare time, tessellation is counted by the band that prepared.
   out.stats.seconds_tessellate = fresh ? prepared->seconds_tessellate : 0.0;
+  // Only what the job's output file keeps travels (band_codec.h).
+  if (t.encoding != BandEncoding::kFloat32) {
+    auto encoded = encode_band(t.encoding, t.width, t.y1 - t.y0, out.rgb);
+    if (!encoded.ok()) return encoded.status();
+    out.encoded = std::move(*encoded);
+    out.rgb = {};
+  }
   return out;
 }
 

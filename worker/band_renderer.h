@@ -33,7 +33,9 @@ class BandRenderer {
   // paths confined under the mesh root (common/farm/paths.h).
   Status add_scene(const std::string& hash, const v1::Scene& scene, const std::string& name);
   // Renders the leased band; its scene must have been added. The returned
-  // output carries pixels and stats (ids are the caller's).
+  // output carries pixels and stats (ids are the caller's): the pixels in
+  // the lease's encoding (`encoded`), or as floats (`rgb`) when it asks for
+  // float32.
   // `abandon`, if given, is render_band's cancellation flag: once set (the
   // lease was revoked or handed back), the band stops within a row and the
   // result is Cancelled.

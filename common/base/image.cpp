@@ -17,21 +17,29 @@ std::string lower_ext(const std::string& path) {
 
 }  // namespace
 
-Status write_image(const std::string& path, const Image& image, bool for_display) {
+SampleFormat output_sample_format(const std::string& path) {
   const std::string ext = lower_ext(path);
-  if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
-    return InvalidArgument(path + ": unsupported image type '" + ext +
+  if (ext == ".png") return SampleFormat::kUint8;
+  if (ext == ".exr") return SampleFormat::kFloat32;
+  if (ext == ".tif" || ext == ".tiff") return SampleFormat::kUint16;
+  return SampleFormat::kUnsupported;
+}
+
+Status write_image(const std::string& path, const Image& image, bool for_display) {
+  const SampleFormat format = output_sample_format(path);
+  if (format == SampleFormat::kUnsupported) {
+    return InvalidArgument(path + ": unsupported image type '" + lower_ext(path) +
                            "' (expected .png, .exr, .tif)");
   }
   if (image.width <= 0 || image.height <= 0) return InvalidArgument(path + ": empty image");
   auto out = OIIO::ImageOutput::create(path);
   if (!out) return Internal(path + ": cannot create image writer: " + OIIO::geterror());
   bool ok = false;
-  if (ext == ".exr") {
+  if (format == SampleFormat::kFloat32) {
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::FLOAT);
     spec.attribute("compression", "zip");
     ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::FLOAT, image.rgb.data());
-  } else if (ext == ".png") {
+  } else if (format == SampleFormat::kUint8) {
     // SHADING.md "Output": round(255 * clamp(v, 0, 1)), no transfer curve.
     std::vector<uint8_t> px(image.rgb.size());
     for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint8_t>(quantize8(image.rgb[i]));
@@ -40,10 +48,7 @@ Status write_image(const std::string& path, const Image& image, bool for_display
     ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
   } else {
     std::vector<uint16_t> px(image.rgb.size());
-    for (size_t i = 0; i < px.size(); ++i) {
-      const float c = !(image.rgb[i] > 0.0f) ? 0.0f : std::min(image.rgb[i], 1.0f);
-      px[i] = static_cast<uint16_t>(c * 65535.0f + 0.5f);
-    }
+    for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint16_t>(quantize16(image.rgb[i]));
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT16);
     ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT16, px.data());
   }

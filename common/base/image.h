@@ -33,6 +33,12 @@ inline void store_pixel(Image& band_pixels, const Band& band, int x, int y, cons
   px[2] = static_cast<float>(c.z);
 }
 
+// How write_image stores an image's samples, by the file's extension (any
+// case): the one place that maps extensions to sample types, so that what a
+// farm worker sends for a job (common/farm/band_codec.h) is what is written.
+enum class SampleFormat { kUnsupported, kUint8, kUint16, kFloat32 };
+SampleFormat output_sample_format(const std::string& path);
+
 // Writes by extension: .png (8-bit, round(255 * clamp(v, 0, 1)), no transfer
 // curve), .exr (float, linear, unclamped), .tif (16-bit). SHADING.md "Output".
 // A PNG is tagged linear (gAMA 1.0), which is what its values are; with
@@ -45,6 +51,11 @@ Result<Image> read_image(const std::string& path);
 inline int quantize8(float v) {
   const float c = !(v > 0.0f) ? 0.0f : (v > 1.0f ? 1.0f : v);
   return static_cast<int>(c * 255.0f + 0.5f);
+}
+// 16-bit quantisation of the 16-bit outputs (.tif), the same rounding.
+inline int quantize16(float v) {
+  const float c = !(v > 0.0f) ? 0.0f : (v > 1.0f ? 1.0f : v);
+  return static_cast<int>(c * 65535.0f + 0.5f);
 }
 
 }  // namespace locus

@@ -16,6 +16,7 @@
 #include "common/base/labels.h"
 #include "common/base/params.h"
 #include "common/base/status.h"
+#include "common/farm/band_codec.h"
 #include "common/scene/scene.h"
 #include "common/scene/scene_io.h"
 #include "proto/scene.pb.h"
@@ -196,6 +197,8 @@ struct BandLease {
   double orbit_degrees = 0;
   int frame_first = 0;
   int frame_last = 0;
+  // How the worker returns the pixels: band_encoding_for(the job's output).
+  BandEncoding encoding = BandEncoding::kFloat32;
 };
 
 // What a worker returns for a band: its pixels (linear RGB floats, rows
@@ -204,6 +207,15 @@ struct BandOutput {
   std::string worker_id;
   std::string lease_id;
   std::vector<float> rgb;
+  // The pixels as they travel, in the lease's encoding (band_codec.h): the
+  // worker encodes rgb into it and sends it instead; the coordinator decodes
+  // it back into rgb and keeps it as it came. Empty bytes with kFloat32: the
+  // pixels are in rgb alone (the lease asked for floats, or the worker is of
+  // an older release).
+  EncodedBand encoded;
+  // Set by the coordinator when `encoded` does not decode: the problem. The
+  // scheduler charges such a result as it charges pixels of the wrong size.
+  std::string malformed;
   Stats stats;
   std::string error;
   bool handed_back = false;  // the worker is stopping and gives the band back unrendered

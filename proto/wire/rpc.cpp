@@ -508,6 +508,7 @@ v1::BandTask ToProto(const farm::BandLease& t) {
   p.set_orbit_degrees(t.orbit_degrees);
   p.set_frame_first(t.frame_first);
   p.set_frame_last(t.frame_last);
+  p.set_encoding(static_cast<v1::BandEncoding>(t.encoding));
   return p;
 }
 
@@ -527,6 +528,7 @@ farm::BandLease FromProto(const v1::BandTask& p) {
   t.orbit_degrees = p.orbit_degrees();
   t.frame_first = p.frame_first();
   t.frame_last = p.frame_last();
+  t.encoding = static_cast<farm::BandEncoding>(p.encoding());
   return t;
 }
 
@@ -583,6 +585,12 @@ v1::CompleteBandRequest ToProto(farm::BandOutput&& o) {
   p.mutable_rgb()->Add(o.rgb.begin(), o.rgb.end());
   o.rgb.clear();
   o.rgb.shrink_to_fit();
+  if (!o.encoded.bytes.empty()) {
+    p.set_encoding(static_cast<v1::BandEncoding>(o.encoded.encoding));
+    p.set_width(o.encoded.width);
+    p.set_rows(o.encoded.rows);
+    *p.mutable_pixels() = std::move(o.encoded.bytes);
+  }
   *p.mutable_stats() = ToProto(o.stats);
   p.set_error(o.error);
   p.set_handed_back(o.handed_back);
@@ -595,6 +603,11 @@ farm::BandOutput FromProto(const v1::CompleteBandRequest& p) {
   o.worker_id = p.worker_id();
   o.lease_id = p.lease_id();
   o.rgb.assign(p.rgb().begin(), p.rgb().end());
+  // Still encoded: the coordinator decodes (decode_band) where it can refuse.
+  o.encoded.encoding = static_cast<farm::BandEncoding>(p.encoding());
+  o.encoded.width = p.width();
+  o.encoded.rows = p.rows();
+  o.encoded.bytes = p.pixels();
   o.stats = FromProto(p.stats());
   o.error = p.error();
   o.handed_back = p.handed_back();

@@ -1,0 +1,74 @@
+// A band's pixels as they travel from a worker to the coordinator, in the
+// encoding the job's output file needs (issue #25 item 4): only what the
+// written frame keeps, so that the stitched frame is bit-identical to one
+// written from the renderer's floats, in fewer bytes.
+//
+//   output      written as (common/base/image.h)   encoding       bytes/pixel
+//   .png        8-bit, quantize8                   rgb8+zstd      3 before zstd
+//   .tif .tiff  16-bit, quantize16                 rgb16+zstd     6 before zstd
+//   .exr        float32, unclamped                 float32+zstd   12 before zstd
+//   other       (none: a movie job has no bands)   float32        12
+//
+// The integer encodings carry the very code value the writer would store;
+// decoding gives the float code/255 (code/65535), which the writer maps back
+// to the same code (tests/farm/band_codec_test.cpp checks every code). The
+// float encoding carries the floats' bits. Before zstd, samples of 2 and 4
+// bytes are filtered: each is replaced by its difference (modulo 2^16 or
+// 2^32) from the same channel of the pixel to its left, and the bytes are
+// shuffled into planes, most significant byte first, one channel after
+// another, where runs and small differences compress (docs/farm.md "Band
+// encodings" has the measurements). Plain float32 is today's `repeated
+// float rgb` of the wire, kept for workers and coordinators of older
+// releases.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/base/labels.h"
+#include "common/base/status.h"
+
+namespace locus::farm {
+
+// The values are those of v1::BandEncoding (proto/locus.proto).
+enum class BandEncoding : int32_t { kFloat32 = 0, kRgb8Zstd = 1, kRgb16Zstd = 2, kFloat32Zstd = 3 };
+inline constexpr Labels<BandEncoding, 4> kBandEncodingLabels = {
+    {{BandEncoding::kFloat32, "float32"},
+     {BandEncoding::kRgb8Zstd, "rgb8+zstd"},
+     {BandEncoding::kRgb16Zstd, "rgb16+zstd"},
+     {BandEncoding::kFloat32Zstd, "float32+zstd"}}};
+
+// A band's pixels in an encoding: `width` x `rows` pixels, 3 channels,
+// row-major from the band's first row.
+struct EncodedBand {
+  BandEncoding encoding = BandEncoding::kFloat32;
+  int width = 0;
+  int rows = 0;
+  std::string bytes;
+};
+
+// The most bytes a band decodes to (its floats): what one message could
+// carry as floats before encodings existed, so every band that could travel
+// then decodes now, and no payload makes the coordinator allocate more.
+inline constexpr int64_t kMaxDecodedBandBytes = 64 << 20;
+
+// The encoding for a job whose frames are written to `output` (a file name
+// or pattern, e.g. "out/shot_####.png"), by output_sample_format.
+BandEncoding band_encoding_for(const std::string& output);
+
+// `rgb` (width * rows * 3 linear floats, as render_band gives them) in
+// `encoding`. InvalidArgument for a size that is not width x rows or an
+// unknown encoding.
+Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
+                                const std::vector<float>& rgb);
+
+// The floats of an encoded band: exactly its floats for float32 and
+// float32+zstd, the codes as floats for the others (see above).
+// InvalidArgument naming the problem for an unknown encoding, a size out of
+// range, bytes of the wrong length for width x rows, and a zstd payload that
+// is corrupt, truncated or claims another size; decompression never writes
+// past the size width x rows needs.
+Result<std::vector<float>> decode_band(const EncodedBand& band);
+
+}  // namespace locus::farm
