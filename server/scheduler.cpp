@@ -851,19 +851,20 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   const int frame = frame_of(job, lease.job_band);
   const Band rows = band_rows(s, band);
   const size_t expected = static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3;
+  std::string malformed;
   if (!out.malformed.empty()) {  // encoded pixels that did not decode (band_codec.h)
-    const std::string why =
-        "band " + std::to_string(band) + " of frame " + std::to_string(frame) + ": " + out.malformed;
-    release(out.lease_id, LeaseOutcome::kMalformed, who + " sent malformed pixels: " + why);
-    return InvalidArgument(why);
+    malformed = out.malformed;
+  } else if (out.rgb.size() != expected) {
+    malformed = "expected " + std::to_string(expected) + " floats (" + std::to_string(s.width) +
+                " x " + std::to_string(rows.y1 - rows.y0) + " x 3), got " +
+                std::to_string(out.rgb.size());
   }
-  if (out.rgb.size() != expected) {
-    const std::string why = "band " + std::to_string(band) + " of frame " + std::to_string(frame) +
-                            ": expected " + std::to_string(expected) + " floats (" +
-                            std::to_string(s.width) + " x " + std::to_string(rows.y1 - rows.y0) +
-                            " x 3), got " + std::to_string(out.rgb.size());
+  if (!malformed.empty()) {
+    const std::string why =
+        "band " + std::to_string(band) + " of frame " + std::to_string(frame) + ": " + malformed;
     release(out.lease_id, LeaseOutcome::kMalformed, who + " sent malformed pixels: " + why);
-    return InvalidArgument(why);
+    // The worker is told which of its leases was refused, and why.
+    return InvalidArgument("lease '" + out.lease_id + "' of job " + lease.job_id + ": " + why);
   }
 
   leases_.erase(it);
