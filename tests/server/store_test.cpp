@@ -22,6 +22,7 @@
 #include "server/band_files.h"
 #include "server/coordinator.h"
 #include "server/scheduler.h"
+#include "tests/server/coordinator_doubles.h"
 #include "tests/server/scheduler_doubles.h"
 #include "worker/band_renderer.h"
 
@@ -31,6 +32,8 @@ namespace fs = std::filesystem;
 using test_doubles::FakeClock;
 using test_doubles::pixels;
 using test_doubles::TempDir;
+using test_doubles::TestWorker;
+using test_doubles::wait_for_end;
 
 const std::string kSpheres = std::string(LOCUS_SOURCE_DIR) + "/scenes/simple/spheres.json";
 
@@ -260,55 +263,12 @@ SubmitRequest spheres(int first, int last, int bands, const std::string& request
   return r;
 }
 
-// A worker played by the test: real pixels through the worker's renderer.
-struct TestWorker {
-  Coordinator* c;
-  std::string id;
-  BandRenderer renderer{1};
-
-  TestWorker(Coordinator& coordinator, const std::string& name)
-      : c(&coordinator), id(coordinator.register_worker(name, 1)->worker_id) {}
-
-  std::optional<BandLease> take() {
-    auto t = c->lease_band(id, Millis(0), nullptr);
-    EXPECT_TRUE(t.ok()) << t.status().message();
-    return t.ok() ? *t : std::nullopt;
-  }
-  BandOutput render(const BandLease& t) {
-    if (!renderer.has_scene(t.scene_hash)) {
-      auto scene = c->get_scene(id, t.scene_hash);
-      EXPECT_TRUE(scene.ok());
-      EXPECT_TRUE(renderer.add_scene(t.scene_hash, **scene, "test").ok());
-    }
-    auto out = renderer.render(t);
-    EXPECT_TRUE(out.ok()) << out.status().message();
-    out->worker_id = id;
-    out->lease_id = t.lease_id;
-    return *out;
-  }
-  bool complete(const BandLease& t) {
-    auto r = c->complete_band(render(t));
-    EXPECT_TRUE(r.ok()) << r.status().message();
-    return r.ok() && r->accepted;
-  }
-};
-
 CoordinatorOptions options(const fs::path& dir) {
   CoordinatorOptions o;
   o.data_dir = (dir / "data").string();
   o.tick = Millis(10);
   o.fsync = false;  // what a kill -9 tests does not depend on it
   return o;
-}
-
-JobInfo wait_for_end(Coordinator& c, const std::string& job) {
-  for (int i = 0; i < 1000; ++i) {
-    auto j = c.job(job);
-    if (j.ok() && is_terminal(j->state)) return *j;
-    std::this_thread::sleep_for(Millis(10));
-  }
-  ADD_FAILURE() << "job " << job << " did not end";
-  return *c.job(job);
 }
 
 // Every frame of the job equals a single-process render, to the bit.
