@@ -158,7 +158,7 @@ int main(int argc, char** argv) {
   if (scenes.empty()) {
     scenes = {LOCUS_SOURCE_DIR "/scenes/paper", LOCUS_SOURCE_DIR "/../shared/spd/def"};
   }
-  spdlog::set_level(spdlog::level::warn);
+  spdlog::set_level(spdlog::level::err);  // the table alone on stdout
 
   std::vector<Row> rows;
   for (const auto& [path, group] : scene_files(scenes)) {
