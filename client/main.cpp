@@ -22,6 +22,7 @@
 #include "client/farm_client.h"
 #include "client/local_farm.h"
 #include "client/progress.h"
+#include "common/base/cost_map.h"
 #include "common/base/log.h"
 #include "common/farm/auth.h"
 #include "common/farm/movie.h"
@@ -60,6 +61,9 @@ struct RenderArgs {
   int workers = -1;  // -1: one per core
   bool workers_given = false;
   std::string stats;
+  // --cost-map: where the work went, per pixel (docs/cost-map.md); a
+  // pattern like -o's for several frames.
+  std::string cost_map;
 };
 
 int fail(const std::string& message) {
@@ -192,11 +196,42 @@ Status make_movie_here(const JobArgs& a, const farm::SubmitRequest& r) {
   return Status::Ok();
 }
 
+// --cost-map, checked before anything is rendered: a format write_image
+// knows, not -o's file, a frame number field for several frames, and a
+// directory that exists (or can be made) and can be written.
+Status check_cost_map(const RenderArgs& a, int frames) {
+  const std::string& path = a.cost_map;
+  std::string where = "--cost-map ";
+  where.append(path).append(": ");
+  if (output_sample_format(path) == SampleFormat::kUnsupported) {
+    return InvalidArgument(where + "unsupported image format; use .png, .exr or .tif");
+  }
+  if (fs::path(path).lexically_normal() == fs::path(a.job.output).lexically_normal()) {
+    return InvalidArgument(where + "the same file as -o; give the cost map a name of its own");
+  }
+  if (frames > 1 && !has_frame_field(path)) {
+    return InvalidArgument(where + std::to_string(frames) +
+                           " frames need a frame number field in the file name, e.g. "
+                           "cost_####.png");
+  }
+  make_parent_dirs(path);
+  const fs::path parent = fs::path(path).has_parent_path() ? fs::path(path).parent_path() : ".";
+  std::error_code ec;
+  if (!fs::is_directory(parent, ec) || access(parent.c_str(), W_OK) != 0) {
+    return FailedPrecondition(where + "cannot write into the directory " + parent.string());
+  }
+  return Status::Ok();
+}
+
 // --workers 0: every frame rendered here, through the same frame_scene()
 // the workers use.
 int render_in_process(const RenderArgs& a) {
   auto job = prepare_job(a.job, false);
   if (!job.ok()) return fail(job.status());
+  if (!a.cost_map.empty()) {
+    const int frames = job->request.frame_last - job->request.frame_first + 1;
+    if (Status st = check_cost_map(a, frames); !st.ok()) return fail(st);
+  }
   auto params = farm::to_render_params(job->request.render, a.threads);
   if (!params.ok()) return fail(params.status());
   const farm::SubmitRequest& r = job->request;
@@ -205,11 +240,20 @@ int render_in_process(const RenderArgs& a) {
   for (int f = r.frame_first; f <= r.frame_last; ++f) {
     const Scene s = farm::frame_scene(job->scene, r.width, r.height, f, r.frame_first, r.frame_last,
                                       r.orbit_degrees);
-    auto result = render_image(s, *params);
+    CostBuffer cost;
+    auto result = render_image(s, *params, a.cost_map.empty() ? nullptr : &cost);
     if (!result.ok()) return fail(result.status());
     const std::string path = frame_path(a.job.output, f);
     make_parent_dirs(path);
     if (Status st = write_image(path, result->pixels); !st.ok()) return fail(st);
+    if (!a.cost_map.empty()) {
+      // Display values (sRGB-tagged): the map is a picture, not radiance.
+      const std::string cost_path = frame_path(a.cost_map, f);
+      if (Status st = write_image(cost_path, cost_map_image(cost), true); !st.ok()) {
+        std::string message = "--cost-map: ";
+        return fail(message.append(st.message()));
+      }
+    }
     total += result->stats;
     seconds += result->stats.seconds_prepare + result->stats.seconds_render;
   }
@@ -309,6 +353,11 @@ int run_render(const RenderArgs& a) {
   int workers = a.workers;
   if (workers < 0) workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (workers == 0) return render_in_process(a);
+  if (!a.cost_map.empty()) {
+    // The farm's bands carry no cost buffers yet (docs/cost-map.md).
+    spdlog::info("--cost-map: the farm does not make cost maps yet; rendering in process");
+    return render_in_process(a);
+  }
   if (!a.workers_given && !client::worker_binary().ok()) {
     spdlog::warn("{}; rendering in process", client::worker_binary().status().message());
     return render_in_process(a);
@@ -667,6 +716,11 @@ int main(int argc, char** argv) {
                    "in process")
       ->check(CLI::Range(0, 256));
   render->add_option("--stats", ra.stats, "Write render statistics as JSON");
+  render->add_option(
+      "--cost-map", ra.cost_map,
+      "Also write a cost map (.png, .exr, .tif): each pixel's rays and shadow-volume tests in "
+      "false colour, ray-traced spans outlined, a legend (docs/cost-map.md); #### for several "
+      "frames, like -o. Renders in process");
 
   std::string vpath;
   auto* validate = app.add_subcommand("validate", "Check a scene file and list every problem");

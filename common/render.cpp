@@ -35,12 +35,13 @@ std::function<void(int)>& row_hook() {
 void set_row_hook_for_test(std::function<void(int row)> hook) { row_hook() = std::move(hook); }
 
 BandResult render_band(const PreparedScene& ps, const Band& band, const RenderParams& params,
-                       const std::atomic<bool>* cancel) {
+                       const std::atomic<bool>* cancel, CostBuffer* cost) {
   const auto start = std::chrono::steady_clock::now();
   const int y0 = std::clamp(band.y0, 0, ps.camera.height);
   const int y1 = std::clamp(band.y1, y0, ps.camera.height);
   BandResult result;
   result.pixels = Image(ps.camera.width, y1 - y0);
+  if (cost) cost->reset(ps.camera.width, y0, y1);
   int threads = params.threads > 0
                     ? params.threads
                     : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -75,7 +76,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
       // boundary sub-scanline is computed once (common/scan/multiscan.h).
       for (int y = next.fetch_add(kMultiscanChunk); y < y1; y = next.fetch_add(kMultiscanChunk)) {
         multiscan_rows(ps, params, Band{y0, y1}, y, std::min(y1, y + kMultiscanChunk),
-                       result.pixels, stats[id], row_may_start);
+                       result.pixels, stats[id], row_may_start, cost);
         if (stopped.load(std::memory_order_relaxed)) return;
       }
       return;
@@ -83,9 +84,9 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
     for (int y = next++; y < y1; y = next++) {
       if (!row_may_start(y)) return;
       if (ps.scan) {
-        local_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);
+        local_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id], cost);
       } else {
-        raytrace_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id]);
+        raytrace_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id], cost);
       }
     }
   };
@@ -112,13 +113,13 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   return result;
 }
 
-Result<BandResult> render_image(const Scene& scene, const RenderParams& params) {
+Result<BandResult> render_image(const Scene& scene, const RenderParams& params, CostBuffer* cost) {
   const auto start = std::chrono::steady_clock::now();
   auto prepared = prepare_scene(scene, params);
   if (!prepared.ok()) return prepared.status();
   const double prep =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  BandResult r = render_band(**prepared, Band{0, scene.camera.height}, params);
+  BandResult r = render_band(**prepared, Band{0, scene.camera.height}, params, nullptr, cost);
   r.stats.seconds_prepare = prep;
   r.stats.seconds_tessellate = (*prepared)->seconds_tessellate;
   return r;

@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 
+#include "common/base/cost.h"
 #include "common/base/image.h"
 #include "common/base/params.h"
 #include "common/base/status.h"
@@ -31,8 +32,11 @@ struct BandResult {
 // `cancel`, if given, is checked before every row: once it is set, the band
 // stops within one row per thread and comes back `cancelled` (a band whose
 // lease was taken back frees its worker; issue #23 item 5).
+// `cost`, if given, is reset to the band's rows and gets each pixel's share
+// of the band's Stats (common/base/cost.h; docs/cost-map.md); the pixels are
+// the same with or without it.
 BandResult render_band(const PreparedScene& prepared, const Band& band, const RenderParams& params,
-                       const std::atomic<bool>* cancel = nullptr);
+                       const std::atomic<bool>* cancel = nullptr, CostBuffer* cost = nullptr);
 
 // Tests only: `hook(row)` runs before each row of every render_band, on the
 // rendering thread (a hang placed inside the renderer, to test what the
@@ -41,6 +45,8 @@ BandResult render_band(const PreparedScene& prepared, const Band& band, const Re
 void set_row_hook_for_test(std::function<void(int row)> hook);
 
 // prepare_scene + render_band over the whole image; stats include prepare time.
-Result<BandResult> render_image(const Scene& scene, const RenderParams& params);
+// `cost`, if given, as render_band's.
+Result<BandResult> render_image(const Scene& scene, const RenderParams& params,
+                                CostBuffer* cost = nullptr);
 
 }  // namespace locus

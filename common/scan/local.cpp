@@ -9,7 +9,9 @@
 namespace locus {
 
 void local_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int y,
-                Image& out, Stats& stats) {
+                Image& out, Stats& stats, CostBuffer* cost) {
+  CostMeter meter(cost, stats);
+  meter.set_row(y);
   const CameraFrame& cam = ps.camera;
   const ScanScene& scan = *ps.scan;
   Tracer tracer(ps, stats);
@@ -21,6 +23,7 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
   // candidate list, II and III meet every occluder's volume.
   std::optional<SpanShadows> shadows;
   if (ps.volumes) shadows.emplace(ps, y + 0.5, stats);
+  meter.charge_run(0, cam.width);  // the row's set-up, for all its pixels
 
   bool prev_traced = false;
   int prev_face = -2;
@@ -30,16 +33,17 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
       int x1 = x + 1;
       while (x1 < cam.width && vis.face[x1] == fi) ++x1;
       shadows->begin_span(fi, x, x1);
+      meter.charge_run(x, x1);  // the span's shadow volumes, for all its pixels
     }
     const Ray ray{cam.from, cam.direction(x + 0.5, y + 0.5)};
     Color c = ps.scene.background;
-    bool traced = false;
+    bool traced = false, span = false;
     if (scan.trace_everything || (fi >= 0 && (scan.faces[fi].curved || scan.faces[fi].near_hither))) {
       // Inside a curved body's bounding polyhedron: the ray finds the true
       // surface, or whatever lies behind it (paper §3.2).
       ++stats.rays_eye;
       c = tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
-      traced = true;
+      traced = span = true;
     } else if (fi >= 0) {
       // The visible face is known: its hit point is a ray-plane intersection
       // with that one surface, no eye-ray search.
@@ -55,13 +59,15 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
       } else {
         const Material& m =
             ps.scene.materials[ps.scene.objects[hit->leaf].material];
-        traced = m.ks > 0 || m.t > 0;
+        traced = span = m.ks > 0 || m.t > 0;
         if (shadows) shadows->set_pixel(x);
         c = tracer.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr,
                          shadows ? &*shadows : nullptr);
       }
     }
+    meter.charge(x);
     if (traced) {
+      meter.mark_traced(x, span);
       ++stats.pixels_ray_traced;
       if (!prev_traced || fi != prev_face) ++stats.spans_ray_traced;
     }

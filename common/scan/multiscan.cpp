@@ -44,15 +44,19 @@ struct Figure {
 // The pixels of one row from its sub-scanlines k = 0..n.
 class PixelIntegrator {
  public:
-  PixelIntegrator(const PreparedScene& ps, Tracer& tracer, Stats& stats)
-      : ps_(ps), cam_(ps.camera), tracer_(tracer), stats_(stats) {}
+  PixelIntegrator(const PreparedScene& ps, Tracer& tracer, Stats& stats, CostMeter& meter)
+      : ps_(ps), cam_(ps.camera), tracer_(tracer), stats_(stats), meter_(meter) {}
 
   // Pixel i of the row whose sub-scanlines are `lines`.
   Color pixel(const std::vector<SubLine>& lines, int i) {
     Color acc(0.0);
     const bool traced_piece = integrate_pieces(lines, i, acc);
     const bool traced_figure = shade_figures(acc);
-    if (traced_piece || traced_figure) ++stats_.pixels_ray_traced;
+    meter_.charge(i);
+    if (traced_piece || traced_figure) {
+      ++stats_.pixels_ray_traced;
+      meter_.mark_traced(i, traced_piece);
+    }
     return acc;
   }
 
@@ -142,18 +146,21 @@ class PixelIntegrator {
   const CameraFrame& cam_;
   Tracer& tracer_;
   Stats& stats_;
+  CostMeter& meter_;
   std::vector<Figure> figs_;
 };
 
 }  // namespace
 
 void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int r0,
-                    int r1, Image& out, Stats& stats, FunctionRef<bool(int)> row_may_start) {
+                    int r1, Image& out, Stats& stats, FunctionRef<bool(int)> row_may_start,
+                    CostBuffer* cost) {
   const CameraFrame& cam = ps.camera;
   const int n = params.aa;
+  CostMeter meter(cost, stats);
   Tracer tracer(ps, stats);
-  SubLineBuilder builder(ps, tracer, stats, n, r0, r1 + 1);
-  PixelIntegrator integrator(ps, tracer, stats);
+  SubLineBuilder builder(ps, tracer, stats, n, r0, r1 + 1, meter);
+  PixelIntegrator integrator(ps, tracer, stats, meter);
   // Sub-scanline g lies at y = g / n: the same double in every band.
   auto line_at = [&](int g, SubLine& l) {
     const int row = std::min(g / n, cam.height - 1);
@@ -164,6 +171,7 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
   std::vector<SubLine> lines(n + 1);
   for (int row = r0; row < r1; ++row) {
     if (!row_may_start(row)) return;
+    meter.set_row(row);
     // Sub-scanlines k = 0..n of this row; k = 0 is the previous row's k = n.
     if (row == r0) {
       line_at(row * n, lines[0]);
@@ -173,6 +181,7 @@ void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const B
     for (int k = 1; k <= n; ++k) line_at(row * n + k, lines[k]);
     for (int i = 0; i < cam.width; ++i) store_pixel(out, band, i, row, integrator.pixel(lines, i));
     stats.pixels_total += cam.width;
+    meter.charge_run(0, cam.width);  // what no pixel took (nothing, as written)
   }
 }
 

@@ -25,6 +25,7 @@
 // and multiscan_rows (multiscan.cpp) integrates the pieces into pixels.
 #pragma once
 
+#include "common/base/cost.h"
 #include "common/base/function_ref.h"
 #include "common/base/image.h"
 #include "common/base/params.h"
@@ -39,8 +40,11 @@ inline constexpr double kBisectTolerance = 1.0 / 64;
 // sub-scanline is a function of its y alone, so any split into bands or
 // chunks gives the same pixels; inside [r0, r1) the boundary sub-scanline of
 // two rows is computed once. `row_may_start(row)` is asked before each row;
-// false stops there (a band no longer wanted, render_band).
+// false stops there (a band no longer wanted, render_band). `cost`, if
+// given, gets the rows' share of `stats` per pixel (cost.h): a sub-scanline's
+// work goes to the pixel row that computes it (docs/cost-map.md).
 void multiscan_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int r0,
-                    int r1, Image& out, Stats& stats, FunctionRef<bool(int)> row_may_start);
+                    int r1, Image& out, Stats& stats, FunctionRef<bool(int)> row_may_start,
+                    CostBuffer* cost = nullptr);
 
 }  // namespace locus

@@ -36,12 +36,13 @@ void SubLineBuilder::for_pixels(double x0, double x1, Fn&& fn) {
 }
 
 SubLineBuilder::SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa,
-                               int j0, int j1)
+                               int j0, int j1, CostMeter& meter)
     : ps_(ps),
       scan_(*ps.scan),
       cam_(ps.camera),
       tracer_(tracer),
       stats_(stats),
+      meter_(meter),
       eye_(*ps.scan, ps.camera.width, j0, j1),
       samples_(ps, tracer, eye_, stats, aa, j0, j1) {}
 
@@ -51,6 +52,7 @@ void SubLineBuilder::build(double y, int row, SubLine& line) {
   line.spans = line.traced_spans = 0;
   out_ = &line.pieces;
   start_line(y, row);
+  meter_.charge_run(0, cam_.width);  // the line's visible segments and shadows' set-up
   add_pieces(line);
   index_pixels(line);
 }
@@ -101,6 +103,7 @@ inline void SubLineBuilder::add_pieces(SubLine& line) {
     const Material& m =
         ps_.scene.materials[ps_.scene.objects[ps_.prims.prims[f.prim].object].material];
     if (shadows) shadows->begin_span(s.face, s.x0, s.x1);
+    meter_.charge_run(s.x0, s.x1);
     if (m.ks > 0 || m.t > 0) {
       ++line.traced_spans;
       mirror(s, shadows ? &*shadows : nullptr);
@@ -272,6 +275,7 @@ inline void SubLineBuilder::curved(double x0, double x1) {
     p.hit = first_hit(0.5 * (a + b));
     out_->push_back(p);
     ids.push_back(p.hit);
+    meter_.charge(a);
   });
   refine(
       begin, ids, [&](double x) { return first_hit(x); }, [](Piece& q, int id) { q.hit = id; },
@@ -279,6 +283,7 @@ inline void SubLineBuilder::curved(double x0, double x1) {
         return silhouette_guess(xl, kl, xr, kr, x);
       },
       found_ids_);
+  meter_.charge_run(x0, x1);
   auto direct = [&](double x) { return sample(x).second; };
   for (size_t k = begin; k < out_->size(); ++k) {
     Piece& p = (*out_)[k];
@@ -286,6 +291,7 @@ inline void SubLineBuilder::curved(double x0, double x1) {
       p.colour = p.colour_up = ps_.scene.background;
     } else {
       traced_colours(p, direct);
+      meter_.charge(p.x0);
     }
   }
 }
@@ -316,6 +322,7 @@ inline void SubLineBuilder::mirror(const VisibleSegment& s, SpanShadows* shadows
     p.hit = f.prim;
     traced_colours(p, colour_at);
     out_->push_back(p);
+    meter_.charge(a);
   });
 }
 
@@ -376,6 +383,7 @@ inline void SubLineBuilder::figures(const VisibleSegment& s, SpanShadows& shadow
     });
   }
   end_run();
+  meter_.charge_run(s.x0, s.x1);
 }
 
 }  // namespace locus

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/base/cost.h"
 #include "common/prepare/prepared.h"
 #include "common/scan/eye_candidates.h"
 #include "common/scan/pixel_samples.h"
@@ -50,7 +51,10 @@ struct SubLine {
 class SubLineBuilder {
  public:
   // Lattice rows [j0, j1] (pixel corners y = j0..j1) may be used.
-  SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa, int j0, int j1);
+  // `meter` is charged with each piece's work as it is built (its pixel on
+  // the meter's row), the line's and a span's set-up spread over their pixels.
+  SubLineBuilder(const PreparedScene& ps, Tracer& tracer, Stats& stats, int aa, int j0, int j1,
+                 CostMeter& meter);
 
   // Fills `line` (its allocations are reused) with sub-scanline y of `row`.
   void build(double y, int row, SubLine& line);
@@ -102,6 +106,7 @@ class SubLineBuilder {
   const CameraFrame& cam_;
   Tracer& tracer_;
   Stats& stats_;
+  CostMeter& meter_;
   double y_ = 0;
   std::vector<Piece>* out_ = nullptr;
   std::vector<VisibleSegment> segs_;

@@ -263,7 +263,9 @@ double unit(uint64_t x) { return static_cast<double>(x >> 11) * (1.0 / 900719925
 }  // namespace
 
 void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Band& band, int y,
-                   Image& out, Stats& stats) {
+                   Image& out, Stats& stats, CostBuffer* cost) {
+  CostMeter meter(cost, stats);
+  meter.set_row(y);
   Tracer tracer(ps, stats);
   const CameraFrame& cam = ps.camera;
   const int n = std::max(1, params.spp);
@@ -285,6 +287,8 @@ void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Ba
     }
     sum /= static_cast<double>(n * n);
     store_pixel(out, band, x, y, sum);
+    meter.charge(x);
+    meter.mark_traced(x, true);
   }
   stats.pixels_total += cam.width;
   stats.pixels_ray_traced += cam.width;

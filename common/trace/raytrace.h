@@ -6,6 +6,7 @@
 
 #include <optional>
 
+#include "common/base/cost.h"
 #include "common/base/image.h"
 #include "common/base/params.h"
 #include "common/prepare/prepared.h"
@@ -91,8 +92,9 @@ class Tracer {
   int& last_occluder(int light) { return last_occluder_[cache_level_ * ps_.scene.lights.size() + light]; }
 };
 
-// The ray-tracing path of render_band (--method raytrace).
+// The ray-tracing path of render_band (--method raytrace). `cost`, if
+// given, gets each pixel's share of `stats` (cost.h); every pixel is traced.
 void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Band& band,
-                   int row, Image& out, Stats& stats);
+                   int row, Image& out, Stats& stats, CostBuffer* cost = nullptr);
 
 }  // namespace locus
