@@ -100,7 +100,8 @@ TEST_F(BadResults, PixelsOfTheWrongSizeAreRefusedAndTheBandLeasedAgain) {
     const BandLease lease = w == a_.get() ? t : take(*w, a_job_);
     EXPECT_EQ(lease.band, t.band);
     BandOutput out = w->render(lease);
-    out.rgb.resize(size);
+    out.encoded = {};  // plain floats, as a worker of 0.13 sends them
+    out.rgb.assign(size, 0.5f);
     auto r = c_->complete_band(out);
     ASSERT_FALSE(r.ok());
     EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
