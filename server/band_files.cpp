@@ -4,26 +4,30 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 namespace locus::farm {
 namespace fs = std::filesystem;
 namespace {
 
-// A band file: this header, then n floats, then the FNV-1a hash of the
-// header and the floats. Native byte order: the files never leave the
-// coordinator's machine.
-constexpr char kMagic[8] = {'L', 'O', 'C', 'B', 'A', 'N', 'D', '1'};
+// A band's record: this header, the payload, then the FNV-1a hash of the
+// header and the payload. Native byte order: records never leave the
+// coordinator's machine. "LOCBAND1" is 0.13's band file: `reserved` 0 and
+// `size` the count of floats that follow; "LOCBAND2" has the encoding in
+// `reserved` and the payload's bytes in `size`.
+constexpr char kMagic1[8] = {'L', 'O', 'C', 'B', 'A', 'N', 'D', '1'};
+constexpr char kMagic2[8] = {'L', 'O', 'C', 'B', 'A', 'N', 'D', '2'};
 struct Header {
   char magic[8];
   int32_t width;
   int32_t y0;
   int32_t y1;
   int32_t reserved;
-  uint64_t floats;
+  uint64_t size;
 };
 
 uint64_t fnv1a(const void* data, size_t n, uint64_t h = 14695981039346656037ull) {
@@ -37,20 +41,6 @@ uint64_t fnv1a(const void* data, size_t n, uint64_t h = 14695981039346656037ull)
 
 std::string errno_text() { return std::strerror(errno); }
 
-Status write_all(int fd, const void* data, size_t n, const std::string& path) {
-  const char* p = static_cast<const char*>(data);
-  while (n > 0) {
-    const ssize_t w = ::write(fd, p, n);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      return Internal(path + ": cannot write: " + errno_text());
-    }
-    p += w;
-    n -= static_cast<size_t>(w);
-  }
-  return Status::Ok();
-}
-
 Status fsync_path(const std::string& path, bool directory) {
   const int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
   if (fd < 0) return Internal(path + ": cannot open to sync: " + errno_text());
@@ -62,90 +52,88 @@ Status fsync_path(const std::string& path, bool directory) {
 
 }  // namespace
 
+
+std::string pack_band(const BandPixels& rows, const EncodedBand& band) {
+  Header h{};
+  std::memcpy(h.magic, kMagic2, sizeof kMagic2);
+  h.width = rows.width;
+  h.y0 = rows.y0;
+  h.y1 = rows.y1;
+  h.reserved = static_cast<int32_t>(band.encoding);
+  h.size = band.bytes.size();
+  const uint64_t sum = fnv1a(band.bytes.data(), band.bytes.size(), fnv1a(&h, sizeof h));
+  std::string record(sizeof h + band.bytes.size() + sizeof sum, '\0');
+  std::memcpy(record.data(), &h, sizeof h);
+  std::memcpy(record.data() + sizeof h, band.bytes.data(), band.bytes.size());
+  std::memcpy(record.data() + sizeof h + band.bytes.size(), &sum, sizeof sum);
+  return record;
+}
+
+Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels& rows) {
+  const auto refuse = [] {
+    return Status(Code::kInternal, "not a complete band record for these rows");
+  };
+  Header h{};
+  if (record.size() < sizeof h + sizeof(uint64_t)) return refuse();
+  std::memcpy(&h, record.data(), sizeof h);
+  const bool v1 = std::memcmp(h.magic, kMagic1, sizeof kMagic1) == 0;
+  const bool v2 = std::memcmp(h.magic, kMagic2, sizeof kMagic2) == 0;
+  if ((!v1 && !v2) || h.width != rows.width || h.y0 != rows.y0 || h.y1 != rows.y1) return refuse();
+  const uint64_t payload = record.size() - sizeof h - sizeof(uint64_t);
+  if (payload != (v1 ? h.size * sizeof(float) : h.size)) return refuse();
+  uint64_t sum = 0;
+  std::memcpy(&sum, record.data() + sizeof h + payload, sizeof sum);
+  if (sum != fnv1a(record.data() + sizeof h, payload, fnv1a(&h, sizeof h))) return refuse();
+  EncodedBand band;
+  band.encoding = v1 ? BandEncoding::kFloat32 : static_cast<BandEncoding>(h.reserved);
+  band.width = rows.width;
+  band.rows = rows.y1 - rows.y0;
+  band.bytes.assign(record.data() + sizeof h, payload);
+  auto rgb = decode_band(band);
+  if (!rgb.ok()) return Status(Code::kInternal, rgb.status().message());
+  return rgb;
+}
+
+EncodedBand stored_band(const BandOutput& output, const BandPixels& rows) {
+  if (!output.encoded.bytes.empty()) return output.encoded;
+  EncodedBand band;
+  band.encoding = BandEncoding::kFloat32;
+  band.width = rows.width;
+  band.rows = rows.y1 - rows.y0;
+  band.bytes.assign(reinterpret_cast<const char*>(output.rgb.data()),
+                    output.rgb.size() * sizeof(float));
+  return band;
+}
+
 std::string band_file_path(const std::string& job_dir, int frame, int band) {
   return (fs::path(job_dir) / "bands" /
           (std::to_string(frame) + "-" + std::to_string(band) + ".band"))
       .string();
 }
 
-Result<std::string> write_band_temp(const std::string& job_dir, int frame, int band,
-                                    const BandPixels& rows, const std::vector<float>& rgb,
-                                    const std::string& tag, bool sync) {
-  std::error_code ec;
-  fs::create_directories(fs::path(job_dir) / "bands", ec);
-  if (ec) return Internal(job_dir + "/bands: cannot create: " + ec.message());
-  // The tag (a lease id from the wire) is reduced to safe characters.
-  std::string safe;
-  for (char c : tag.substr(0, 64)) safe += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-  const std::string temp = band_file_path(job_dir, frame, band) + "." + safe + ".tmp";
-  Header h{};
-  std::memcpy(h.magic, kMagic, sizeof kMagic);
-  h.width = rows.width;
-  h.y0 = rows.y0;
-  h.y1 = rows.y1;
-  h.floats = rgb.size();
-  uint64_t sum = fnv1a(&h, sizeof h);
-  sum = fnv1a(rgb.data(), rgb.size() * sizeof(float), sum);
-  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return Internal(temp + ": cannot create: " + errno_text());
-  Status st = write_all(fd, &h, sizeof h, temp);
-  if (st.ok()) st = write_all(fd, rgb.data(), rgb.size() * sizeof(float), temp);
-  if (st.ok()) st = write_all(fd, &sum, sizeof sum, temp);
-  if (st.ok() && sync && ::fsync(fd) != 0) st = Internal(temp + ": fsync failed: " + errno_text());
-  if (::close(fd) != 0 && st.ok()) st = Internal(temp + ": cannot close: " + errno_text());
-  if (!st.ok()) {
-    fs::remove(temp, ec);
-    return st;
-  }
-  return temp;
-}
-
-Status commit_band_file(const std::string& temp, const std::string& path) {
-  if (::rename(temp.c_str(), path.c_str()) != 0)
-    return Internal(path + ": cannot rename into place: " + errno_text());
-  return Status::Ok();
-}
-
 Result<std::vector<float>> read_band_file(const std::string& path, const BandPixels& rows) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return NotFound(path + ": " + errno_text());
-  auto read_all = [&](void* data, size_t n) {
-    char* p = static_cast<char*>(data);
-    while (n > 0) {
-      const ssize_t r = ::read(fd, p, n);
-      if (r < 0 && errno == EINTR) continue;
-      if (r <= 0) return false;
-      p += r;
-      n -= static_cast<size_t>(r);
-    }
-    return true;
-  };
-  Header h{};
-  const uint64_t expected = static_cast<uint64_t>(rows.width) * (rows.y1 - rows.y0) * 3;
-  std::vector<float> rgb;
-  uint64_t sum = 0;
-  char extra;
-  bool good = read_all(&h, sizeof h) && std::memcmp(h.magic, kMagic, sizeof kMagic) == 0 &&
-              h.width == rows.width && h.y0 == rows.y0 && h.y1 == rows.y1 && h.floats == expected;
-  if (good) {
-    rgb.resize(expected);
-    good = read_all(rgb.data(), expected * sizeof(float)) && read_all(&sum, sizeof sum) &&
-           ::read(fd, &extra, 1) == 0;
-  }
-  ::close(fd);
-  if (good) {
-    good = sum == fnv1a(rgb.data(), rgb.size() * sizeof(float), fnv1a(&h, sizeof h));
-  }
-  if (!good) return Internal(path + ": not a complete band file for these rows");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return NotFound(path + ": " + errno_text());
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  auto rgb = unpack_band(bytes.str(), rows);
+  if (!rgb.ok()) return Status(rgb.status().code(), path + ": " + rgb.status().message());
   return rgb;
 }
 
-Result<Image> stitch_frame(const std::string& job_dir, const FrameReady& f) {
+Result<Image> stitch_frame(const FrameReady& f,
+                           const std::function<Result<std::string>(int band)>& record) {
   Image image(f.width, f.height);
   for (int b = 0; b < f.bands; ++b) {
     const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
-    auto px = read_band_file(band_file_path(job_dir, f.frame, b), {f.width, rows.y0, rows.y1});
-    if (!px.ok()) return px.status();
+    auto bytes = record(b);
+    if (!bytes.ok()) return bytes.status();
+    auto px = unpack_band(*bytes, {f.width, rows.y0, rows.y1});
+    if (!px.ok()) {
+      return Status(px.status().code(), "band " + std::to_string(b) + " of frame " +
+                                            std::to_string(f.frame) + ": " +
+                                            px.status().message());
+    }
     std::copy(px->begin(), px->end(),
               image.rgb.begin() + static_cast<size_t>(rows.y0) * f.width * 3);
   }
@@ -171,20 +159,6 @@ Status write_frame_file(const std::string& job_dir, const std::string& file_name
   // The rename itself reaches the disk before the store says "written".
   if (sync) return fsync_path(dir.string(), true);
   return Status::Ok();
-}
-
-void remove_band_files(const std::string& job_dir, int frame, int bands) {
-  std::error_code ec;
-  for (int b = 0; b < bands; ++b) fs::remove(band_file_path(job_dir, frame, b), ec);
-}
-
-void remove_band_temporaries(const std::string& job_dir) {
-  std::error_code ec;
-  const fs::path dir = fs::path(job_dir) / "bands";
-  if (!fs::is_directory(dir, ec)) return;
-  for (const auto& e : fs::directory_iterator(dir, ec)) {
-    if (e.path().extension() == ".tmp") fs::remove(e.path(), ec);
-  }
 }
 
 }  // namespace locus::farm

@@ -1,50 +1,56 @@
-// Pixels on the coordinator's disk: each accepted band in its own band file,
-// each finished frame as an image, both written atomically (a temporary
-// file, fsync when asked, rename). A frame is stitched from its band files
-// when its last band is in, so the coordinator holds one frame in memory at
-// a time however many frames are in progress. Layout under DATA/jobs/<job>/:
-//   bands/<frame>-<band>.band   accepted bands of frames not yet written
-//   <file>                      the written frames (shot_0007.png)
+// Pixels on the coordinator's disk. Each accepted band is a record in the
+// job store (its `band_pixels` table, written in the same transaction that
+// marks the band done, made durable by the group commit: docs/farm.md
+// "Durability"): its rows, its encoding and the bytes as the worker sent
+// them (common/farm/band_codec.h), and a checksum. A frame is stitched from
+// its records when its last band is in, so the coordinator holds one frame
+// in memory at a time however many frames are in progress; the frame is
+// written atomically (a temporary file, fsync when asked, rename) and its
+// records are deleted with the store's "written". Releases up to 0.13 kept
+// each band in a file of its own, DATA/jobs/<job>/bands/<frame>-<band>.band;
+// a restart imports those into the store.
 #pragma once
 
+#include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/base/image.h"
 #include "common/base/status.h"
+#include "common/farm/band_codec.h"
 #include "common/farm/types.h"
 
 namespace locus::farm {
 
-std::string band_file_path(const std::string& job_dir, int frame, int band);
-
-// The rows [y0, y1) of a `width`-pixel-wide frame: linear RGB floats.
+// The rows [y0, y1) of a `width`-pixel-wide frame.
 struct BandPixels {
   int width = 0;
   int y0 = 0;
   int y1 = 0;
 };
 
-// Writes the pixels to a temporary file beside the band's file (unique to
-// `tag`, e.g. the lease id) and fsyncs it when `sync`. Returns its path;
-// commit_band_file() renames it into place.
-Result<std::string> write_band_temp(const std::string& job_dir, int frame, int band,
-                                    const BandPixels& rows, const std::vector<float>& rgb,
-                                    const std::string& tag, bool sync);
-Status commit_band_file(const std::string& temp, const std::string& path);
-// The pixels of a band file, checked against the expected rows and its
-// checksum: a torn or foreign file is an error, never pixels.
+// A band's record for the store: a header with its rows and encoding, the
+// encoded bytes, the FNV-1a hash of both.
+std::string pack_band(const BandPixels& rows, const EncodedBand& band);
+// The floats of a record, checked against the expected rows and its
+// checksum and decoded (decode_band): a torn, foreign or corrupted record
+// is an error, never pixels. Also reads the band files of 0.13.
+Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels& rows);
+// What the store keeps of a result: its bytes as they came, or (a worker of
+// 0.13, or a lease that asked for floats) its floats as float32.
+EncodedBand stored_band(const BandOutput& output, const BandPixels& rows);
+
+// 0.13's band file of a band, and its floats (unpack_band of its bytes).
+std::string band_file_path(const std::string& job_dir, int frame, int band);
 Result<std::vector<float>> read_band_file(const std::string& path, const BandPixels& rows);
 
-// Reads the frame's band files into one image.
-Result<Image> stitch_frame(const std::string& job_dir, const FrameReady& frame);
+// One frame's image from its bands' records, `record(band)` giving each.
+Result<Image> stitch_frame(const FrameReady& frame,
+                           const std::function<Result<std::string>(int band)>& record);
 // Writes the image as job_dir/file_name through a temporary name (the
 // extension kept, by which OpenImageIO picks the format), fsyncing file and
 // directory when `sync`.
 Status write_frame_file(const std::string& job_dir, const std::string& file_name,
                         const Image& image, bool sync);
-// Removes the band files of a written frame, and temporaries left by a crash.
-void remove_band_files(const std::string& job_dir, int frame, int bands);
-void remove_band_temporaries(const std::string& job_dir);
-
 }  // namespace locus::farm

@@ -11,11 +11,13 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <tuple>
 
 #include "common/base/image.h"
 #include "common/base/log.h"
 #include "common/scene/animation.h"
+#include "server/await.h"
 #include "server/band_files.h"
 #include "server/metrics.h"
 #include "server/submission.h"
@@ -23,6 +25,25 @@
 namespace locus::farm {
 namespace fs = std::filesystem;
 namespace {
+
+// A result's pixels as floats, decoded from the encoding they travelled in
+// (common/farm/band_codec.h); what does not decode is named in `malformed`,
+// with no pixels, for the scheduler to refuse. A failed or handed-back band
+// has no pixels to decode.
+void decode_pixels(BandOutput& o) {
+  if (o.handed_back || !o.error.empty()) return;
+  if (o.encoded.encoding == BandEncoding::kFloat32 && o.encoded.bytes.empty()) return;
+  if (!o.rgb.empty()) {
+    o.malformed = "both float rgb and encoded pixels";
+  } else if (auto rgb = decode_band(o.encoded); rgb.ok()) {
+    o.rgb = std::move(*rgb);
+    return;
+  } else {
+    o.malformed = rgb.status().message();
+  }
+  o.rgb.clear();
+}
+
 
 constexpr size_t kChunkBytes = 1 << 20;
 constexpr Millis kWatchInterval{100};  // at most ~10 updates a second per watcher
@@ -57,6 +78,7 @@ Status Coordinator::start() {
   writer_ = std::thread([this] { write_loop(); });
   movie_maker_ = std::thread([this] { movie_loop(); });
   dispatcher_ = std::thread([this] { dispatch_loop(); });
+  committer_ = std::thread([this] { commit_loop(); });
   return Status::Ok();
 }
 
@@ -83,31 +105,53 @@ Status Coordinator::recover() {
   for (RecoveredJob& j : state->jobs) {
     const std::string dir = job_dir(j.record.job_id);
     const JobSpec& s = j.record.spec;
+    // 0.13 kept each band in a file of its own, under <job>/bands/: a done
+    // band whose record is not in the store is imported from its file.
+    const fs::path legacy = fs::path(dir) / "bands";
+    const bool has_legacy = fs::is_directory(legacy, ec);
     if (j.state == JobState::kSucceeded) {
       // Bands of a job that succeeded are of no more use (left by a crash).
       // Those of a failed or cancelled job stay for `locus retry`.
-      fs::remove_all(fs::path(dir) / "bands", ec);
+      if (has_legacy) fs::remove_all(legacy, ec);
       continue;
     }
-    remove_band_temporaries(dir);
     const std::set<int> written(j.frames_written.begin(), j.frames_written.end());
-    for (int f : written) remove_band_files(dir, f, s.bands);
-    // A band is done only if its file is there, whole: after a power loss
-    // the store may be ahead of the disk. Such a band is rendered again.
+    // A band is done only if its record is whole (its checksum, its rows):
+    // a record damaged on disk, or (after a power loss) a store ahead of
+    // the disk, and the band is rendered again.
     std::vector<RecoveredJob::BandRef> kept;
     for (const RecoveredJob::BandRef& b : j.done_bands) {
       if (written.count(b.frame)) continue;
       const Band rows = band_rows(s, b.band);
-      const uintmax_t want = 32 + static_cast<uintmax_t>(s.width) * (rows.y1 - rows.y0) * 12 + 8;
-      if (fs::file_size(band_file_path(dir, b.frame, b.band), ec) == want && !ec) {
+      const BandPixels pixels{s.width, rows.y0, rows.y1};
+      auto record = store_->band_record(j.record.job_id, b.frame, b.band);
+      std::string why = "its record is damaged (checksum or size)";
+      if (!record.ok() && record.status().code() == Code::kNotFound && has_legacy) {
+        const std::string file = band_file_path(dir, b.frame, b.band);
+        std::ifstream in(file, std::ios::binary);
+        std::ostringstream bytes;
+        if (in) bytes << in.rdbuf();
+        record = bytes.str();
+        if (in && unpack_band(*record, pixels).ok()) {
+          if (Status st = store_->put_band_record(j.record.job_id, b.frame, b.band, *record);
+              !st.ok()) {
+            return st;
+          }
+        }
+        why = "its 0.13 band file is missing or damaged";
+      } else if (!record.ok()) {
+        why = record.status().message();
+      }
+      if (record.ok() && unpack_band(*record, pixels).ok()) {
         kept.push_back(b);
       } else {
-        spdlog::warn("job {}: band {} of frame {} has no complete band file; rendering it again",
-                     j.record.job_id, b.band, b.frame);
+        spdlog::warn("job {}: band {} of frame {}: {}; rendering it again", j.record.job_id, b.band,
+                     b.frame, why);
         if (Status st = store_->forget_band(j.record.job_id, b.frame, b.band); !st.ok()) return st;
         --j.bands_done;
       }
     }
+    if (has_legacy) fs::remove_all(legacy, ec);
     j.done_bands = std::move(kept);
     if (is_terminal(j.state)) continue;
     if (Status st = load_scene(s.scene_hash, j.record.job_id); !st.ok())
@@ -130,6 +174,17 @@ Status Coordinator::recover() {
 Status Coordinator::persist() {
   std::vector<Event> events = scheduler_.take_events();
   if (crashed_) return Status(Code::kAborted, "crashed (test)");
+  // Each accepted band's record, in the transaction that says "done".
+  if (!band_records_.empty()) {
+    for (Event& e : events) {
+      auto* d = std::get_if<event::BandDone>(&e);
+      if (!d) continue;
+      auto it = band_records_.find({d->job_id, d->frame, d->band});
+      if (it == band_records_.end()) continue;
+      d->pixels = std::move(it->second);
+      band_records_.erase(it);
+    }
+  }
   metrics_->observe(events);
   // A job that ends and is to be told so: pending in the same transaction.
   std::vector<JobInfo> ended;
@@ -222,10 +277,15 @@ void Coordinator::shutdown() {
   }
   changed_.notify_all();
   write_ready_.notify_all();
+  commit_ready_.notify_all();
   if (ticker_.joinable()) ticker_.join();
+  if (dispatcher_.joinable()) dispatcher_.join();
+  // The last batch is committed (and its frames queued) before the writer
+  // writes the last frames.
+  if (committer_.joinable()) committer_.join();
+  write_ready_.notify_all();
   if (writer_.joinable()) writer_.join();
   if (movie_maker_.joinable()) movie_maker_.join();
-  if (dispatcher_.joinable()) dispatcher_.join();
   std::lock_guard lk(mu_);
   const LatencySummary d = dispatch_.summary();
   if (d.count > 0) {
@@ -234,6 +294,7 @@ void Coordinator::shutdown() {
   }
   persist();
   store_.reset();
+  close_store_files();
   if (lock_fd_ >= 0) ::close(lock_fd_);
   lock_fd_ = -1;
 }
@@ -249,14 +310,20 @@ void Coordinator::crash_for_test() {
   }
   changed_.notify_all();
   write_ready_.notify_all();
+  commit_ready_.notify_all();
   if (ticker_.joinable()) ticker_.join();
+  if (dispatcher_.joinable()) dispatcher_.join();
+  // The last batch is committed (and its frames queued) before the writer
+  // writes the last frames.
+  if (committer_.joinable()) committer_.join();
+  write_ready_.notify_all();
   if (writer_.joinable()) writer_.join();
   if (movie_maker_.joinable()) movie_maker_.join();
-  if (dispatcher_.joinable()) dispatcher_.join();
   // Closing the connection checkpoints nothing that a reopen would not
   // recover from the WAL anyway.
   std::lock_guard lk(mu_);
   store_.reset();
+  close_store_files();
   if (lock_fd_ >= 0) ::close(lock_fd_);
   lock_fd_ = -1;
 }
@@ -337,20 +404,20 @@ void Coordinator::write_loop() {
     const FrameReady f = *writing_;
     lk.unlock();
     // Bounded memory: this is the only frame image the coordinator holds;
-    // it is stitched from the band files and freed before the next.
+    // it is stitched from the band records and freed before the next.
+    // Its bands' records are read through the writer's own connection:
+    // committed (the group commit queued the frame after its transaction).
     const std::string dir = job_dir(f.job_id);
     Status st;
     {
-      auto image = stitch_frame(dir, f);
+      auto image = stitch_frame(f, [&](int band) { return read_band_record(f.job_id, f.frame, band); });
       st = image.ok() ? write_frame_file(dir, f.file_name, *image, options_.fsync) : image.status();
     }
     lk.lock();
-    const bool expected = scheduler_.frame_written(f.job_id, f.frame, st);
-    const bool recorded = persist().ok();
-    // Once the store says "written", the frame's bands are of no more use.
-    // Removed under the lock: a `locus requeue` of the frame, which may
-    // follow at once, renders them again into the same files.
-    if (st.ok() && expected && recorded) remove_band_files(dir, f.frame, f.bands);
+    // Once the store says "written" it deletes the frame's band records, in
+    // the same transaction (JobStore, event::FrameWritten).
+    scheduler_.frame_written(f.job_id, f.frame, st);
+    persist();
     writing_.reset();
     changed_.notify_all();
   }
@@ -931,51 +998,135 @@ Result<std::shared_ptr<const v1::Scene>> Coordinator::get_scene(const std::strin
   return it->second;
 }
 
-Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {
+void Coordinator::complete_band_async(BandOutput output, CompleteDone done) {
+  // Decoded for the checks (size, encoding) outside the lock; the store
+  // keeps the bytes as they came.
+  decode_pixels(output);
+  const std::string malformed = output.malformed;
+  if (!malformed.empty()) {
+    // The scheduler charges it (as pixels of the wrong size) if the lease
+    // stands; the worker hears what was wrong either way.
+    done = [done = std::move(done), malformed, lease = output.lease_id](
+               Result<CompleteOutcome> r) {
+      if (r.ok() || r.status().code() == Code::kInvalidArgument) {
+        std::string m = "lease '";
+        m.append(lease).append("': malformed pixels: ").append(malformed);
+        r = InvalidArgument(m);
+      }
+      done(std::move(r));
+    };
+  }
   std::unique_lock lk(mu_);
   std::optional<BandTarget> target = scheduler_.result_target(output);
   std::optional<BandLogScope> log_scope;
   if (target) log_scope.emplace(target->job_id, target->frame, target->band);
-  std::string temp;
+  std::string record;
   if (target) {
-    // The pixels go to disk (and to the platter when fsync is on) outside
-    // the lock; only the rename and the store's record happen under it.
+    // The record is made outside the lock (a copy and a checksum of the
+    // pixels); the lease may lapse meanwhile, or another copy win: then
+    // complete_band() below drops the result.
     lk.unlock();
-    auto written = write_band_temp(job_dir(target->job_id), target->frame, target->band,
-                                   {target->width, target->y0, target->y1}, output.rgb,
-                                   output.lease_id, options_.fsync);
+    const BandPixels rows{target->width, target->y0, target->y1};
+    record = pack_band(rows, stored_band(output, rows));
     lk.lock();
-    if (!written.ok()) {
-      // Not the worker's fault: its lease stands, and lapses if this lasts.
-      spdlog::error("{}", written.status().message());
-      return Status(Code::kUnavailable,
-                    "the coordinator cannot store the band: " + written.status().message());
-    }
-    temp = *written;
-    // The lease may have lapsed, or another copy won, while the file was
-    // written: then complete_band() below drops the result.
     target = scheduler_.result_target(output);
   }
-  std::error_code ec;
-  if (target) {
-    const std::string path = band_file_path(job_dir(target->job_id), target->frame, target->band);
-    if (Status st = commit_band_file(temp, path); !st.ok()) {
-      fs::remove(temp, ec);
-      spdlog::error("{}", st.message());
-      return Status(Code::kUnavailable, "the coordinator cannot store the band: " + st.message());
-    }
-  } else if (!temp.empty()) {
-    fs::remove(temp, ec);
-  }
   auto r = scheduler_.complete_band(output);
-  persist();
-  if (r.ok() && r->frame) {
-    to_write_.push_back(std::move(*r->frame));
-    r->frame.reset();
-    write_ready_.notify_one();
-  }
   changed_.notify_all();
-  return r;
+  if (!target || !r.ok() || !r->accepted) {
+    // Nothing to make durable: a refusal, a failure, a hand-back.
+    persist();
+    lk.unlock();
+    done(std::move(r));
+    return;
+  }
+  // Accepted: its record goes into the store with the band's "done" (the
+  // next persist()), and the worker hears "accepted" once that transaction
+  // is on disk with the rest of its batch (commit_loop()).
+  band_records_[{target->job_id, target->frame, target->band}] = std::move(record);
+  std::optional<FrameReady> frame = std::move(r->frame);
+  r->frame.reset();
+  commits_.push_back({std::move(done), std::move(*r), std::move(frame), SteadyClock::now()});
+  commit_ready_.notify_one();
+}
+
+Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {
+  return await_answer<Result<CompleteOutcome>>(
+      [&](CompleteDone done) { complete_band_async(std::move(output), std::move(done)); });
+}
+
+void Coordinator::commit_loop() {
+  // Group commit (docs/farm.md "Durability"): the bands accepted while the
+  // last batch was being synced, or within group_commit of the first of
+  // them, are made durable together: one transaction (persist()), one sync
+  // of the store's log, then every worker of the batch hears "accepted".
+  constexpr size_t kMaxBatch = 512;
+  std::unique_lock lk(mu_);
+  for (;;) {
+    commit_ready_.wait(lk, [&] { return stopping_ || !commits_.empty(); });
+    if (commits_.empty()) return;  // stopping, and nothing left
+    if (options_.fsync && !stopping_) {
+      const TimePoint until = commits_.front().queued + options_.group_commit;
+      commit_ready_.wait_until(lk, until,
+                               [&] { return stopping_ || commits_.size() >= kMaxBatch; });
+    }
+    Status s = persist();
+    std::deque<Commit> batch = std::move(commits_);
+    commits_.clear();
+    if (s.ok()) {
+      for (Commit& c : batch) {
+        if (c.frame) to_write_.push_back(std::move(*c.frame));
+      }
+      write_ready_.notify_one();
+    }
+    lk.unlock();
+    if (s.ok() && options_.fsync) s = sync_log();
+    for (Commit& c : batch) {
+      if (s.ok()) {
+        c.done(std::move(c.outcome));
+      } else {
+        c.done(Status(Code::kUnavailable, "the coordinator cannot store the band: " + s.message()));
+      }
+    }
+    lk.lock();
+  }
+}
+
+Status Coordinator::sync_log() {
+  // The WAL holds every transaction committed since the last checkpoint;
+  // fdatasync on it is the sync SQLite's synchronous=FULL does at each
+  // commit (store.cpp), done here once per batch and outside the lock.
+  if (log_fd_ < 0) {
+    const std::string wal = (fs::path(options_.data_dir) / "locus.db-wal").string();
+    log_fd_ = ::open(wal.c_str(), O_RDONLY | O_CLOEXEC);
+    if (log_fd_ < 0) return Internal(wal + ": cannot open to sync: " + std::strerror(errno));
+  }
+  if (::fdatasync(log_fd_) != 0) {
+    return Internal(options_.data_dir + "/locus.db-wal: fdatasync failed: " +
+                    std::strerror(errno));
+  }
+  log_syncs_.fetch_add(1, std::memory_order_relaxed);
+  return Status::Ok();
+}
+
+void Coordinator::close_store_files() {
+  {
+    std::lock_guard lk(reader_mu_);
+    reader_.reset();
+  }
+  if (log_fd_ >= 0) ::close(log_fd_);
+  log_fd_ = -1;
+  band_records_.clear();
+}
+
+Result<std::string> Coordinator::read_band_record(const std::string& job_id, int frame, int band) {
+  std::lock_guard lk(reader_mu_);
+  if (!reader_) {
+    auto r = JobStore::open_reader((fs::path(options_.data_dir) / "locus.db").string());
+    if (!r.ok()) return r.status();
+    reader_ = std::move(*r);
+  }
+  return reader_->band_record(job_id, frame, band);
 }
 
 Result<std::vector<std::string>> Coordinator::heartbeat(const std::string& worker_id,

@@ -5,6 +5,7 @@
 // server/grpc_service.cpp adapts it to the two gRPC services.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -15,6 +16,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "common/farm/auth.h"
@@ -52,9 +54,14 @@ struct CoordinatorOptions {
   // frames (checked every minute); 0: kept until `locus delete`.
   Millis retention{0};
   Millis retention_check{60000};  // how often (tests shorten it)
-  // fsync band files, frames and their directory before the store names
-  // them (survives a power loss); without it a kill -9 is still survived.
+  // A band is acknowledged once durable: its record and "done" committed
+  // and the store's log synced (survives a power loss); frames and their
+  // directory are fsynced before the store names them. Without it a
+  // kill -9 is still survived.
   bool fsync = true;
+  // Group commit: the longest an accepted band waits for others to share
+  // its sync (the first of a batch; later ones wait less).
+  Millis group_commit{5};
   // Cut frames into bands of equal predicted cost (common/farm/band_split.h)
   // rather than equal height; local method only.
   bool cost_bands = true;
@@ -210,7 +217,16 @@ class Coordinator {
   PollAnswer lease_band(const std::string& worker_id, Millis wait, const CancelledFn& cancelled);
   Result<std::shared_ptr<const v1::Scene>> get_scene(const std::string& worker_id,
                                                      const std::string& hash);
+  // CompleteBand without holding a thread: `done` gets the outcome exactly
+  // once, never under the lock. An accepted band's is given once the band
+  // is durable (group commit, commit_loop()); a refusal's at once.
+  using CompleteDone = std::function<void(Result<CompleteOutcome>)>;
+  void complete_band_async(BandOutput output, CompleteDone done);
+  // The same, waiting here (tests, tools).
   Result<CompleteOutcome> complete_band(BandOutput output);
+  // Syncs of the store's log made by the group commit (the benchmark's
+  // "syncs per band").
+  uint64_t log_syncs() const { return log_syncs_.load(std::memory_order_relaxed); }
   Result<std::vector<std::string>> heartbeat(const std::string& worker_id,
                                              const std::vector<std::string>& lease_ids);
 
@@ -240,6 +256,14 @@ class Coordinator {
                              const std::string& bytes, const std::string& request_id,
                              const std::string& fingerprint);
   void tick_loop();
+  // Group commit of accepted bands: persist(), sync_log(), acknowledge.
+  void commit_loop();
+  // fdatasync of the store's write-ahead log; outside mu_.
+  Status sync_log();
+  // A band's record through the reader connection (the writer thread, the
+  // dashboard), outside mu_.
+  Result<std::string> read_band_record(const std::string& job_id, int frame, int band);
+  void close_store_files();  // with the store: the reader, the log's descriptor
   // Answers the parked polls (poll_band) as bands become available, their
   // time runs out or the coordinator stops.
   void dispatch_loop();
@@ -305,8 +329,24 @@ class Coordinator {
   uint64_t next_poll_ = 1;
   bool polls_all_ = false;       // every parked poll must be looked at (drain, stop)
   bool speculate_due_ = false;   // a tick has passed: the oldest poll may speculate
+  // Accepted bands waiting for their batch to be durable.
+  struct Commit {
+    CompleteDone done;
+    CompleteOutcome outcome;
+    std::optional<FrameReady> frame;  // the frame they complete, written after the commit
+    TimePoint queued;
+  };
+  std::deque<Commit> commits_;
+  std::condition_variable commit_ready_;
+  // Records of accepted bands, until persist() puts them with their "done".
+  std::map<std::tuple<std::string, int, int>, std::string> band_records_;
+  int log_fd_ = -1;  // the WAL, for sync_log(); the commit thread's
+  std::atomic<uint64_t> log_syncs_{0};
+  std::mutex reader_mu_;
+  std::unique_ptr<JobStore> reader_;
   std::thread ticker_;
   std::thread dispatcher_;
+  std::thread committer_;
   std::thread writer_;
   std::thread movie_maker_;
   std::function<void(const JobInfo&)> job_ended_;  // on_job_ended()

@@ -106,7 +106,6 @@ Result<std::string> Coordinator::frame_file(const std::string& job_id, int frame
 
 Result<Image> Coordinator::band_image(const std::string& job_id, int frame, int band,
                                       const Caller& caller) {
-  std::string path;
   BandPixels rows;
   {
     std::lock_guard lk(mu_);
@@ -120,10 +119,10 @@ Result<Image> Coordinator::band_image(const std::string& job_id, int frame, int 
     }
     const Band b = band_rows(s, band);
     rows = BandPixels{s.width, b.y0, b.y1};
-    path = band_file_path(job_dir(job_id), frame, band);
   }
-  // Outside the lock: a band file is written once and only removed.
-  auto pixels = read_band_file(path, rows);
+  // Outside the lock, through the reader connection.
+  auto record = read_band_record(job_id, frame, band);
+  auto pixels = record.ok() ? unpack_band(*record, rows) : Result<std::vector<float>>(record.status());
   if (!pixels.ok()) {
     return NotFound("band " + std::to_string(band) + " of frame " + std::to_string(frame) +
                     " of job " + job_id + " has no pixels here (not done, or its frame is written)");

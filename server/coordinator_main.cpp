@@ -47,6 +47,7 @@ struct Flags {
   double ageing = 60;       // seconds
   double retention_days = 0;
   bool no_fsync = false;
+  int group_commit_ms = 5;
   bool equal_bands = false;
   std::string health_address, metrics_address, http_address;
   double http_rate = 200;
@@ -115,8 +116,13 @@ void add_farm_flags(CLI::App& app, Flags& f) {
                  "LOCUS_JOB_KIND, LOCUS_JOB_OWNER, LOCUS_JOB_ERROR and LOCUS_JOB_DIR in its "
                  "environment (at most 60 s; its outcome in the job's history)");
   app.add_flag("--no-fsync", f.no_fsync,
-               "Do not fsync band and frame files (faster; a crash of the coordinator is still "
-               "survived, a power loss may cost finished bands)");
+               "Acknowledge bands without syncing the job store's log, and write frames without "
+               "fsync (a crash of the coordinator is still survived; a power loss may cost "
+               "acknowledged bands)");
+  app.add_option("--group-commit-ms", f.group_commit_ms,
+                 "Longest an accepted band waits for others to share its sync to disk (group "
+                 "commit; default 5)")
+      ->check(CLI::Range(0, 1000));
   app.add_flag("--equal-bands", f.equal_bands,
                "Cut frames into bands of equal height instead of equal predicted cost");
 }
@@ -215,6 +221,7 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
   options.retention =
       farm::Millis(static_cast<int64_t>(std::llround(f.retention_days * 86400.0 * 1000)));
   options.fsync = !f.no_fsync;
+  options.group_commit = farm::Millis(f.group_commit_ms);
   options.cost_bands = !f.equal_bands;
   return options;
 }

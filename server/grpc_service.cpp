@@ -112,6 +112,33 @@ auto counted_writer(farm::CoordinatorMetrics& metrics, const char* rpc,
   };
 }
 
+// A call answered later, on another thread: `start(done)` begins it and
+// `done(status)` finishes it (the response filled), exactly once. What
+// escapes `start` becomes an error for the call if it was not answered.
+// Returns what `start` returns (a default value after an exception).
+template <typename Start>
+auto answer_later(grpc::ServerUnaryReactor* reactor, farm::CoordinatorMetrics& metrics,
+                  const char* rpc, const google::protobuf::Message* request,
+                  const google::protobuf::Message* response, Start&& start) {
+  auto answered = std::make_shared<std::atomic<bool>>(false);
+  std::function<void(Status)> done = [reactor, &metrics, rpc, request, response,
+                                      answered](Status s) {
+    answered->store(true);
+    metrics.add_bytes(rpc, request->ByteSizeLong(), s.ok() ? response->ByteSizeLong() : 0);
+    reactor->Finish(ToGrpc(s));
+  };
+  using R = decltype(start(std::move(done)));
+  try {
+    return start(std::move(done));
+  } catch (const std::exception& e) {
+    spdlog::error("{}: {}", rpc, e.what());
+    if (!answered->load()) {
+      reactor->Finish(grpc::Status(grpc::StatusCode::INTERNAL, std::string(rpc) + ": " + e.what()));
+    }
+    if constexpr (!std::is_void_v<R>) return R{};
+  }
+}
+
 constexpr farm::Role kClient = farm::Role::kClient;
 constexpr farm::Role kWorker = farm::Role::kWorker;
 
@@ -326,21 +353,10 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
     const Result<farm::Caller> caller = admit(auth_, m_, *ctx, kWorker, kRpc, *req);
     if (!caller.ok()) return now(ctx, ToGrpc(caller.status()));
     auto* reactor = new PollReactor(c_);
-    auto answered = std::make_shared<std::atomic<bool>>(false);
-    auto done = [this, reactor, req, resp, answered](Status s) {
-      answered->store(true);
-      m_.add_bytes(kRpc, req->ByteSizeLong(), s.ok() ? resp->ByteSizeLong() : 0);
-      reactor->Finish(ToGrpc(s));
-    };
-    uint64_t ticket = 0;
-    try {
-      ticket = h_.StartGetTask(*req, resp, done);
-    } catch (const std::exception& e) {
-      spdlog::error("{}: {}", kRpc, e.what());
-      if (!answered->load()) {
-        reactor->Finish(grpc::Status(grpc::StatusCode::INTERNAL, std::string(kRpc) + ": " + e.what()));
-      }
-    }
+    const uint64_t ticket =
+        answer_later(reactor, m_, kRpc, req, resp, [&](std::function<void(Status)> done) {
+          return h_.StartGetTask(*req, resp, std::move(done));
+        });
     reactor->started(ticket);
     return reactor;
   }
@@ -355,8 +371,16 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
   grpc::ServerUnaryReactor* CompleteBand(grpc::CallbackServerContext* ctx,
                                          const v1::CompleteBandRequest* req,
                                          v1::CompleteBandResponse* resp) override {
-    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.CompleteBand", *req, resp,
-                          [&] { return h_.CompleteBand(*req, resp); }));
+    // Answered once the band is durable (the coordinator's group commit),
+    // from the commit thread: no gRPC thread waits for the disk.
+    static constexpr const char* kRpc = "WorkerService.CompleteBand";
+    const Result<farm::Caller> caller = admit(auth_, m_, *ctx, kWorker, kRpc, *req);
+    if (!caller.ok()) return now(ctx, ToGrpc(caller.status()));
+    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+    answer_later(reactor, m_, kRpc, req, resp, [&](std::function<void(Status)> done) {
+      h_.StartCompleteBand(*req, resp, std::move(done));
+    });
+    return reactor;
   }
 
   grpc::ServerUnaryReactor* Heartbeat(grpc::CallbackServerContext* ctx,

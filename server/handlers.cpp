@@ -4,6 +4,7 @@
 
 #include "common/base/log.h"
 #include "proto/wire/rpc.h"
+#include "server/await.h"
 
 namespace locus::rpc {
 namespace {
@@ -28,24 +29,6 @@ std::string printable(const std::string& text, size_t max_bytes = kMaxNameBytes)
   for (char& c : out)
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
   return out;
-}
-
-// A result's pixels as floats, decoded from the encoding they travelled in
-// (common/farm/band_codec.h); what does not decode is named in `malformed`,
-// with no pixels, for the scheduler to refuse. A failed or handed-back band
-// has no pixels to decode.
-void decode_pixels(farm::BandOutput& o) {
-  if (o.handed_back || !o.error.empty()) return;
-  if (o.encoded.encoding == farm::BandEncoding::kFloat32 && o.encoded.bytes.empty()) return;
-  if (!o.rgb.empty()) {
-    o.malformed = "both float rgb and encoded pixels";
-  } else if (auto rgb = farm::decode_band(o.encoded); rgb.ok()) {
-    o.rgb = std::move(*rgb);
-    return;
-  } else {
-    o.malformed = rgb.status().message();
-  }
-  o.rgb.clear();
 }
 
 }  // namespace
@@ -309,28 +292,35 @@ Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* 
   return Status::Ok();
 }
 
-Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {
-  if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
-  if (Status s = check_id(req.lease_id(), "lease_id"); !s.ok()) return s;
-  if (req.log_lines_size() > static_cast<int>(kMaxBandLogLines) + 1)
-    return InvalidArgument("log_lines: at most " + std::to_string(kMaxBandLogLines));
+void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req,
+                                 v1::CompleteBandResponse* resp,
+                                 std::function<void(Status)> done) {
+  Status checked = check_id(req.worker_id(), "worker_id");
+  if (checked.ok()) checked = check_id(req.lease_id(), "lease_id");
+  if (checked.ok() && req.log_lines_size() > static_cast<int>(kMaxBandLogLines) + 1)
+    checked = InvalidArgument("log_lines: at most " + std::to_string(kMaxBandLogLines));
+  if (!checked.ok()) {
+    done(checked);
+    return;
+  }
   farm::BandOutput output = FromProto(req);
   output.error = output.error.substr(0, 4096);
   for (std::string& l : output.log_lines) l = printable(l, kMaxBandLogLineBytes);
-  decode_pixels(output);
-  const std::string malformed = output.malformed;
-  auto r = c_.complete_band(std::move(output));
-  if (!malformed.empty() && (r.ok() || r.status().code() == Code::kInvalidArgument)) {
-    // The scheduler has charged it (as pixels of the wrong size) if the
-    // lease stood; the worker hears what was wrong either way.
-    std::string m = "lease '";
-    m.append(req.lease_id()).append("': malformed pixels: ").append(malformed);
-    return InvalidArgument(m);
-  }
-  if (!r.ok()) return r.status();
-  resp->set_accepted(r->accepted);
-  resp->set_reason(r->reason);
-  return Status::Ok();
+  c_.complete_band_async(std::move(output), [resp, done = std::move(done)](
+                                                 Result<farm::CompleteOutcome> r) {
+        if (!r.ok()) {
+          done(r.status());
+          return;
+        }
+        resp->set_accepted(r->accepted);
+        resp->set_reason(r->reason);
+        done(Status::Ok());
+      });
+}
+
+Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {
+  return await_answer<Status>(
+      [&](std::function<void(Status)> done) { StartCompleteBand(req, resp, std::move(done)); });
 }
 
 Status Handlers::Heartbeat(const v1::HeartbeatRequest& req, v1::HeartbeatResponse* resp) {

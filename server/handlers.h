@@ -81,6 +81,12 @@ class Handlers {
   Status GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
                  v1::GetTaskResponse* resp);
   Status GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp);
+  // A band's result (Coordinator::complete_band_async): `done` gets the
+  // status once `resp` is filled, exactly once, perhaps before this
+  // returns; for an accepted band once it is durable.
+  void StartCompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp,
+                         std::function<void(Status)> done);
+  // The same, waiting here (tests, the fuzzer).
   Status CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp);
   Status Heartbeat(const v1::HeartbeatRequest& req, v1::HeartbeatResponse* resp);
 

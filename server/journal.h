@@ -98,6 +98,9 @@ struct BandDone {
   double cpu_seconds = 0;   // this band's render CPU time
   BandSeconds job_account;  // the job's total after this band
   Stats band_stats;         // this band's (the dashboard's band map)
+  // The band's pixels as the store keeps them (band_files.h pack_band),
+  // recorded with its "done"; set by the coordinator, not the Scheduler.
+  std::string pixels;
 };
 struct FrameWritten {
   std::string job_id;

@@ -883,7 +883,8 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   job.info.account.done += took;
   events_.push_back(event::BandDone{job.info.job_id, frame, band, out.lease_id, out.worker_id,
                                     job.info.stats, took, job.info.spec.owner,
-                                    out.stats.seconds_render_cpu, job.info.account, out.stats});
+                                    out.stats.seconds_render_cpu, job.info.account, out.stats,
+                                    /*pixels=*/{}});
   // The first result wins: the band's other lease (a speculative copy, or
   // the original it copied) is discarded, counted once here.
   if (state.leases > 0) {

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <sstream>
+#include <string_view>
 #include <tuple>
 
 namespace locus::farm {
@@ -68,6 +69,10 @@ CREATE TABLE IF NOT EXISTS history(
   text TEXT NOT NULL);
 CREATE INDEX IF NOT EXISTS history_by_job ON history(job_id, seq);
 CREATE TABLE IF NOT EXISTS disabled_workers(name TEXT PRIMARY KEY);
+CREATE TABLE IF NOT EXISTS band_pixels(
+  job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
+  pixels BLOB NOT NULL,
+  PRIMARY KEY(job_id, frame, band));
 CREATE TABLE IF NOT EXISTS band_logs(
   seq INTEGER PRIMARY KEY,
   job_id TEXT NOT NULL, frame INTEGER NOT NULL, band INTEGER NOT NULL,
@@ -152,6 +157,11 @@ static_assert(label_name(kLeaseOutcomeLabels, LeaseOutcome::kDiscarded) == "disc
 // A prepared statement, finalized on scope exit. Binding is by position
 // (1-based) through bind(); step() returns SQLITE_ROW / SQLITE_DONE.
 // Statements are prepared once per store and kept (keyed by their SQL).
+// Bytes bound as a BLOB (pixels), not as text.
+struct Blob {
+  std::string_view bytes;
+};
+
 class JobStore::Statement {
  public:
   Statement(JobStore& store, const char* sql) : db_(store.db_) {
@@ -205,11 +215,27 @@ class JobStore::Statement {
   }
   void bind_one(int i, const char* v) { sqlite3_bind_text(stmt_, i, v, -1, SQLITE_TRANSIENT); }
   void bind_one(int i, std::nullptr_t) { sqlite3_bind_null(stmt_, i); }
+  void bind_one(int i, const Blob& v) {
+    sqlite3_bind_blob64(stmt_, i, v.bytes.data(), v.bytes.size(), SQLITE_STATIC);
+  }
 
   sqlite3* db_;
   sqlite3_stmt* stmt_ = nullptr;
   int rc_ = SQLITE_OK;
 };
+
+Result<std::unique_ptr<JobStore>> JobStore::open_reader(const std::string& path) {
+  sqlite3* db = nullptr;
+  const int rc =
+      sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr);
+  if (rc != SQLITE_OK) {
+    const std::string why = db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    sqlite3_close(db);
+    return FailedPrecondition(path + ": cannot open the job store to read: " + why);
+  }
+  sqlite3_busy_timeout(db, 5000);
+  return std::unique_ptr<JobStore>(new JobStore(db));
+}
 
 Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   sqlite3* db = nullptr;
@@ -222,11 +248,13 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   }
   std::unique_ptr<JobStore> store(new JobStore(db));
   sqlite3_busy_timeout(db, 5000);
-  // WAL: readers (`sqlite3 DATA/locus.db`, the fault tests) never block the
-  // coordinator. synchronous=NORMAL: a commit survives a crash of the
-  // process (kill -9) at once, and a power loss once checkpointed; band and
-  // frame files are fsynced before the commit that names them, so a power
-  // loss can only take the store back to an earlier consistent state.
+  // WAL: readers (`sqlite3 DATA/locus.db`, the frame writer, the fault
+  // tests) never block the coordinator. synchronous=NORMAL: a commit
+  // survives a crash of the process (kill -9) at once; it survives a power
+  // loss once the WAL is synced, which the coordinator's group commit does
+  // for a batch of bands before it acknowledges them (sync_log(); the same
+  // sync synchronous=FULL would do at each commit), and SQLite's checkpoints
+  // do for the rest.
   if (Status s = store->exec("PRAGMA journal_mode=WAL"); !s.ok()) return s;
   if (Status s = store->exec("PRAGMA synchronous=NORMAL"); !s.ok()) return s;
   if (Status s = store->exec(kSchema); !s.ok())
@@ -407,6 +435,14 @@ Status JobStore::apply_one(const Event& e) {
         !s.ok()) {
       return s;
     }
+    // The pixels in the same transaction as "done": never one without the other.
+    if (!d->pixels.empty()) {
+      Statement px(*this,
+                   "INSERT OR REPLACE INTO band_pixels(job_id, frame, band, pixels) "
+                   "VALUES(?,?,?,?)");
+      px.bind(d->job_id, d->frame, d->band, Blob{d->pixels});
+      if (Status s = px.run(); !s.ok()) return s;
+    }
     Statement stats(*this, "UPDATE jobs SET stats = ?, band_seconds = ? WHERE id = ?");
     stats.bind(encode_stats(d->job_stats), d->job_account.done, d->job_id);
     return stats.run();
@@ -416,6 +452,10 @@ Status JobStore::apply_one(const Event& e) {
                  "INSERT OR REPLACE INTO frames(job_id, frame, file, written_at) VALUES(?,?,?,?)");
     st.bind(f->job_id, f->frame, f->file_name, now);
     if (Status s = st.run(); !s.ok()) return s;
+    // The frame holds its bands' pixels now.
+    Statement px(*this, "DELETE FROM band_pixels WHERE job_id = ? AND frame = ?");
+    px.bind(f->job_id, f->frame);
+    if (Status s = px.run(); !s.ok()) return s;
     return add_history(f->job_id, f->frame, -1,
                        fmt::format("frame {} written: {}", f->frame, f->file_name));
   }
@@ -664,6 +704,30 @@ Status JobStore::forget_band(const std::string& job_id, int frame, int band) {
                "UPDATE bands SET done = 0, completions = 0 WHERE job_id = ? AND frame = ? AND "
                "band = ?");
   st.bind(job_id, frame, band);
+  if (Status s = st.run(); !s.ok()) return s;
+  Statement px(*this, "DELETE FROM band_pixels WHERE job_id = ? AND frame = ? AND band = ?");
+  px.bind(job_id, frame, band);
+  return px.run();
+}
+
+Result<std::string> JobStore::band_record(const std::string& job_id, int frame, int band) {
+  Statement st(*this,
+               "SELECT pixels FROM band_pixels WHERE job_id = ? AND frame = ? AND band = ?");
+  st.bind(job_id, frame, band);
+  const int rc = st.step();
+  if (rc == SQLITE_ROW) return st.text(0);
+  if (rc == SQLITE_DONE) {
+    return NotFound("band " + std::to_string(band) + " of frame " + std::to_string(frame) +
+                    " of job " + job_id + " has no pixels in the store");
+  }
+  return st.error();
+}
+
+Status JobStore::put_band_record(const std::string& job_id, int frame, int band,
+                                 const std::string& record) {
+  Statement st(*this,
+               "INSERT OR REPLACE INTO band_pixels(job_id, frame, band, pixels) VALUES(?,?,?,?)");
+  st.bind(job_id, frame, band, Blob{record});
   return st.run();
 }
 
@@ -703,7 +767,8 @@ Status JobStore::delete_job(const std::string& job_id) {
   for (const char* sql :
        {"DELETE FROM history WHERE job_id = ?", "DELETE FROM band_logs WHERE job_id = ?",
         "DELETE FROM attempts WHERE job_id = ?", "DELETE FROM frames WHERE job_id = ?",
-        "DELETE FROM bands WHERE job_id = ?", "DELETE FROM jobs WHERE id = ?"}) {
+        "DELETE FROM bands WHERE job_id = ?", "DELETE FROM band_pixels WHERE job_id = ?",
+        "DELETE FROM jobs WHERE id = ?"}) {
     Statement st(*this, sql);
     st.bind(job_id);
     if (Status s = st.run(); !s.ok()) {

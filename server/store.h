@@ -25,6 +25,10 @@ class JobStore {
  public:
   // Opens (creating when new) the database at `path`.
   static Result<std::unique_ptr<JobStore>> open(const std::string& path);
+  // A second connection to the same database that only reads (the frame
+  // writer's, so that reading a frame's pixels does not hold the
+  // coordinator's lock). WAL: it sees every committed transaction.
+  static Result<std::unique_ptr<JobStore>> open_reader(const std::string& path);
   ~JobStore();
   JobStore(const JobStore&) = delete;
   JobStore& operator=(const JobStore&) = delete;
@@ -38,6 +42,13 @@ class JobStore {
   // A band the store says is done but whose band file is missing or torn
   // (possible only after a power loss): back to not done.
   Status forget_band(const std::string& job_id, int frame, int band);
+  // A done band's record (server/band_files.h pack_band), kept with the
+  // band's "done" (event::BandDone::pixels) until its frame is written.
+  // NotFound when there is none.
+  Result<std::string> band_record(const std::string& job_id, int frame, int band);
+  // Imports a record (a 0.13 band file at restart).
+  Status put_band_record(const std::string& job_id, int frame, int band,
+                         const std::string& record);
 
   Status put_scene(const std::string& hash, const std::string& bytes);
   Result<std::string> scene(const std::string& hash);
