@@ -201,14 +201,10 @@ TEST_F(StoreV013, HistoryIsKeptLineByLine) {
       "frame 1 written: anim_0001.exr",
       "lease 3443192f-8 done: band 0 of frame 2 by worker w0002 in 0.509 s",
       "lease 3443192f-9: band 1 of frame 2 to worker w0002 (slow:2), attempt 1",
+      // What this start adds: the lease the stop left open, voided.
+      "lease 3443192f-9 void: the coordinator restarted; band back in the queue",
   };
-  std::vector<std::string> got = history(*c_, kUnfinished);
-  ASSERT_GE(got.size(), unfinished.size());
-  EXPECT_EQ(std::vector<std::string>(got.begin(), got.begin() + unfinished.size()), unfinished);
-  // What this start added: the open lease voided, nothing else.
-  for (size_t i = unfinished.size(); i < got.size(); ++i) {
-    EXPECT_NE(got[i].find("3443192f-9"), std::string::npos) << got[i];
-  }
+  EXPECT_EQ(history(*c_, kUnfinished), unfinished);
 }
 
 TEST_F(StoreV013, TheFinishedJobsFramesAreFetchedAsWritten) {
