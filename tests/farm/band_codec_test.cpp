@@ -116,8 +116,8 @@ TEST(BandCodec, EncodeRefusesAWrongSizeOrAnUnknownEncoding) {
 }
 
 // A real scene rendered band by band, as workers do: the frames written from
-// the decoded bands are byte for byte the frames written from the floats,
-// for each output format and the encoding chosen for it.
+// the decoded bands store the samples of the frames written from the
+// floats (a PNG byte for byte), for each output format and its encoding.
 TEST(BandCodec, FramesWrittenFromDecodedBandsAreBitIdentical) {
   auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
   ASSERT_TRUE(scene.ok()) << scene.status().message();
@@ -164,10 +164,15 @@ TEST(BandCodec, FramesWrittenFromDecodedBandsAreBitIdentical) {
     const fs::path d = dir / (std::string("decoded") + ext);
     ASSERT_TRUE(write_image(a.string(), floats).ok());
     ASSERT_TRUE(write_image(d.string(), decoded).ok());
-    const std::string fa = file_bytes(a);
-    ASSERT_FALSE(fa.empty());
-    EXPECT_EQ(fa, file_bytes(d));
-    // And the pixels as read back, in case a writer ever stamps a time.
+    // A PNG's bytes are its pixels'; TIFF and EXR files also carry the
+    // second they were written (DateTime, capDate), so for those the
+    // stored samples are compared, read back exactly (codes / 65535, or
+    // the floats themselves).
+    if (std::string(ext) == ".png") {
+      const std::string fa = file_bytes(a);
+      ASSERT_FALSE(fa.empty());
+      EXPECT_EQ(fa, file_bytes(d));
+    }
     auto ia = read_image(a.string());
     auto id = read_image(d.string());
     ASSERT_TRUE(ia.ok() && id.ok());

@@ -93,8 +93,10 @@ class BandEncodingTest : public FarmTest {
                       [this](grpc::ClientContext& ctx) { prepare(ctx); });
   }
   // The fetched frame file, byte for byte the single-process render's as
-  // written by the same writer (expect_identical compares the pixels).
+  // written by the same writer (expect_identical compares the pixels). Only
+  // for PNG: TIFF and EXR files also carry the second they were written.
   void expect_same_file(const JobInfo& job, const SubmitRequest& r, int frame) {
+    ASSERT_EQ(fs::path(r.output).extension(), ".png");
     const std::string name = frame_path(fs::path(r.output).filename().string(), frame);
     const fs::path got = dir_ / ("got_" + job.job_id) / name;
     const fs::path ref =
@@ -119,8 +121,10 @@ TEST_F(BandEncodingTest, EachOutputsBandsTravelInItsEncodingAndFramesAreBitIdent
     EXPECT_EQ(band_encoding_for(c.output), c.encoding);
     SubmitRequest r = request(kGlass, 64, 48, 1, 2, 5, c.output);
     const JobInfo job = run(r);
-    expect_identical(job, r);
-    for (int f = 1; f <= 2; ++f) expect_same_file(job, r, f);
+    expect_identical(job, r);  // the stored samples, read back exactly
+    if (c.encoding == BandEncoding::kRgb8Zstd) {
+      for (int f = 1; f <= 2; ++f) expect_same_file(job, r, f);
+    }
   }
 }
 
