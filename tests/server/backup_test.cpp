@@ -104,6 +104,7 @@ TEST(Backup, WhileBandsAreAcceptedHoldsEveryAcknowledgedBandAndRestores) {
         std::this_thread::sleep_for(Millis(3));
       }
     });
+    for (int i = 0; i < 1000 && during == 0; ++i) std::this_thread::sleep_for(Millis(1));
     BackupOptions o;
     o.data_dir = (dir.path / "data").string();
     o.out = (dir.path / "backup").string();
