@@ -100,7 +100,8 @@ Result<Row> measure(const std::string& path, const std::string& group, int width
         o.encoded = std::move(*enc);
         o.rgb = {};
       }
-      row.bytes_per_pixel[c] += static_cast<double>(rpc::ToProto(std::move(o)).ByteSizeLong()) / pixels;
+      row.bytes_per_pixel[c] +=
+          static_cast<double>(rpc::ToProto(std::move(o)).ByteSizeLong()) / pixels;
     }
   }
   return row;
@@ -171,9 +172,10 @@ int main(int argc, char** argv) {
     rows.push_back(std::move(*r));
   }
 
-  std::printf("Bytes per pixel of CompleteBandRequest (serialized), %dx%d, %d bands a frame "
-              "(default split for %d workers), configuration IV (local, eye+shadow, aa %d).\n\n",
-              width, height, rows.empty() ? 0 : rows.front().bands, workers, kDefaultAa);
+  std::printf(
+      "Bytes per pixel of CompleteBandRequest (serialized), %dx%d, %d bands a frame "
+      "(default split for %d workers), configuration IV (local, eye+shadow, aa %d).\n\n",
+      width, height, rows.empty() ? 0 : rows.front().bands, workers, kDefaultAa);
   std::printf("| scene | set | render s |");
   for (const Column& c : kColumns) std::printf(" %s |", c.title);
   std::printf(" PNG smaller | EXR smaller |\n|---|---|---:|");
@@ -189,8 +191,9 @@ int main(int argc, char** argv) {
   print_average("average, SPD", rows, "SPD");
   print_average("average, all", rows, "");
 
-  std::printf("\nEncoding and decoding time per frame (all its bands), milliseconds, averaged "
-              "over the scenes:\n\n| encoding | encode ms | decode ms |\n|---|---:|---:|\n");
+  std::printf(
+      "\nEncoding and decoding time per frame (all its bands), milliseconds, averaged "
+      "over the scenes:\n\n| encoding | encode ms | decode ms |\n|---|---:|---:|\n");
   for (size_t c = 1; c < kN; ++c) {
     double enc = 0, dec = 0;
     for (const Row& r : rows) {
@@ -198,8 +201,9 @@ int main(int argc, char** argv) {
       dec += r.decode_ms[c];
     }
     const double n = std::max<size_t>(rows.size(), 1);
-    std::printf("| %s | %.2f | %.2f |\n", std::string(label_name(kBandEncodingLabels, kColumns[c].encoding)).c_str(),
-                enc / n, dec / n);
+    std::printf("| %s | %.2f | %.2f |\n",
+                std::string(label_name(kBandEncodingLabels, kColumns[c].encoding)).c_str(), enc / n,
+                dec / n);
   }
   return 0;
 }

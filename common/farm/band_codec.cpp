@@ -75,7 +75,8 @@ std::string pack(const std::vector<uint32_t>& samples, Layout l) {
   std::string out(n * l.sample_bytes, '\0');
   if (!l.zstd || l.sample_bytes == 1) {
     for (size_t i = 0; i < n; ++i) {
-      for (int b = 0; b < l.sample_bytes; ++b) out[i * l.sample_bytes + b] = static_cast<char>(samples[i] >> (8 * b));
+      for (int b = 0; b < l.sample_bytes; ++b)
+        out[i * l.sample_bytes + b] = static_cast<char>(samples[i] >> (8 * b));
     }
     return out;
   }
@@ -96,10 +97,13 @@ std::string pack(const std::vector<uint32_t>& samples, Layout l) {
 // The inverse of pack(); `bytes` holds exactly n * sample_bytes.
 std::vector<uint32_t> unpack(const std::string& bytes, size_t n, Layout l) {
   std::vector<uint32_t> samples(n, 0);
-  const auto byte = [&](size_t i) { return static_cast<uint32_t>(static_cast<unsigned char>(bytes[i])); };
+  const auto byte = [&](size_t i) {
+    return static_cast<uint32_t>(static_cast<unsigned char>(bytes[i]));
+  };
   if (!l.zstd || l.sample_bytes == 1) {
     for (size_t i = 0; i < n; ++i) {
-      for (int b = 0; b < l.sample_bytes; ++b) samples[i] |= byte(i * l.sample_bytes + b) << (8 * b);
+      for (int b = 0; b < l.sample_bytes; ++b)
+        samples[i] |= byte(i * l.sample_bytes + b) << (8 * b);
     }
     return samples;
   }
@@ -153,7 +157,8 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
   EncodedBand out{encoding, width, rows, pack(samples, *l)};
   if (l->zstd) {
     std::string z(ZSTD_compressBound(out.bytes.size()), '\0');
-    const size_t n = ZSTD_compress(z.data(), z.size(), out.bytes.data(), out.bytes.size(), kZstdLevel);
+    const size_t n =
+        ZSTD_compress(z.data(), z.size(), out.bytes.data(), out.bytes.size(), kZstdLevel);
     if (ZSTD_isError(n)) return Internal(std::string("zstd: ") + ZSTD_getErrorName(n));
     z.resize(n);
     out.bytes = std::move(z);
@@ -164,7 +169,8 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
 Result<std::vector<float>> decode_band(const EncodedBand& band) {
   const std::optional<Layout> l = layout_of(band.encoding);
   if (!l) return InvalidArgument("band pixels in " + encoding_name(band.encoding));
-  const std::string what = encoding_name(band.encoding) + " band of " + band_size_text(band.width, band.rows) + " pixels";
+  const std::string what = encoding_name(band.encoding) + " band of " +
+                           band_size_text(band.width, band.rows) + " pixels";
   if (band.width < 1 || band.rows < 1 ||
       static_cast<int64_t>(band.width) * band.rows > kMaxDecodedBandBytes / 12) {
     std::string m = what;
@@ -179,7 +185,8 @@ Result<std::vector<float>> decode_band(const EncodedBand& band) {
   if (l->zstd) {
     // The frame must say its size, and that size must be the band's: a
     // payload claiming more is refused before anything is allocated.
-    const unsigned long long claimed = ZSTD_getFrameContentSize(band.bytes.data(), band.bytes.size());
+    const unsigned long long claimed =
+        ZSTD_getFrameContentSize(band.bytes.data(), band.bytes.size());
     if (claimed == ZSTD_CONTENTSIZE_ERROR || claimed == ZSTD_CONTENTSIZE_UNKNOWN) {
       return InvalidArgument(what + ": the payload is not a zstd frame with its size");
     }
@@ -191,9 +198,11 @@ Result<std::vector<float>> decode_band(const EncodedBand& band) {
     }
     inflated.resize(expected);
     // Bounded by the destination's size, whatever the frames say.
-    const size_t got = ZSTD_decompress(inflated.data(), inflated.size(), band.bytes.data(), band.bytes.size());
+    const size_t got =
+        ZSTD_decompress(inflated.data(), inflated.size(), band.bytes.data(), band.bytes.size());
     if (ZSTD_isError(got)) {
-      return InvalidArgument(what + ": corrupt or truncated zstd payload (" + ZSTD_getErrorName(got) + ")");
+      return InvalidArgument(what + ": corrupt or truncated zstd payload (" +
+                             ZSTD_getErrorName(got) + ")");
     }
     if (got != expected) {
       std::string m = what;
@@ -209,6 +218,7 @@ Result<std::vector<float>> decode_band(const EncodedBand& band) {
     return InvalidArgument(m);
   }
   const std::vector<uint32_t> samples = unpack(*raw, n, *l);
+  std::string().swap(inflated);  // the largest band holds one copy less at a time
   std::vector<float> rgb(n);
   for (size_t i = 0; i < n; ++i) rgb[i] = float_of(band.encoding, samples[i]);
   return rgb;

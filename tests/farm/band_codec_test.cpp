@@ -48,7 +48,8 @@ std::vector<float> awkward_floats(size_t n, uint32_t seed) {
                             std::numeric_limits<float>::max(),
                             1e30f};
   std::vector<float> v(n);
-  for (size_t i = 0; i < n; ++i) v[i] = i % 7 == 0 ? specials[(i / 7) % std::size(specials)] : u(rng);
+  for (size_t i = 0; i < n; ++i)
+    v[i] = i % 7 == 0 ? specials[(i / 7) % std::size(specials)] : u(rng);
   return v;
 }
 
@@ -275,12 +276,14 @@ TEST(BandCodec, ZstdBombsAreRefusedWithinTheBandsSize) {
     ZSTD_freeCCtx(cctx);
     z.resize(out.pos);
     ASSERT_EQ(ZSTD_getFrameContentSize(z.data(), z.size()), ZSTD_CONTENTSIZE_UNKNOWN);
-    expect_refused(EncodedBand{BandEncoding::kRgb8Zstd, width, rows, z}, "not a zstd frame with its size");
+    expect_refused(EncodedBand{BandEncoding::kRgb8Zstd, width, rows, z},
+                   "not a zstd frame with its size");
   }
   // A first frame of the right size followed by a second one of 64 MiB: the
   // decompression stops at the band's size.
   {
-    const std::string z = compress(std::string(expected, '\2')) + compress(std::string(64u << 20, '\3'));
+    const std::string z =
+        compress(std::string(expected, '\2')) + compress(std::string(64u << 20, '\3'));
     expect_refused(EncodedBand{BandEncoding::kRgb8Zstd, width, rows, z}, "corrupt or truncated");
   }
 }

@@ -114,9 +114,9 @@ TEST_F(BandEncodingTest, EachOutputsBandsTravelInItsEncodingAndFramesAreBitIdent
     const char* output;
     BandEncoding encoding;
   };
-  for (const Case& c : {Case{"e_####.png", BandEncoding::kRgb8Zstd},
-                        Case{"e_####.tif", BandEncoding::kRgb16Zstd},
-                        Case{"e_####.exr", BandEncoding::kFloat32Zstd}}) {
+  for (const Case& c :
+       {Case{"e_####.png", BandEncoding::kRgb8Zstd}, Case{"e_####.tif", BandEncoding::kRgb16Zstd},
+        Case{"e_####.exr", BandEncoding::kFloat32Zstd}}) {
     SCOPED_TRACE(c.output);
     EXPECT_EQ(band_encoding_for(c.output), c.encoding);
     SubmitRequest r = request(kGlass, 64, 48, 1, 2, 5, c.output);
