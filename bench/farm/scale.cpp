@@ -199,7 +199,8 @@ struct Shared {
   std::vector<double> dispatch_ms;    // GetTask sent to a band in hand
   std::vector<double> completion_ms;  // CompleteBand sent to its answer
   std::map<std::pair<int, int>, std::shared_ptr<const std::string>> payloads;  // by rows
-  int64_t accepted = 0, refused = 0, errors = 0, scene_fetches = 0, heartbeats = 0;
+  int64_t accepted = 0, refused = 0, errors = 0, scene_fetches = 0, heartbeats = 0,
+          registrations = 0;
   Clock::time_point first_accept{}, last_accept{};
 
   // The CompleteBandRequest's pixels for rows [y0, y1), serialized once.
@@ -318,9 +319,25 @@ class SimWorker {
     s_.timers->at(Clock::now() + Ms(100), [this] { poll(); });
   }
 
+  // Dropped by the coordinator (silent past its lease: a late worker):
+  // register again and go on, as locus-worker does.
+  void register_again() {
+    s_.timers->at(Clock::now(), [this] {
+      {
+        std::lock_guard lk(s_.mu);
+        ++s_.registrations;
+      }
+      if (start()) poll();
+    });
+  }
+
   void on_task(const Call<v1::GetTaskRequest, v1::GetTaskResponse>& call, const grpc::Status& st,
                Clock::time_point sent) {
     if (s_.stopping) return;
+    if (st.error_code() == grpc::StatusCode::NOT_FOUND) {
+      register_again();
+      return;
+    }
     if (!st.ok()) {
       std::lock_guard lk(s_.mu);
       ++s_.errors;
@@ -422,6 +439,16 @@ class SimWorker {
     {
       std::lock_guard lk(mu_);
       lease_.clear();
+    }
+    if (st.error_code() == grpc::StatusCode::NOT_FOUND) {
+      // The worker was dropped while it held the band: refused, as a result
+      // for a lapsed lease is.
+      {
+        std::lock_guard lk(s_.mu);
+        ++s_.refused;
+      }
+      register_again();
+      return;
     }
     {
       std::lock_guard lk(s_.mu);
@@ -647,7 +674,7 @@ int main(int argc, char** argv) {
 
   const int64_t total_bands = static_cast<int64_t>(jobs) * frames * bands;
   double window = 0;
-  int64_t accepted = 0, refused = 0, errors = 0, fetches = 0, heartbeats = 0;
+  int64_t accepted = 0, refused = 0, errors = 0, fetches = 0, heartbeats = 0, registrations = 0;
   std::vector<double> dispatch, completion;
   {
     std::lock_guard lk(shared.mu);
@@ -657,6 +684,7 @@ int main(int argc, char** argv) {
     errors = shared.errors;
     fetches = shared.scene_fetches;
     heartbeats = shared.heartbeats;
+    registrations = shared.registrations;
     dispatch = shared.dispatch_ms;
     completion = shared.completion_ms;
   }
@@ -665,7 +693,8 @@ int main(int argc, char** argv) {
               static_cast<long long>(total_bands), static_cast<long long>(accepted),
               static_cast<long long>(refused), static_cast<long long>(errors),
               static_cast<long long>(fetches));
-  std::printf("heartbeats %lld\n", static_cast<long long>(heartbeats));
+  std::printf("heartbeats %lld\nregistered_again %lld\n", static_cast<long long>(heartbeats),
+              static_cast<long long>(registrations));
   std::printf("seconds %.3f\nbands_per_second %.0f\n", window,
               window > 0 ? static_cast<double>(accepted) / window : 0.0);
   std::printf("dispatch_ms_p50 %.3f\ndispatch_ms_p99 %.3f\ndispatch_ms_max %.3f\n",
@@ -683,6 +712,15 @@ int main(int argc, char** argv) {
 
   // What must hold, whatever the speed.
   int failures = 0;
+  if (errors > 0) {
+    std::printf("FAIL: %lld calls failed (other than a dropped worker's)\n",
+                static_cast<long long>(errors));
+    ++failures;
+  }
+  if (late > 0 && refused == 0) {
+    std::printf("FAIL: --late workers, but no result was refused (a run shorter than a lease?)\n");
+    ++failures;
+  }
   if (!all_done) {
     std::printf("FAIL: jobs not finished after %d s\n", timeout_s);
     ++failures;

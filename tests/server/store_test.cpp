@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
+#include <optional>
 #include <random>
 #include <set>
 #include <thread>
@@ -415,6 +417,67 @@ TEST(CoordinatorRestart, CrashAtRandomMomentsLosesAndDuplicatesNothing) {
       }
     }
   }
+}
+
+// A kill while a group commit's batch waits (issue #25 item 2): a band
+// acknowledged before it is kept; a band whose batch had not been made
+// durable was never acknowledged (its worker hears an error, not
+// "accepted"), and whether or not the store kept it, the job ends with
+// every band accepted once and frames identical.
+TEST(CoordinatorRestart, AKillDuringAGroupCommitLosesNoAcknowledgedBand) {
+  TempDir dir;
+  const SubmitRequest r = spheres(1, 2, 3);
+  std::string job;
+  BandLease acked;
+  {
+    CoordinatorOptions o = options(dir.path);
+    o.fsync = true;
+    o.group_commit = Millis(300);  // a batch in flight for long enough to kill it
+    Coordinator a(o);
+    ASSERT_TRUE(a.start().ok());
+    auto submitted = a.submit(r);
+    ASSERT_TRUE(submitted.ok()) << submitted.status().message();
+    job = submitted->job_id;
+    TestWorker w(a, "first:1");
+    auto first = w.take();
+    ASSERT_TRUE(first.has_value());
+    acked = *first;
+    const auto before = std::chrono::steady_clock::now();
+    ASSERT_TRUE(w.complete(acked));  // waits for its batch: durable once this returns
+    EXPECT_GE(std::chrono::steady_clock::now() - before, Millis(250));
+    EXPECT_EQ(a.log_syncs(), 1u);
+    auto second = w.take();
+    ASSERT_TRUE(second.has_value());
+    std::mutex mu;
+    std::optional<Result<CompleteOutcome>> answer;
+    a.complete_band_async(w.render(*second), [&](Result<CompleteOutcome> got) {
+      std::lock_guard lk(mu);
+      answer = std::move(got);
+    });
+    {
+      std::lock_guard lk(mu);
+      EXPECT_FALSE(answer.has_value()) << "answered before its batch was durable";
+    }
+    a.crash_for_test();
+    std::lock_guard lk(mu);
+    ASSERT_TRUE(answer.has_value()) << "a caller left waiting by the crash";
+    EXPECT_FALSE(answer->ok() && (*answer)->accepted) << "acknowledged, yet not durable";
+  }
+  Coordinator b(options(dir.path));
+  ASSERT_TRUE(b.start().ok());
+  auto resumed = b.job(job);
+  ASSERT_TRUE(resumed.ok());
+  EXPECT_GE(resumed->bands_done, 1);
+  TestWorker w(b, "second:2");
+  while (auto t = w.take()) {
+    EXPECT_FALSE(t->frame == acked.frame && t->band == acked.band)
+        << "an acknowledged band was rendered again";
+    ASSERT_TRUE(w.complete(*t));
+  }
+  const JobInfo end = wait_for_end(b, job);
+  expect_frames_identical(b, end, r);
+  b.shutdown();
+  expect_each_band_once(dir.path, end);
 }
 
 // A band's record damaged on disk (a flipped byte in the store) is caught
