@@ -18,9 +18,26 @@ cleanup() {
   if [ "${KEEP:-0}" = 1 ]; then echo "data_dir $tmp"; else rm -rf "$tmp"; fi
 }
 trap cleanup EXIT
-"$bin/locus-coordinator" --insecure --listen 127.0.0.1:0 --data "$tmp/data" \
-  ${COORDINATOR_FLAGS:-} >"$tmp/coord.out" 2>"$tmp/coord.log" &
-coord=$!
+# SYNCS=1 (the default when strace is installed) counts the coordinator's
+# fsync and fdatasync calls, all of them (the group commit's, SQLite's
+# checkpoints, the frames'), with strace filtering in the kernel (seccomp):
+# the truth for "syncs per band", at a small cost.
+syncs=${SYNCS:-$(command -v strace >/dev/null && echo 1 || echo 0)}
+if [ "$syncs" = 1 ]; then
+  strace -f --seccomp-bpf -c -e trace=fsync,fdatasync -o "$tmp/syncs.txt" \
+    "$bin/locus-coordinator" --insecure --listen 127.0.0.1:0 --data "$tmp/data" \
+    ${COORDINATOR_FLAGS:-} >"$tmp/coord.out" 2>"$tmp/coord.log" &
+  tracer=$!
+  for _ in $(seq 100); do
+    coord=$(pgrep -P "$tracer" || true)
+    [ -n "$coord" ] && break
+    sleep 0.05
+  done
+else
+  "$bin/locus-coordinator" --insecure --listen 127.0.0.1:0 --data "$tmp/data" \
+    ${COORDINATOR_FLAGS:-} >"$tmp/coord.out" 2>"$tmp/coord.log" &
+  coord=$!
+fi
 port=
 for _ in $(seq 200); do
   port=$(sed -n 's/^listening on port //p' "$tmp/coord.out")
@@ -34,6 +51,14 @@ status=0
   --frames "${FRAMES:-50}" --bands "${BANDS:-64}" --rows "${ROWS:-4}" --width "${WIDTH:-256}" \
   --delay-ms "${DELAY_MS:-0}" --delay-sigma "${DELAY_SIGMA:-0}" --die "${DIE:-0}" \
   --stall "${STALL:-0}" --late "${LATE:-0}" --timeout "${TIMEOUT:-600}" || status=$?
+if [ "$syncs" = 1 ]; then
+  # A clean stop, so that strace writes its count.
+  kill -TERM "$coord" 2>/dev/null || true
+  wait "$tracer" 2>/dev/null || true
+  coord=
+  n=$(awk '$NF == "fsync" || $NF == "fdatasync" { s += $4 } END { print s + 0 }' "$tmp/syncs.txt")
+  echo "coordinator_syncs $n"
+fi
 if [ "$status" != 0 ]; then
   echo "--- coordinator log (last 40 lines)"
   tail -40 "$tmp/coord.log"

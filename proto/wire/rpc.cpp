@@ -1,5 +1,6 @@
 #include "proto/wire/rpc.h"
 
+#include <absl/synchronization/mutex.h>
 #include <arpa/inet.h>
 
 #include <fstream>
@@ -207,6 +208,11 @@ Status check_server_security(const ServerSecurity& s) {
 }
 
 void configure_server(grpc::ServerBuilder& builder) {
+  // Debian's Abseil checks every lock gRPC takes for deadlock cycles (a
+  // graph of lock orders kept up to date on each acquisition): about 5% of
+  // the coordinator's CPU at a thousand workers (docs/farm.md "The farm at
+  // scale"). A debugging aid, off here as in release builds of Abseil.
+  absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
   // A second server on a port in use must fail, not share it (gRPC sets
   // SO_REUSEPORT by default): two coordinators would split the workers.
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
