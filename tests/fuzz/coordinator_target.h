@@ -205,6 +205,7 @@ inline int fuzz_coordinator(const uint8_t* data, size_t size) {
   using namespace coordinator_target;
   quiet_logs();
   farm::CoordinatorOptions o;
+  o.group_commit = farm::Millis(0);  // each accepted band synced at once: no waiting per input
   o.data_dir = scratch_dir() + "/coordinator";
   // Small limits keep each input fast; the checks are the same code.
   o.limits.max_resolution = 256;

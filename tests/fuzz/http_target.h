@@ -80,6 +80,7 @@ inline int fuzz_http(const uint8_t* data, size_t size) {
   using namespace http_target;
   quiet_logs();
   farm::CoordinatorOptions o;
+  o.group_commit = farm::Millis(0);  // each accepted band synced at once: no waiting per input
   o.data_dir = scratch_dir() + "/http";
   std::error_code ec;
   std::filesystem::remove_all(o.data_dir, ec);  // each input on a fresh farm
