@@ -59,6 +59,11 @@ if [ "$syncs" = 1 ]; then
   n=$(awk '$NF == "fsync" || $NF == "fdatasync" { s += $4 } END { print s + 0 }' "$tmp/syncs.txt")
   echo "coordinator_syncs $n"
 fi
+# The coordinator's own dispatch latency (a band available to a waiting
+# worker, to its lease), logged when it stops; the workers' figures above
+# include waiting for a band, which is most of a saturated farm's time.
+if [ -n "$coord" ]; then kill -TERM "$coord" 2>/dev/null || true; wait "$coord" 2>/dev/null || true; coord=; fi
+sed -n 's/.*dispatch latency: \([0-9]*\) bands, p50 \([0-9]*\) us, p99 \([0-9]*\) us, max \([0-9]*\) us.*/coordinator_dispatch_us_p50 \2\ncoordinator_dispatch_us_p99 \3\ncoordinator_dispatch_us_max \4/p' "$tmp/coord.log"
 if [ "$status" != 0 ]; then
   echo "--- coordinator log (last 40 lines)"
   tail -40 "$tmp/coord.log"
