@@ -68,7 +68,7 @@ std::string Scheduler::add_job(JobSpec spec, const std::string& request_id,
   if (!request_id.empty()) requests_[request_id] = id;
   if (job.info.spec.kind == JobKind::kMovie && !job.info.spec.after.empty())
     movies_[job.info.spec.after.front()] = id;
-  jobs_.emplace(id, std::move(job));
+  track(jobs_.emplace(id, std::move(job)).first->second);
   order_.push_back(id);
   ++version_;
   return id;
@@ -84,6 +84,7 @@ void Scheduler::forget_job(const std::string& job_id) {
     it = it->second == job_id ? movies_.erase(it) : std::next(it);
   }
   order_.erase(std::remove(order_.begin(), order_.end(), job_id), order_.end());
+  live_.erase(job->record.seq);
   jobs_.erase(job_id);
   ++version_;
 }
@@ -157,8 +158,7 @@ std::vector<JobInfo> Scheduler::jobs() const {
 void Scheduler::drop_leases_of(Job& job) {
   for (auto it = leases_.begin(); it != leases_.end();) {
     if (it->second.job_id == job.info.job_id) {
-      auto w = workers_.find(it->second.worker_id);
-      if (w != workers_.end()) w->second.leases.erase(it->first);
+      forget_lease(&job, it->first, it->second);
       count_running(job, -1);
       event::LeaseEnded ended{it->first,
                               job.info.job_id,
@@ -182,6 +182,7 @@ void Scheduler::drop_leases_of(Job& job) {
 void Scheduler::end_job(Job& job, JobState state, const std::string& error) {
   if (is_terminal(job.info.state)) return;
   job.info.state = state;
+  track(job);
   job.info.error = error;
   job.finished = now_();
   job.movie_run = 0;  // a movie in the making is no longer wanted
@@ -292,6 +293,20 @@ void Scheduler::account(Job& job, event::LeaseEnded& ended, const Lease& lease) 
 
 void Scheduler::note(const Job& job, std::string text) {
   events_.push_back(event::JobNote{job.info.job_id, std::move(text)});
+}
+
+void Scheduler::track(Job& job) {
+  if (is_terminal(job.info.state)) {
+    live_.erase(job.record.seq);
+  } else {
+    live_[job.record.seq] = &job;
+  }
+}
+
+void Scheduler::forget_lease(Job* job, const std::string& lease_id, const Lease& lease) {
+  auto w = workers_.find(lease.worker_id);
+  if (w != workers_.end()) w->second.leases.erase(lease_id);
+  if (job) job->solo.erase({lease.granted, lease_id});
 }
 
 void Scheduler::count_running(Job& job, int delta) {
@@ -412,9 +427,7 @@ bool Scheduler::draining(const std::string& worker_id) const {
 
 std::set<std::string> Scheduler::scenes_in_use() const {
   std::set<std::string> used;
-  for (const auto& [id, job] : jobs_) {
-    if (!is_terminal(job.info.state)) used.insert(job.info.spec.scene_hash);
-  }
+  for (const auto& [seq, job] : live_) used.insert(job->info.spec.scene_hash);
   return used;
 }
 
@@ -425,9 +438,7 @@ std::set<std::string> Scheduler::scenes_kept() const {
 }
 
 size_t Scheduler::unfinished_jobs() const {
-  return static_cast<size_t>(std::count_if(jobs_.begin(), jobs_.end(), [](const auto& kv) {
-    return !is_terminal(kv.second.info.state);
-  }));
+  return live_.size();
 }
 
 FarmCounts Scheduler::counts() const {
@@ -447,9 +458,8 @@ FarmCounts Scheduler::counts() const {
 }
 
 bool Scheduler::has_queued_bands() const {
-  for (const auto& [id, job] : jobs_) {
-    if (!is_terminal(job.info.state) && job.info.state != JobState::kPaused && queued(job))
-      return true;
+  for (const auto& [seq, job] : live_) {
+    if (job->info.state != JobState::kPaused && queued(*job)) return true;
   }
   return false;
 }
@@ -589,9 +599,10 @@ Scheduler::Job* Scheduler::best_job(const WorkerInfo& worker,
   const TimePoint now = now_();
   Job* best = nullptr;
   Key best_key{};
-  for (auto& [id, job] : jobs_) {
+  for (auto& [seq, live] : live_) {
+    Job& job = *live;
     const JobState st = job.info.state;
-    if (is_terminal(st) || st == JobState::kPaused || !queued(job)) continue;
+    if (st == JobState::kPaused || !queued(job)) continue;
     if (std::find(passed.begin(), passed.end(), &job) != passed.end()) continue;
     if (!carries(worker, job) || waiting_for(job)) continue;
     // Quarantine holds only while another worker can take the job's bands:
@@ -619,27 +630,34 @@ double Scheduler::speculate_after(const Job& job) const {
                   std::chrono::duration<double>(options_.speculate_min).count());
 }
 
-const Scheduler::Lease* Scheduler::speculation_candidate(const WorkerInfo& worker) const {
+const std::string* Scheduler::speculation_candidate(const WorkerInfo& worker) const {
   if (options_.speculate_factor <= 0) return nullptr;
   const std::string& worker_name = worker.name;
   const TimePoint now = now_();
-  const Lease* best = nullptr;
+  // The lease running longest relative to its job's threshold (ratio > 1),
+  // the lowest lease id among equals. In each job only its oldest leases
+  // can be that: the walk stops at the first one younger than the best.
+  const std::string* best = nullptr;
   double best_ratio = 1.0;
-  for (const auto& [id, l] : leases_) {
-    if (l.speculative || l.worker_name == worker_name) continue;
-    const Job& job = jobs_.at(l.job_id);
-    if (is_terminal(job.info.state) || job.info.state == JobState::kPaused ||
+  for (const auto& [seq, live] : live_) {
+    const Job& job = *live;
+    if (job.solo.empty() || job.info.state == JobState::kPaused ||
         quarantined(job, worker_name) || !carries(worker, job)) {
       continue;
     }
-    const BandState& state = job.bands[l.job_band];
-    if (state.leases != 1 || state.speculated) continue;
     const double after = speculate_after(job);
     if (after <= 0) continue;
-    const double ratio = seconds(now - l.granted) / after;
-    if (ratio > best_ratio) {
-      best_ratio = ratio;
-      best = &l;
+    for (const auto& [granted, id] : job.solo) {
+      const double ratio = seconds(now - granted) / after;
+      if (ratio < best_ratio || (ratio == best_ratio && !best)) break;
+      const Lease& l = leases_.at(id);
+      if (l.worker_name == worker_name) continue;
+      const BandState& state = job.bands[l.job_band];
+      if (state.leases != 1 || state.speculated) continue;
+      if (ratio > best_ratio || id < *best) {
+        best_ratio = ratio;
+        best = &id;
+      }
     }
   }
   return best;
@@ -686,6 +704,7 @@ Result<std::optional<BandLease>> Scheduler::grant(Job& job, int job_band, Worker
               now + options_.lease, speculative};
   leases_.emplace(id, lease);
   worker.leases.insert(id);
+  if (!speculative && !state.speculated) job.solo.emplace(now, id);
   count_running(job, +1);
   job.waiting_since = now;
   if (job.info.state == JobState::kQueued) {
@@ -714,9 +733,11 @@ Result<std::optional<BandLease>> Scheduler::next_band(const std::string& worker_
     if (job_band >= 0) return grant(*job, job_band, worker, false);
     passed.push_back(job);
   }
-  if (const Lease* l = speculation_candidate(worker.info)) {
-    Job& job = jobs_.at(l->job_id);
-    return grant(job, l->job_band, worker, true);
+  if (const std::string* id = speculation_candidate(worker.info)) {
+    const Lease& l = leases_.at(*id);
+    Job& job = jobs_.at(l.job_id);
+    job.solo.erase({l.granted, *id});  // its band gets no third lease
+    return grant(job, l.job_band, worker, true);
   }
   return std::optional<BandLease>();
 }
@@ -743,9 +764,8 @@ void Scheduler::release(const std::string& lease_id, LeaseOutcome outcome, const
   if (it == leases_.end()) return;
   const Lease lease = it->second;
   leases_.erase(it);
-  auto w = workers_.find(lease.worker_id);
-  if (w != workers_.end()) w->second.leases.erase(lease_id);
   Job* job = find_job(lease.job_id);
+  forget_lease(job, lease_id, lease);
   if (!job) return;
   count_running(*job, -1);
   if (outcome == LeaseOutcome::kTimedOut) ++job->info.bands_timed_out;
@@ -869,6 +889,7 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
 
   leases_.erase(it);
   count_running(job, -1);
+  job.solo.erase({lease.granted, out.lease_id});
   Worker& worker = workers_.at(out.worker_id);
   worker.leases.erase(out.lease_id);
   ++worker.info.bands_done;
@@ -936,8 +957,10 @@ void Scheduler::expire() {
   for (const auto& [id, l] : leases_) {
     const JobSpec& spec = jobs_.at(l.job_id).info.spec;
     const Millis limit = spec.band_timeout.count() > 0 ? spec.band_timeout : options_.band_timeout;
+    const bool hung = limit.count() > 0 && now - l.granted > limit;
+    if (!hung && l.deadline >= now) continue;  // the common case: nothing to build
     const std::string who = "worker " + l.worker_id + " (" + l.worker_name + ")";
-    if (limit.count() > 0 && now - l.granted > limit) {
+    if (hung) {
       ending.push_back({id, LeaseOutcome::kTimedOut,
                         "band hung: leased to " + who + " for " +
                             format_seconds(seconds(now - l.granted)) +

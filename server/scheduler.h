@@ -224,6 +224,10 @@ class Scheduler {
     std::map<std::string, int> worker_failures;  // by worker name
     std::deque<double> durations;                // seconds of the last accepted bands
     int running = 0;                             // live leases
+    // The leases that could get a speculative copy (not speculative, their
+    // band never speculated), oldest grant first: speculation looks at the
+    // oldest few, not at every lease of the farm.
+    std::set<std::pair<TimePoint, std::string>> solo;
     TimePoint waiting_since;                     // its last lease, submission or resume (ageing)
     // Movie jobs: an attempt in hand (its run number; 0: none), the
     // attempts so far, and when the next may start after a failure.
@@ -291,8 +295,13 @@ class Scheduler {
   void account(Job& job, event::LeaseEnded& ended, const Lease& lease);
   // A line of the job's history (`locus events`).
   void note(const Job& job, std::string text);
-  // A band running far longer than its peers, for a second lease, or null.
-  const Lease* speculation_candidate(const WorkerInfo& worker) const;
+  // The id of a lease whose band runs far longer than its peers, for a
+  // second lease, or null.
+  const std::string* speculation_candidate(const WorkerInfo& worker) const;
+  // A lease ends: out of the worker's set and its job's `solo`.
+  void forget_lease(Job* job, const std::string& lease_id, const Lease& lease);
+  // Keeps live_ in step with the job's state (unfinished or not).
+  void track(Job& job);
   // Whether the worker carries every tag the job requires.
   static bool carries(const WorkerInfo& worker, const Job& job);
   // The first job the job waits for that has not succeeded, or null.
@@ -324,6 +333,9 @@ class Scheduler {
   NowFn now_;
   std::vector<std::string> order_;  // job ids, oldest first: the order jobs() lists them in
   std::map<std::string, Job> jobs_;
+  // The unfinished jobs by seq, oldest first: what dispatch, speculation
+  // and the movie thread walk, however many finished jobs are kept.
+  std::map<int64_t, Job*> live_;
   std::map<std::string, std::string> requests_;  // request id -> job id
   std::map<std::string, Lease> leases_;
   std::map<std::string, Worker> workers_;

@@ -14,8 +14,15 @@ namespace locus::farm {
 
 std::optional<Scheduler::MovieTask> Scheduler::next_movie() {
   const TimePoint now = now_();
-  for (const std::string& id : order_) {
-    Job& job = jobs_.at(id);
+  // The unfinished movie jobs, oldest first (end_job below takes jobs out
+  // of live_, so the walk goes over a copy).
+  std::vector<Job*> movies;
+  for (const auto& [seq, job] : live_) {
+    if (job->info.spec.kind == JobKind::kMovie) movies.push_back(job);
+  }
+  for (Job* live : movies) {
+    Job& job = *live;
+    const std::string& id = job.info.job_id;
     const JobState st = job.info.state;
     if (job.info.spec.kind != JobKind::kMovie || is_terminal(st) || st == JobState::kPaused)
       continue;
@@ -77,10 +84,10 @@ bool Scheduler::movie_done(const std::string& job_id, uint64_t run, const Status
 
 std::optional<TimePoint> Scheduler::next_movie_time() const {
   std::optional<TimePoint> next;
-  for (const auto& [id, job] : jobs_) {
-    if (job.info.spec.kind != JobKind::kMovie || is_terminal(job.info.state)) continue;
-    if (job.movie_run != 0 || job.movie_attempts == 0) continue;
-    if (!next || job.movie_not_before < *next) next = job.movie_not_before;
+  for (const auto& [seq, job] : live_) {
+    if (job->info.spec.kind != JobKind::kMovie) continue;
+    if (job->movie_run != 0 || job->movie_attempts == 0) continue;
+    if (!next || job->movie_not_before < *next) next = job->movie_not_before;
   }
   return next;
 }

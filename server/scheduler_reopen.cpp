@@ -44,6 +44,7 @@ std::vector<FrameReady> Scheduler::reopen_ended(Job& job, const std::vector<int>
   }
   queue_unfinished(job);
   job.info.state = JobState::kQueued;
+  track(job);
   job.info.error.clear();
   job.waiting_since = now_();
   events_.push_back(event::JobReopened{job.info.job_id, JobState::kQueued, requeued, true});

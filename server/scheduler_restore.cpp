@@ -47,7 +47,7 @@ std::vector<FrameReady> Scheduler::restore(const RecoveredState& state) {
       movies_[job.info.spec.after.front()] = job.info.job_id;
     order_.push_back(job.info.job_id);
     const std::string id = job.info.job_id;
-    jobs_.emplace(id, std::move(job));
+    track(jobs_.emplace(id, std::move(job)).first->second);
   }
   ++version_;
   return ready;

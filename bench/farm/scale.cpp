@@ -515,6 +515,7 @@ int main(int argc, char** argv) {
   int pid = 0, workers = 100, jobs = 4, frames = 5, width = 256, rows = 4, bands = 16;
   int die = 0, stall = 0, late = 0, timeout_s = 600;
   double delay_ms = 0, delay_sigma = 0;
+  double measure_queued = 0;  // --measure-queued: seconds of sampling, then stop
   app.add_option("--farm", farm, "Coordinator address (loopback)")->required();
   app.add_option("--data", data, "The coordinator's --data directory (checked at the end)")
       ->required();
@@ -532,6 +533,10 @@ int main(int argc, char** argv) {
   app.add_option("--stall", stall, "Workers that go silent after their first lease");
   app.add_option("--late", late, "Workers that return each band after its lease lapsed");
   app.add_option("--timeout", timeout_s, "Seconds before the run is called failed");
+  app.add_option("--measure-queued", measure_queued,
+                 "Big jobs (issue #25): after the submit, time `locus status` and sample the "
+                 "coordinator's memory for this many seconds while the bands stay queued, then "
+                 "stop without finishing the jobs");
   app.add_option("--reference-out", reference_out, "Write the reference frame here (PNG)");
   CLI11_PARSE(app, argc, argv);
   const int height = rows * bands;
@@ -620,6 +625,32 @@ int main(int argc, char** argv) {
     job_ids.push_back(info->job_id);
   }
   std::printf("submit_seconds %.3f\n", seconds_since(submit_start));
+  if (measure_queued > 0) {
+    // Big jobs: the status of one job and the list, timed; then the memory
+    // while every worker holds a lease and the rest of the bands wait.
+    const auto status_start = Clock::now();
+    auto one = client.job(job_ids.front());
+    std::printf("status_seconds %.3f\n", seconds_since(status_start));
+    const auto list_start = Clock::now();
+    auto all = client.jobs();
+    std::printf("list_seconds %.3f\n", seconds_since(list_start));
+    if (!one.ok() || !all.ok()) return 1;
+    long peak = 0;
+    const auto sampling = Clock::now();
+    while (seconds_since(sampling) < measure_queued) {
+      for (auto& w : sims) w->heartbeat();
+      peak = std::max(peak, sample(pid).rss_kib);
+      std::this_thread::sleep_for(Ms(250));
+    }
+    auto later = client.job(job_ids.front());
+    if (!later.ok()) return 1;
+    std::printf("bands_total %lld\nbands_done %lld\nbands_running %d\n",
+                static_cast<long long>(later->spec.bands_total()),
+                static_cast<long long>(later->bands_done), static_cast<int>(later->bands_running));
+    std::printf("coordinator_rss_queued_mib %.1f\n", peak / 1024.0);
+    std::fflush(stdout);
+    std::_Exit(0);  // the simulated workers are not wound down
+  }
   const ProcessSample before = sample(pid);
   const auto start = Clock::now();
 

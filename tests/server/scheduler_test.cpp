@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <set>
+#include <tuple>
 
 #include "tests/server/scheduler_doubles.h"
 
@@ -424,6 +426,173 @@ TEST_F(SchedulerTest, EveryDurableChangeIsAnEvent) {
   // succeeded, and the job's accounting line (a JobNote).
   EXPECT_EQ(kinds, (std::vector<size_t>{0, 6, 1, 2, 4, 5, 1, 8}));
   EXPECT_TRUE(s.take_events().empty());
+}
+
+// The bookkeeping that keeps dispatch from walking every job and every
+// lease (issue #25): the unfinished jobs and the leases speculation looks
+// at follow every change of state.
+void expect_bookkeeping(const Scheduler& s, const std::string& step) {
+  size_t unfinished = 0;
+  bool queued = false;
+  std::set<std::string> scenes;
+  for (const JobInfo& j : s.jobs()) {
+    if (is_terminal(j.state)) continue;
+    ++unfinished;
+    scenes.insert(j.spec.scene_hash);
+    const int64_t waiting = j.spec.bands_total() - j.bands_done - j.bands_running;
+    if (j.state != JobState::kPaused && waiting > 0) queued = true;
+  }
+  EXPECT_EQ(s.unfinished_jobs(), unfinished) << step;
+  EXPECT_EQ(s.has_queued_bands(), queued) << step;
+  EXPECT_EQ(s.scenes_in_use(), scenes) << step;
+}
+
+TEST_F(SchedulerTest, UnfinishedJobsFollowCancelRetryPauseRequeueAndForget) {
+  JobSpec a_spec = spec(4, 4, 1, 1, 2);
+  a_spec.scene_hash = "scene-a";
+  const std::string a = s.add_job(a_spec);
+  const std::string b = s.add_job(spec(4, 4, 1, 2, 1));
+  const std::string w = s.add_worker("w", 1);
+  expect_bookkeeping(s, "added");
+  ASSERT_TRUE(s.pause(a).ok());
+  expect_bookkeeping(s, "a paused");
+  // Only b's bands are queued for a worker while a is paused.
+  const BandLease t = lease(w);
+  EXPECT_EQ(t.job_id, b);
+  ASSERT_TRUE(s.complete_band(render(w, t))->accepted);
+  ASSERT_TRUE(s.resume(a).ok());
+  expect_bookkeeping(s, "a resumed");
+  ASSERT_TRUE(s.cancel(a).ok());
+  expect_bookkeeping(s, "a cancelled");
+  EXPECT_FALSE(s.scenes_in_use().count("scene-a"));
+  ASSERT_TRUE(s.retry(a).ok());
+  expect_bookkeeping(s, "a retried");
+  // a's two bands and b's last: a succeeds, then b once its first frame is
+  // written; b is requeued.
+  for (int i = 0; i < 3; ++i) {
+    const BandLease u = lease(w);
+    auto done = s.complete_band(render(w, u));
+    ASSERT_TRUE(done.ok() && done->accepted);
+    if (done->frame) s.frame_written(done->frame->job_id, done->frame->frame, Status::Ok());
+    expect_bookkeeping(s, std::string("band ").append(std::to_string(i)));
+  }
+  EXPECT_EQ(s.job(a)->state, JobState::kSucceeded);
+  s.frame_written(b, 1, Status::Ok());
+  EXPECT_EQ(s.job(b)->state, JobState::kSucceeded);
+  expect_bookkeeping(s, "b succeeded");
+  ASSERT_TRUE(s.requeue(b, 2, 2).ok());
+  expect_bookkeeping(s, "b requeued");
+  EXPECT_EQ(s.job(b)->state, JobState::kQueued);
+  s.forget_job(b);
+  expect_bookkeeping(s, "b forgotten");
+  EXPECT_EQ(s.unfinished_jobs(), 0u);
+  // c fails at its attempt limit: nothing queued, nothing unfinished.
+  const std::string c = s.add_job(spec(4, 4, 1, 1, 1));
+  expect_bookkeeping(s, "c added");
+  for (int i = 0; i < 3; ++i) {
+    BandOutput failed;
+    failed.worker_id = w;
+    failed.lease_id = lease(w).lease_id;
+    failed.error = "boom";
+    ASSERT_TRUE(s.complete_band(failed).ok());
+  }
+  EXPECT_EQ(s.job(c)->state, JobState::kFailed);
+  expect_bookkeeping(s, "c failed");
+  EXPECT_FALSE(s.next_band(w)->has_value());
+}
+
+TEST_F(SchedulerTest, RestoredJobsAreDispatchedAndFinishedOnesAreNot) {
+  RecoveredState state;
+  for (JobState st : {JobState::kSucceeded, JobState::kRunning, JobState::kCancelled,
+                      JobState::kPaused}) {
+    RecoveredJob r;
+    r.record.seq = static_cast<int64_t>(state.jobs.size()) + 1;
+    r.record.job_id = std::string("j000").append(std::to_string(r.record.seq));
+    r.record.spec = spec(4, 4, 1, 1, 2);
+    r.state = st;
+    if (st == JobState::kSucceeded) {
+      r.bands_done = 2;
+      r.frames_written = {1};
+    }
+    state.jobs.push_back(r);
+  }
+  Scheduler restored(SchedulerOptions{Millis(1000), Millis(3000), 3}, clock.fn());
+  restored.restore(state);
+  expect_bookkeeping(restored, "restored");
+  EXPECT_EQ(restored.unfinished_jobs(), 2u);
+  const std::string w = restored.add_worker("w", 1);
+  std::set<std::string> leased;
+  for (auto t = restored.next_band(w); t.ok() && t->has_value(); t = restored.next_band(w)) {
+    leased.insert((*t)->job_id);
+  }
+  EXPECT_EQ(leased, std::set<std::string>{"j0002"});  // not the paused one, nor the ended
+  ASSERT_TRUE(restored.retry("j0003").ok());
+  expect_bookkeeping(restored, "j0003 retried");
+  EXPECT_EQ((*restored.next_band(w))->job_id, "j0003");
+}
+
+// Speculation looks only at each job's oldest leases; it still picks the
+// band running longest past its job's threshold, never the asking worker's
+// own, never a band twice, never a paused job's.
+TEST_F(SchedulerTest, SpeculationPicksTheLongestRunningBandOfAnyJob) {
+  SchedulerOptions o{Millis(100000), Millis(100000), 3};
+  o.speculate_min = Millis(100);
+  Scheduler sp(o, clock.fn());
+  std::vector<std::string> w;
+  for (int i = 0; i < 30; ++i) w.push_back(sp.add_worker(std::string("w").append(std::to_string(i)), 1));
+  auto take = [&](const std::string& worker) -> std::optional<BandLease> {
+    auto r = sp.next_band(worker);
+    EXPECT_TRUE(r.ok());
+    return r.ok() ? *r : std::nullopt;
+  };
+  // Each job: three bands done in 10 ms (its threshold: the 100 ms
+  // minimum), then every other band leased, 10 ms apart.
+  const std::string a = sp.add_job(spec(4, 33, 1, 1, 33));
+  for (int i = 0; i < 3; ++i) {
+    const BandLease t = *take(w[0]);
+    clock.advance(10);
+    ASSERT_TRUE(sp.complete_band(render(w[0], t))->accepted);
+  }
+  std::vector<BandLease> running;
+  for (int i = 0; i < 30; ++i) {
+    running.push_back(*take(w[i]));
+    clock.advance(10);
+  }
+  const std::string b = sp.add_job(spec(4, 4, 1, 1, 4));
+  for (int i = 0; i < 3; ++i) {
+    const BandLease t = *take(w[29]);
+    ASSERT_EQ(t.job_id, b);
+    clock.advance(10);
+    ASSERT_TRUE(sp.complete_band(render(w[29], t))->accepted);
+  }
+  const BandLease b_last = *take(w[28]);
+  ASSERT_FALSE(sp.has_queued_bands());
+  clock.advance(500);
+  // The oldest lease is w0's own: it gets a copy of the next oldest.
+  auto copy = take(w[0]);
+  ASSERT_TRUE(copy);
+  EXPECT_EQ(std::tie(copy->job_id, copy->band), std::tie(running[1].job_id, running[1].band));
+  // Another worker: the oldest, then the third (the second has its copy).
+  copy = take(w[29]);
+  ASSERT_TRUE(copy);
+  EXPECT_EQ(std::tie(copy->job_id, copy->band), std::tie(running[0].job_id, running[0].band));
+  copy = take(w[27]);
+  ASSERT_TRUE(copy);
+  EXPECT_EQ(copy->band, running[2].band);
+  // The third band's original finishes first (its copy is discarded); the
+  // next copy is of the fourth.
+  ASSERT_TRUE(sp.complete_band(render(w[2], running[2]))->accepted);
+  copy = take(w[26]);
+  ASSERT_TRUE(copy);
+  EXPECT_EQ(copy->band, running[3].band);
+  // Job a paused: the next copy is of job b's band, then there is none.
+  ASSERT_TRUE(sp.pause(a).ok());
+  copy = take(w[25]);
+  ASSERT_TRUE(copy);
+  EXPECT_EQ(std::tie(copy->job_id, copy->band), std::tie(b_last.job_id, b_last.band));
+  EXPECT_FALSE(take(w[24]));
+  EXPECT_EQ(sp.job(a)->speculative_leases, 4);
+  EXPECT_EQ(sp.job(b)->speculative_leases, 1);
 }
 
 }  // namespace
