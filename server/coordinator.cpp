@@ -75,7 +75,9 @@ Status Coordinator::start() {
   if (Status s = recover(); !s.ok()) return s;
   started_ = true;
   ticker_ = std::thread([this] { tick_loop(); });
-  writer_ = std::thread([this] { write_loop(); });
+  int writers = options_.frame_writers;
+  if (writers <= 0) writers = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+  for (int i = 0; i < writers; ++i) writers_.emplace_back([this] { write_loop(); });
   movie_maker_ = std::thread([this] { movie_loop(); });
   dispatcher_ = std::thread([this] { dispatch_loop(); });
   committer_ = std::thread([this] { commit_loop(); });
@@ -247,7 +249,7 @@ void Coordinator::drain() {
 bool Coordinator::wait_drained(Millis max) {
   std::unique_lock lk(mu_);
   const bool drained = changed_.wait_for(lk, max, [&] {
-    return stopping_ || (scheduler_.counts().bands_running == 0 && to_write_.empty() && !writing_);
+    return stopping_ || (scheduler_.counts().bands_running == 0 && to_write_.empty() && writing_.empty());
   });
   const FarmCounts c = scheduler_.counts();
   if (drained) {
@@ -284,7 +286,9 @@ void Coordinator::shutdown() {
   // writes the last frames.
   if (committer_.joinable()) committer_.join();
   write_ready_.notify_all();
-  if (writer_.joinable()) writer_.join();
+  for (std::thread& w : writers_) {
+    if (w.joinable()) w.join();
+  }
   if (movie_maker_.joinable()) movie_maker_.join();
   std::lock_guard lk(mu_);
   const LatencySummary d = dispatch_.summary();
@@ -317,7 +321,9 @@ void Coordinator::crash_for_test() {
   // writes the last frames.
   if (committer_.joinable()) committer_.join();
   write_ready_.notify_all();
-  if (writer_.joinable()) writer_.join();
+  for (std::thread& w : writers_) {
+    if (w.joinable()) w.join();
+  }
   if (movie_maker_.joinable()) movie_maker_.join();
   // Closing the connection checkpoints nothing that a reopen would not
   // recover from the WAL anyway.
@@ -391,7 +397,8 @@ Status Coordinator::load_scene(const std::string& hash, const std::string& job_i
 
 bool Coordinator::write_pending(const std::string& job_id, int frame) const {
   const auto same = [&](const FrameReady& f) { return f.job_id == job_id && f.frame == frame; };
-  return (writing_ && same(*writing_)) || std::any_of(to_write_.begin(), to_write_.end(), same);
+  return std::any_of(writing_.begin(), writing_.end(), same) ||
+         std::any_of(to_write_.begin(), to_write_.end(), same);
 }
 
 void Coordinator::write_loop() {
@@ -399,12 +406,14 @@ void Coordinator::write_loop() {
   for (;;) {
     write_ready_.wait(lk, [&] { return stopping_ || !to_write_.empty(); });
     if (to_write_.empty()) return;  // stopping, and nothing left
-    writing_ = std::move(to_write_.front());
+    // Several writer threads: each takes the oldest frame waiting.
+    writing_.push_back(std::move(to_write_.front()));
     to_write_.pop_front();
-    const FrameReady f = *writing_;
+    const auto mine = std::prev(writing_.end());
+    const FrameReady f = *mine;
     lk.unlock();
-    // Bounded memory: this is the only frame image the coordinator holds;
-    // it is stitched from the band records and freed before the next.
+    // Bounded memory: each writer thread holds one frame image, stitched
+    // from the band records and freed before it takes the next.
     // Its bands' records are read through the writer's own connection:
     // committed (the group commit queued the frame after its transaction).
     const std::string dir = job_dir(f.job_id);
@@ -418,7 +427,7 @@ void Coordinator::write_loop() {
     // the same transaction (JobStore, event::FrameWritten).
     scheduler_.frame_written(f.job_id, f.frame, st);
     persist();
-    writing_.reset();
+    writing_.erase(mine);
     changed_.notify_all();
   }
 }
@@ -1077,7 +1086,7 @@ void Coordinator::commit_loop() {
       for (Commit& c : batch) {
         if (c.frame) to_write_.push_back(std::move(*c.frame));
       }
-      write_ready_.notify_one();
+      write_ready_.notify_all();
     }
     lk.unlock();
     if (s.ok() && options_.fsync) s = sync_log();

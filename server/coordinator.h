@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <deque>
 #include <functional>
+#include <list>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -62,6 +63,10 @@ struct CoordinatorOptions {
   // Group commit: the longest an accepted band waits for others to share
   // its sync (the first of a batch; later ones wait less).
   Millis group_commit{5};
+  // Threads stitching and writing frames (encoding a PNG costs ~125 ns a
+  // pixel: one thread writes fewer than 4 frames of 1080p a second);
+  // 0: one per core, at most 8.
+  int frame_writers = 0;
   // Cut frames into bands of equal predicted cost (common/farm/band_split.h)
   // rather than equal height; local method only.
   bool cost_bands = true;
@@ -311,7 +316,7 @@ class Coordinator {
   LatencyHistogram dispatch_;
   std::unique_ptr<CoordinatorMetrics> metrics_;
   std::condition_variable write_ready_;
-  std::optional<FrameReady> writing_;  // the frame the writer thread holds
+  std::list<FrameReady> writing_;  // the frames the writer threads hold
   bool draining_ = false;  // drain()
   bool closing_ = false;   // stop_waiting()
   bool stopping_ = false;
@@ -347,7 +352,7 @@ class Coordinator {
   std::thread ticker_;
   std::thread dispatcher_;
   std::thread committer_;
-  std::thread writer_;
+  std::vector<std::thread> writers_;  // write_loop(), frame_writers of them
   std::thread movie_maker_;
   std::function<void(const JobInfo&)> job_ended_;  // on_job_ended()
   bool notify_every_job_ = false;

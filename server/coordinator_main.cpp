@@ -48,6 +48,7 @@ struct Flags {
   double retention_days = 0;
   bool no_fsync = false;
   int group_commit_ms = 5;
+  int frame_writers = 0;
   bool equal_bands = false;
   std::string health_address, metrics_address, http_address;
   double http_rate = 200;
@@ -81,6 +82,9 @@ void add_farm_flags(CLI::App& app, Flags& f) {
                  "Failures of one worker in a job after which it gets no more of that job's bands "
                  "while another worker can take them (0: never)")
       ->check(CLI::Range(0, 1000));
+  app.add_option("--frame-writers", f.frame_writers,
+                 "Threads stitching and writing finished frames (0: one per core, at most 8)")
+      ->check(CLI::Range(0, 64));
   app.add_option("--speculate-factor", f.speculate_factor,
                  "A band running this many times its job's median band time gets a second, "
                  "speculative lease (0: never)")
@@ -222,6 +226,7 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
       farm::Millis(static_cast<int64_t>(std::llround(f.retention_days * 86400.0 * 1000)));
   options.fsync = !f.no_fsync;
   options.group_commit = farm::Millis(f.group_commit_ms);
+  options.frame_writers = f.frame_writers;
   options.cost_bands = !f.equal_bands;
   return options;
 }
