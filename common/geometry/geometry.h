@@ -97,7 +97,23 @@ struct PolygonPrim {
   int axis_u, axis_v;
   std::vector<Vec2> pts;
   std::vector<Vec3> verts;  // world space, for the scanline pass
+  // Polygons of more than kPolygonBucketAbove vertices (SPD gears' faces:
+  // 144) keep their edges bucketed by their extent along axis_v: the
+  // crossing test's line through a point meets only edges of the point's
+  // bucket, so it walks those instead of every edge, with the same
+  // arithmetic per edge (the same answer, bit for bit). Edge k of bucket b
+  // is edges[bucket_first[b] + k]: (pts[i], pts[i - 1]), as the test pairs them.
+  struct Edge {
+    Vec2 a, b;
+  };
+  std::vector<Edge> edges;
+  std::vector<int> bucket_first;  // bucket count + 1 offsets; empty: no buckets
+  double v_lo = 0, v_scale = 0;   // bucket of v: floor((v - v_lo) * v_scale), clamped
+  int bucket_of(double v) const {
+    return clamped_floor((v - v_lo) * v_scale, 0, static_cast<int>(bucket_first.size()) - 2);
+  }
 };
+inline constexpr int kPolygonBucketAbove = 8;
 
 // A triangle of a mesh or of a patch's fan; n0..n2 are vertex normals when
 // has_normals.
@@ -119,8 +135,8 @@ struct CsgNode {
   CsgOp op = CsgOp::kUnion;
   int left = -1, right = -1;  // node indices
   PrimKind kind = PrimKind::kSphere;
-  int index = -1;             // into the leaf arrays of the PrimitiveSet
-  int object = -1;            // scene object of a leaf
+  int index = -1;   // into the leaf arrays of the PrimitiveSet
+  int object = -1;  // scene object of a leaf
 };
 
 struct CsgPrim {

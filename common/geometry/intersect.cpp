@@ -58,14 +58,20 @@ int intersect_polygon(const PolygonPrim& p, const Ray& ray, double tmin, double 
   const double px = x[p.axis_u], py = x[p.axis_v];
   // Even-odd crossing test: correct for concave polygons (SPD gears).
   bool inside = false;
-  const size_t n = p.pts.size();
-  for (size_t i = 0, j = n - 1; i < n; j = i++) {
-    const Vec2& a = p.pts[i];
-    const Vec2& b = p.pts[j];
+  auto edge = [&](const Vec2& a, const Vec2& b) {
     if ((a.y > py) != (b.y > py)) {
       const double xc = a.x + (py - a.y) * (b.x - a.x) / (b.y - a.y);
       if (px < xc) inside = !inside;
     }
+  };
+  if (!p.bucket_first.empty()) {
+    // Only the edges that can straddle py (geometry.h, PolygonPrim).
+    const int k = p.bucket_of(py);
+    for (int e = p.bucket_first[k]; e < p.bucket_first[k + 1]; ++e)
+      edge(p.edges[e].a, p.edges[e].b);
+  } else {
+    const size_t n = p.pts.size();
+    for (size_t i = 0, j = n - 1; i < n; j = i++) edge(p.pts[i], p.pts[j]);
   }
   if (!inside) return 0;
   out[0] = Crossing{t, p.normal};

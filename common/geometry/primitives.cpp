@@ -31,6 +31,37 @@ void extend_disk(Aabb& b, const Vec3& c, const Vec3& a, double r) {
   b.extend(c + e);
 }
 
+// PolygonPrim's edge buckets (geometry.h), about 4 edges to a bucket. An
+// edge changes the crossing test's answer at v only when one end lies above
+// v and the other not: min <= v < max of its ends' v. bucket_of is monotone,
+// so that v's bucket lies between those of the edge's ends, and the edge is
+// listed in each of them.
+void bucket_edges(PolygonPrim& p) {
+  const int n = static_cast<int>(p.pts.size());
+  if (n <= kPolygonBucketAbove) return;
+  double lo = p.pts[0].y, hi = lo;
+  for (const Vec2& q : p.pts) lo = std::min(lo, q.y), hi = std::max(hi, q.y);
+  const int buckets = n / 4;
+  p.v_lo = lo;
+  p.v_scale = buckets / (hi - lo);
+  if (!(hi > lo) || !std::isfinite(p.v_scale)) return;
+  p.bucket_first.assign(buckets + 1, 0);
+  std::vector<std::array<int, 2>> range(n);
+  for (int i = 0, j = n - 1; i < n; j = i++) {
+    const double a = p.pts[i].y, b = p.pts[j].y;
+    range[i] = {p.bucket_of(std::min(a, b)), p.bucket_of(std::max(a, b))};
+    for (int k = range[i][0]; k <= range[i][1]; ++k) ++p.bucket_first[k + 1];
+  }
+  for (int k = 0; k < buckets; ++k) p.bucket_first[k + 1] += p.bucket_first[k];
+  std::vector<int> fill(p.bucket_first.begin(), p.bucket_first.end() - 1);
+  p.edges.resize(p.bucket_first.back());
+  for (int i = 0, j = n - 1; i < n; j = i++) {
+    for (int k = range[i][0]; k <= range[i][1]; ++k) {
+      p.edges[fill[k]++] = PolygonPrim::Edge{p.pts[i], p.pts[j]};
+    }
+  }
+}
+
 class Builder {
  public:
   explicit Builder(const Scene& scene) : scene_(scene) {}
@@ -212,6 +243,7 @@ class Builder {
             p.axis_u = (drop + 1) % 3;
             p.axis_v = (drop + 2) % 3;
             for (const Vec3& v : w) p.pts.emplace_back(v[p.axis_u], v[p.axis_v]);
+            bucket_edges(p);
             p.verts = std::move(w);
             // A bent polygon is hit on its plane, where it can reach
             // beyond its vertices' box.

@@ -311,6 +311,46 @@ TEST(Geometry, BentPolygonBoxHoldsItsHits) {
   EXPECT_LT(box.lo.z, 0.0) << "the plane dips below the vertices' box";
 }
 
+// A polygon of many vertices is tested through its edge buckets
+// (PolygonPrim::bucket_first): the same crossings, bit for bit, as the test
+// over every edge, on a concave gear-like outline (teeth, and vertices on
+// the bucket boundaries' lines) with rays through its plane everywhere.
+TEST(Geometry, PolygonEdgeBucketsGiveTheSameCrossings) {
+  std::vector<Vec3> outline;
+  constexpr int kTeeth = 24;
+  for (int i = 0; i < 4 * kTeeth; ++i) {
+    const double a = 2.0 * M_PI * i / (4 * kTeeth);
+    const double r = (i % 4 < 2) ? 1.0 : 0.7;
+    outline.emplace_back(r * std::cos(a), r * std::sin(a), 0.0);
+  }
+  const Scene scene = scene_with(Polygon{outline});
+  const PrimitiveSet set = build_primitives(scene);
+  ASSERT_FALSE(set.polygons[0].bucket_first.empty()) << "more than kPolygonBucketAbove vertices";
+  PrimitiveSet plain = set;
+  plain.polygons[0].bucket_first.clear();
+  std::mt19937_64 rng(27);
+  int hits = 0;
+  for (int i = 0; i < 4 * kRays; ++i) {
+    Ray ray = random_ray(rng);
+    if (i % 4 == 0) {
+      // Through a vertex's v coordinate exactly: an edge's end on the line.
+      const PolygonPrim& p = set.polygons[0];
+      const Vec3 v = p.verts[i % p.verts.size()];
+      Vec3 target = ray.origin + ray.dir;
+      target[p.axis_v] = v[p.axis_v];
+      ray.origin[p.axis_v] = v[p.axis_v];
+      ray.dir = glm::normalize(target - ray.origin);
+    }
+    std::vector<Crossing> a, b;
+    intersect_all(set, 0, ray, 0.0, 1e9, a);
+    intersect_all(plain, 0, ray, 0.0, 1e9, b);
+    ASSERT_EQ(a.size(), b.size()) << "ray " << i;
+    for (size_t k = 0; k < a.size(); ++k) ASSERT_EQ(a[k].t, b[k].t);
+    hits += static_cast<int>(a.size());
+  }
+  EXPECT_GT(hits, kRays / 2);
+}
+
 
 // hit_box (SSE2 where built with it) against the scalar slab loop it
 // replaced, comparison for comparison: random boxes and rays, and rays whose
