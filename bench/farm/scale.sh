@@ -6,6 +6,7 @@
 #   WORKERS (1000) JOBS (20) FRAMES (50) BANDS (64, of ROWS=4 rows of WIDTH=256)
 #   DELAY_MS (0) DELAY_SIGMA (0) DIE STALL LATE (0) TIMEOUT (600)
 #   KEEP=1 keeps the data directory (its path is printed).
+#   SCALE_FLAGS: more flags for locus-farm-scale (bench/farm/big_jobs.sh).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build}
@@ -50,7 +51,7 @@ status=0
   --scene "$root/scenes/simple/spheres.json" --workers "${WORKERS:-1000}" --jobs "${JOBS:-20}" \
   --frames "${FRAMES:-50}" --bands "${BANDS:-64}" --rows "${ROWS:-4}" --width "${WIDTH:-256}" \
   --delay-ms "${DELAY_MS:-0}" --delay-sigma "${DELAY_SIGMA:-0}" --die "${DIE:-0}" \
-  --stall "${STALL:-0}" --late "${LATE:-0}" --timeout "${TIMEOUT:-600}" || status=$?
+  --stall "${STALL:-0}" --late "${LATE:-0}" --timeout "${TIMEOUT:-600}" ${SCALE_FLAGS:-} || status=$?
 if [ "$syncs" = 1 ]; then
   # A clean stop, so that strace writes its count.
   kill -TERM "$coord" 2>/dev/null || true
