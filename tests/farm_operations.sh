@@ -201,7 +201,7 @@ set_workers() {
 
 # References: one single-process render per frame range (the orbit makes
 # frames depend on the range).
-for range in 1-1 1-4 1-6 1-8 1-10; do
+for range in 1-1 1-4 1-6 1-8 1-10 1-24; do
   in_ns "$bin/locus" render "$scene" --size 48x36 --orbit 20 --frames "$range" --workers 0 \
     -o "$tmp/ref/$range/f_####.png" 2>>"$tmp/ref.log" || { bad "reference render $range"; cat "$tmp/ref.log"; exit 1; }
 done
@@ -404,12 +404,14 @@ scenario5() {
   start_worker hung1 600000 --abandon-grace 600
   h1=$last_worker
   poll 20 worker_up "$h1" || bad "[5] the hung worker did not register"
-  T=$(submit ann --frames 1-8 --band-timeout 3)
+  # Enough bands that some are still queued when the second hung worker
+  # comes (the ordinary workers render the others meanwhile).
+  T=$(submit ann --frames 1-24 --band-timeout 3)
   [ -n "$T" ] || { bad "[5] submission"; return; }
   poll 10 holding_band "$h1" "$T" || { bad "[5] the hung worker got no band of $T"; return; }
   poll 10 done_ge "$T" 2 || { bad "[5] $T: no 2 bands done"; return; }
   restart
-  ! job_is "$T" succeeded && ok "[5] coordinator killed while the hung worker held a band of $T ($(bands_done "$T")/16 bands done)" ||
+  ! job_is "$T" succeeded && ok "[5] coordinator killed while the hung worker held a band of $T ($(bands_done "$T")/48 bands done)" ||
     bad "[5] $T ended before the kill"
   # The first hung worker learns from its next heartbeat that the restarted
   # coordinator does not know it: its band is void, and it abandons it
@@ -439,7 +441,7 @@ scenario5() {
     bad "[5] the hung worker was not told of the revocation"
   cli ann status "$T" 2>/dev/null | grep -q "hung .*taken back by the band timeout" && ok "[5] locus status $T counts the hung band" ||
     bad "[5] status $T does not count the hung band"
-  frames_check 5 "$T" 1 8
+  frames_check 5 "$T" 1 24
   kill -9 "$h2"
   wait "$h2" 2>/dev/null
 }
