@@ -52,7 +52,6 @@ Status fsync_path(const std::string& path, bool directory) {
 
 }  // namespace
 
-
 std::string pack_band(const BandPixels& rows, const EncodedBand& band) {
   Header h{};
   std::memcpy(h.magic, kMagic2, sizeof kMagic2);
@@ -131,8 +130,7 @@ Result<Image> stitch_frame(const FrameReady& f,
     auto px = unpack_band(*bytes, {f.width, rows.y0, rows.y1});
     if (!px.ok()) {
       return Status(px.status().code(), "band " + std::to_string(b) + " of frame " +
-                                            std::to_string(f.frame) + ": " +
-                                            px.status().message());
+                                            std::to_string(f.frame) + ": " + px.status().message());
     }
     std::copy(px->begin(), px->end(),
               image.rgb.begin() + static_cast<size_t>(rows.y0) * f.width * 3);

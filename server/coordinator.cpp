@@ -44,7 +44,6 @@ void decode_pixels(BandOutput& o) {
   o.rgb.clear();
 }
 
-
 constexpr size_t kChunkBytes = 1 << 20;
 constexpr Millis kWatchInterval{100};  // at most ~10 updates a second per watcher
 
@@ -76,7 +75,8 @@ Status Coordinator::start() {
   started_ = true;
   ticker_ = std::thread([this] { tick_loop(); });
   int writers = options_.frame_writers;
-  if (writers <= 0) writers = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+  if (writers <= 0)
+    writers = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
   for (int i = 0; i < writers; ++i) writers_.emplace_back([this] { write_loop(); });
   movie_maker_ = std::thread([this] { movie_loop(); });
   dispatcher_ = std::thread([this] { dispatch_loop(); });
@@ -249,7 +249,8 @@ void Coordinator::drain() {
 bool Coordinator::wait_drained(Millis max) {
   std::unique_lock lk(mu_);
   const bool drained = changed_.wait_for(lk, max, [&] {
-    return stopping_ || (scheduler_.counts().bands_running == 0 && to_write_.empty() && writing_.empty());
+    return stopping_ ||
+           (scheduler_.counts().bands_running == 0 && to_write_.empty() && writing_.empty());
   });
   const FarmCounts c = scheduler_.counts();
   if (drained) {
@@ -419,7 +420,8 @@ void Coordinator::write_loop() {
     const std::string dir = job_dir(f.job_id);
     Status st;
     {
-      auto image = stitch_frame(f, [&](int band) { return read_band_record(f.job_id, f.frame, band); });
+      auto image =
+          stitch_frame(f, [&](int band) { return read_band_record(f.job_id, f.frame, band); });
       st = image.ok() ? write_frame_file(dir, f.file_name, *image, options_.fsync) : image.status();
     }
     lk.lock();
@@ -1015,8 +1017,7 @@ void Coordinator::complete_band_async(BandOutput output, CompleteDone done) {
   if (!malformed.empty()) {
     // The scheduler charges it (as pixels of the wrong size) if the lease
     // stands; the worker hears what was wrong either way.
-    done = [done = std::move(done), malformed, lease = output.lease_id](
-               Result<CompleteOutcome> r) {
+    done = [done = std::move(done), malformed, lease = output.lease_id](Result<CompleteOutcome> r) {
       if (r.ok() || r.status().code() == Code::kInvalidArgument) {
         std::string m = "lease '";
         m.append(lease).append("': malformed pixels: ").append(malformed);
@@ -1111,8 +1112,7 @@ Status Coordinator::sync_log() {
     if (log_fd_ < 0) return Internal(wal + ": cannot open to sync: " + std::strerror(errno));
   }
   if (::fdatasync(log_fd_) != 0) {
-    return Internal(options_.data_dir + "/locus.db-wal: fdatasync failed: " +
-                    std::strerror(errno));
+    return Internal(options_.data_dir + "/locus.db-wal: fdatasync failed: " + std::strerror(errno));
   }
   log_syncs_.fetch_add(1, std::memory_order_relaxed);
   return Status::Ok();

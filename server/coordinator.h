@@ -332,8 +332,8 @@ class Coordinator {
   std::map<uint64_t, Poll> polls_;
   std::set<std::pair<TimePoint, uint64_t>> poll_ends_;
   uint64_t next_poll_ = 1;
-  bool polls_all_ = false;       // every parked poll must be looked at (drain, stop)
-  bool speculate_due_ = false;   // a tick has passed: the oldest poll may speculate
+  bool polls_all_ = false;      // every parked poll must be looked at (drain, stop)
+  bool speculate_due_ = false;  // a tick has passed: the oldest poll may speculate
   // Accepted bands waiting for their batch to be durable.
   struct Commit {
     CompleteDone done;

@@ -122,7 +122,8 @@ Result<Image> Coordinator::band_image(const std::string& job_id, int frame, int 
   }
   // Outside the lock, through the reader connection.
   auto record = read_band_record(job_id, frame, band);
-  auto pixels = record.ok() ? unpack_band(*record, rows) : Result<std::vector<float>>(record.status());
+  auto pixels =
+      record.ok() ? unpack_band(*record, rows) : Result<std::vector<float>>(record.status());
   if (!pixels.ok()) {
     return NotFound("band " + std::to_string(band) + " of frame " + std::to_string(frame) +
                     " of job " + job_id + " has no pixels here (not done, or its frame is written)");

@@ -323,12 +323,13 @@ int run_backup(const Flags& f, const std::string& out) {
   auto r = farm::backup_data_dir(o);
   if (!r.ok()) return fail(r.status().message());
   for (const std::string& band : r->rendered_again)
-    spdlog::warn("{}: accepted during the backup, its frame written since; rendered again on restore",
-                 band);
-  std::printf("backup %s: %d jobs, %lld store pages, %d band files, %d frame files (%d linked, %d "
-              "copied); restore with locus-coordinator --data %s\n",
-              out.c_str(), r->jobs, static_cast<long long>(r->pages), r->band_files, r->job_files,
-              r->linked, r->copied, out.c_str());
+    spdlog::warn(
+        "{}: accepted during the backup, its frame written since; rendered again on restore", band);
+  std::printf(
+      "backup %s: %d jobs, %lld store pages, %d band files, %d frame files (%d linked, %d "
+      "copied); restore with locus-coordinator --data %s\n",
+      out.c_str(), r->jobs, static_cast<long long>(r->pages), r->band_files, r->job_files,
+      r->linked, r->copied, out.c_str());
   return 0;
 }
 

@@ -346,8 +346,7 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
                           [&] { return h_.Register(*req, ctx->peer(), resp); }));
   }
 
-  grpc::ServerUnaryReactor* GetTask(grpc::CallbackServerContext* ctx,
-                                    const v1::GetTaskRequest* req,
+  grpc::ServerUnaryReactor* GetTask(grpc::CallbackServerContext* ctx, const v1::GetTaskRequest* req,
                                     v1::GetTaskResponse* resp) override {
     static constexpr const char* kRpc = "WorkerService.GetTask";
     const Result<farm::Caller> caller = admit(auth_, m_, *ctx, kWorker, kRpc, *req);

@@ -254,7 +254,7 @@ Status Handlers::Register(const v1::RegisterRequest& req, const std::string& pee
 }
 
 Status Handlers::answer_poll(const std::string& worker_id, farm::Coordinator::PollAnswer answer,
-                            v1::GetTaskResponse* resp) {
+                             v1::GetTaskResponse* resp) {
   if (!answer.ok()) return answer.status();
   if (answer->has_value()) *resp->mutable_task() = ToProto(**answer);
   resp->set_drain(c_.worker_draining(worker_id));
@@ -277,10 +277,9 @@ uint64_t Handlers::StartGetTask(const v1::GetTaskRequest& req, v1::GetTaskRespon
 Status Handlers::GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn& cancelled,
                          v1::GetTaskResponse* resp) {
   if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
-  return answer_poll(req.worker_id(),
-                     c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())),
-                                   cancelled),
-                     resp);
+  return answer_poll(
+      req.worker_id(),
+      c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled), resp);
 }
 
 Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp) {
@@ -292,8 +291,7 @@ Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* 
   return Status::Ok();
 }
 
-void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req,
-                                 v1::CompleteBandResponse* resp,
+void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp,
                                  std::function<void(Status)> done) {
   Status checked = check_id(req.worker_id(), "worker_id");
   if (checked.ok()) checked = check_id(req.lease_id(), "lease_id");
@@ -306,16 +304,16 @@ void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req,
   farm::BandOutput output = FromProto(req);
   output.error = output.error.substr(0, 4096);
   for (std::string& l : output.log_lines) l = printable(l, kMaxBandLogLineBytes);
-  c_.complete_band_async(std::move(output), [resp, done = std::move(done)](
-                                                 Result<farm::CompleteOutcome> r) {
-        if (!r.ok()) {
-          done(r.status());
-          return;
-        }
-        resp->set_accepted(r->accepted);
-        resp->set_reason(r->reason);
-        done(Status::Ok());
-      });
+  c_.complete_band_async(std::move(output),
+                         [resp, done = std::move(done)](Result<farm::CompleteOutcome> r) {
+                           if (!r.ok()) {
+                             done(r.status());
+                             return;
+                           }
+                           resp->set_accepted(r->accepted);
+                           resp->set_reason(r->reason);
+                           done(Status::Ok());
+                         });
 }
 
 Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {

@@ -711,8 +711,7 @@ Status JobStore::forget_band(const std::string& job_id, int frame, int band) {
 }
 
 Result<std::string> JobStore::band_record(const std::string& job_id, int frame, int band) {
-  Statement st(*this,
-               "SELECT pixels FROM band_pixels WHERE job_id = ? AND frame = ? AND band = ?");
+  Statement st(*this, "SELECT pixels FROM band_pixels WHERE job_id = ? AND frame = ? AND band = ?");
   st.bind(job_id, frame, band);
   const int rc = st.step();
   if (rc == SQLITE_ROW) return st.text(0);

@@ -47,8 +47,7 @@ class JobStore {
   // NotFound when there is none.
   Result<std::string> band_record(const std::string& job_id, int frame, int band);
   // Imports a record (a 0.13 band file at restart).
-  Status put_band_record(const std::string& job_id, int frame, int band,
-                         const std::string& record);
+  Status put_band_record(const std::string& job_id, int frame, int band, const std::string& record);
 
   Status put_scene(const std::string& hash, const std::string& bytes);
   Result<std::string> scene(const std::string& hash);

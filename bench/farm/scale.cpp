@@ -91,7 +91,8 @@ ProcessSample sample(int pid) {
         if (i == 12) utime = std::stol(field);
         if (i == 13) stime = std::stol(field);
       }
-      s.cpu_seconds = static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
+      s.cpu_seconds =
+          static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
     }
   }
   std::ifstream f(dir + "/status");
@@ -151,9 +152,7 @@ class Timers {
     Clock::time_point when;
     uint64_t seq;
     std::function<void()> fn;
-    bool operator>(const Entry& o) const {
-      return when != o.when ? when > o.when : seq > o.seq;
-    }
+    bool operator>(const Entry& o) const { return when != o.when ? when > o.when : seq > o.seq; }
   };
   void run() {
     std::unique_lock lk(mu_);
@@ -187,7 +186,7 @@ enum class Behaviour { kNormal, kDie, kStall, kLate };
 
 struct Shared {
   std::string address;
-  v1::Scene scene;  // what GetScene would return (fetched once per worker all the same)
+  v1::Scene scene;           // what GetScene would return (fetched once per worker all the same)
   std::vector<float> frame;  // the reference frame, linear RGB
   int width = 0;
   Timers* timers = nullptr;
@@ -455,8 +454,7 @@ class SimWorker {
       if (!st.ok()) {
         ++s_.errors;
         if (s_.errors <= 5)
-          std::fprintf(stderr, "worker %d: CompleteBand: %s\n", index_,
-                       st.error_message().c_str());
+          std::fprintf(stderr, "worker %d: CompleteBand: %s\n", index_, st.error_message().c_str());
       } else if (call.resp.accepted()) {
         ++s_.accepted;
         s_.completion_ms.push_back(seconds_since(sent) * 1000);
@@ -498,7 +496,8 @@ long bands_not_accepted_once(const std::string& db_path, long* bands_seen) {
   long bad = -1;
   sqlite3_stmt* st = nullptr;
   const char* sql = "SELECT count(*), coalesce(sum(completions != 1), 0) FROM bands";
-  if (sqlite3_prepare_v2(db, sql, -1, &st, nullptr) == SQLITE_OK && sqlite3_step(st) == SQLITE_ROW) {
+  if (sqlite3_prepare_v2(db, sql, -1, &st, nullptr) == SQLITE_OK &&
+      sqlite3_step(st) == SQLITE_ROW) {
     *bands_seen = sqlite3_column_int64(st, 0);
     bad = sqlite3_column_int64(st, 1);
   }
@@ -601,9 +600,12 @@ int main(int argc, char** argv) {
   std::vector<std::unique_ptr<SimWorker>> sims;
   for (int i = 0; i < workers; ++i) {
     Behaviour b = Behaviour::kNormal;
-    if (i < die) b = Behaviour::kDie;
-    else if (i < die + stall) b = Behaviour::kStall;
-    else if (i < die + stall + late) b = Behaviour::kLate;
+    if (i < die)
+      b = Behaviour::kDie;
+    else if (i < die + stall)
+      b = Behaviour::kStall;
+    else if (i < die + stall + late)
+      b = Behaviour::kLate;
     sims.push_back(std::make_unique<SimWorker>(shared, i, b));
     if (!sims.back()->start()) return 1;
   }

@@ -506,9 +506,9 @@ TEST(CoordinatorRestart, ADamagedBandRecordIsRenderedAgain) {
     sqlite3* db = nullptr;
     ASSERT_EQ(sqlite3_open((dir.path / "data" / "locus.db").c_str(), &db), SQLITE_OK);
     sqlite3_stmt* st = nullptr;
-    ASSERT_EQ(sqlite3_prepare_v2(db, "SELECT band, pixels FROM band_pixels LIMIT 1", -1, &st,
-                                 nullptr),
-              SQLITE_OK);
+    ASSERT_EQ(
+        sqlite3_prepare_v2(db, "SELECT band, pixels FROM band_pixels LIMIT 1", -1, &st, nullptr),
+        SQLITE_OK);
     ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
     damaged = sqlite3_column_int(st, 0);
     std::string bytes(static_cast<const char*>(sqlite3_column_blob(st, 1)),
