@@ -110,14 +110,12 @@ std::string band_file_path(const std::string& job_dir, int frame, int band) {
       .string();
 }
 
-Result<std::vector<float>> read_band_file(const std::string& path, const BandPixels& rows) {
+Result<std::string> read_band_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return NotFound(path + ": " + errno_text());
   std::ostringstream bytes;
   bytes << in.rdbuf();
-  auto rgb = unpack_band(bytes.str(), rows);
-  if (!rgb.ok()) return Status(rgb.status().code(), path + ": " + rgb.status().message());
-  return rgb;
+  return bytes.str();
 }
 
 Result<Image> stitch_frame(const FrameReady& f,

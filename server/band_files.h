@@ -41,9 +41,9 @@ Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels
 // 0.13, or a lease that asked for floats) its floats as float32.
 EncodedBand stored_band(const BandOutput& output, const BandPixels& rows);
 
-// 0.13's band file of a band, and its floats (unpack_band of its bytes).
+// 0.13's band file of a band, and its bytes: a record unpack_band reads.
 std::string band_file_path(const std::string& job_dir, int frame, int band);
-Result<std::vector<float>> read_band_file(const std::string& path, const BandPixels& rows);
+Result<std::string> read_band_file(const std::string& path);
 
 // One frame's image from its bands' records, `record(band)` giving each.
 Result<Image> stitch_frame(const FrameReady& frame,

@@ -127,26 +127,22 @@ Status Coordinator::recover() {
       const Band rows = band_rows(s, b.band);
       const BandPixels pixels{s.width, rows.y0, rows.y1};
       auto record = store_->band_record(j.record.job_id, b.frame, b.band);
-      std::string why = "its record is damaged (checksum or size)";
-      if (!record.ok() && record.status().code() == Code::kNotFound && has_legacy) {
-        const std::string file = band_file_path(dir, b.frame, b.band);
-        std::ifstream in(file, std::ios::binary);
-        std::ostringstream bytes;
-        if (in) bytes << in.rdbuf();
-        record = bytes.str();
-        if (in && unpack_band(*record, pixels).ok()) {
-          if (Status st = store_->put_band_record(j.record.job_id, b.frame, b.band, *record);
-              !st.ok()) {
-            return st;
-          }
+      const bool from_legacy =
+          !record.ok() && record.status().code() == Code::kNotFound && has_legacy;
+      if (from_legacy) record = read_band_file(band_file_path(dir, b.frame, b.band));
+      const bool whole = record.ok() && unpack_band(*record, pixels).ok();
+      if (whole && from_legacy) {
+        if (Status st = store_->put_band_record(j.record.job_id, b.frame, b.band, *record);
+            !st.ok()) {
+          return st;
         }
-        why = "its 0.13 band file is missing or damaged";
-      } else if (!record.ok()) {
-        why = record.status().message();
       }
-      if (record.ok() && unpack_band(*record, pixels).ok()) {
+      if (whole) {
         kept.push_back(b);
       } else {
+        const std::string why = from_legacy     ? "its 0.13 band file is missing or damaged"
+                                : record.ok() ? "its record is damaged (checksum or size)"
+                                              : record.status().message();
         spdlog::warn("job {}: band {} of frame {}: {}; rendering it again", j.record.job_id, b.band,
                      b.frame, why);
         if (Status st = store_->forget_band(j.record.job_id, b.frame, b.band); !st.ok()) return st;
