@@ -10,14 +10,27 @@ cd "$(dirname "$0")/.."
 # on the network and dpkg, and its compile overlap the builds below; its
 # CTest test then finds every layer cached (docs/deploy.md "Tests"). A
 # developer may leave it out with LOCUS_CONTAINER_TEST=0 (CI does not set it).
+# Each phase's wall time, printed last (also when a phase fails), so that
+# the tail of a CI log says where the time went.
+phase_log=$(mktemp)
+phase_start=$SECONDS phase_name=setup
+phase() {
+  echo "$phase_name $((SECONDS - phase_start)) s" >>"$phase_log"
+  phase_start=$SECONDS phase_name=$1
+}
+report_phases() {
+  phase end
+  echo "tests/run.sh phases (wall): $(paste -sd, "$phase_log" | sed 's/,/, /g'); total $SECONDS s"
+}
 container_prepare=
 if [ "${LOCUS_CONTAINER_TEST:-1}" != 0 ]; then
   bash deploy/local/install-deps.sh
   mkdir -p build
   bash tests/container/run.sh --prepare build/bin . >build/container-prepare.log 2>&1 &
   container_prepare=$!
-  trap 'kill "$container_prepare" 2>/dev/null || true' EXIT
 fi
+trap 'kill "$container_prepare" 2>/dev/null || true; report_phases' EXIT
+phase build
 bash deploy/local/build.sh
 # The dependency direction (docs/architecture.md "Rules") before the long
 # builds: a second to fail; CTest runs it again with the worker's link line.
@@ -26,16 +39,20 @@ bash deploy/local/build.sh
 # Loader tests, the farm's scheduling, store, restart, drain and metrics logic,
 # the log formatter, and the tessellation of Bezier surfaces (without
 # rendering), again under AddressSanitizer and UndefinedBehaviorSanitizer.
+phase asan-build
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
+phase asan-tests
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
   build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*:MovieJob*:MovieChecks*:NotifyUrls*:BandCodec*:BadResults*:StoreV013*'
 # libFuzzer targets (clang, ASan+UBSan): the NFF loader, the JSON scene
 # loader and the coordinator's request handling, each FUZZ_SECONDS (30) on
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and
 # leaves the input as build-fuzz/<target>-crash-* (docs/farm.md "Fuzzing").
+phase fuzz-build
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLOCUS_FUZZ=ON >/dev/null
 cmake --build build-fuzz -j "$(nproc)" --target fuzz_nff fuzz_scene_json fuzz_coordinator fuzz_http
+phase fuzz
 for pair in nff:nff scene_json:json coordinator:coordinator http:http; do
   target=fuzz_${pair%%:*} seeds=tests/fuzz/corpus/${pair##*:}
   mkdir -p "build-fuzz/corpus/$target"
@@ -46,11 +63,14 @@ for pair in nff:nff scene_json:json coordinator:coordinator http:http; do
   grep -E "^stat::number_of_executed_units|^Done" "build-fuzz/$target.log" || true
 done
 cd build
+phase container-wait
 if [ -n "$container_prepare" ]; then
   wait "$container_prepare" || true
   grep -E '^(container:|ok:|FAILED)' container-prepare.log || true
+  phase ctest
   ctest --output-on-failure -j "$(nproc)"
 else
   echo "tests/run.sh: the container test is left out (LOCUS_CONTAINER_TEST=0)"
+  phase ctest
   ctest --output-on-failure -j "$(nproc)" -LE container
 fi

@@ -7,28 +7,11 @@
 #include <filesystem>
 
 namespace locus {
-namespace {
-
-std::string lower_ext(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext;
-}
-
-}  // namespace
-
-SampleFormat output_sample_format(const std::string& path) {
-  const std::string ext = lower_ext(path);
-  if (ext == ".png") return SampleFormat::kUint8;
-  if (ext == ".exr") return SampleFormat::kFloat32;
-  if (ext == ".tif" || ext == ".tiff") return SampleFormat::kUint16;
-  return SampleFormat::kUnsupported;
-}
 
 Status write_image(const std::string& path, const Image& image, bool for_display) {
   const SampleFormat format = output_sample_format(path);
   if (format == SampleFormat::kUnsupported) {
-    return InvalidArgument(path + ": unsupported image type '" + lower_ext(path) +
+    return InvalidArgument(path + ": unsupported image type '" + lower_extension(path) +
                            "' (expected .png, .exr, .tif)");
   }
   if (image.width <= 0 || image.height <= 0) return InvalidArgument(path + ": empty image");

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/base/math.h"
@@ -38,6 +39,8 @@ inline void store_pixel(Image& band_pixels, const Band& band, int x, int y, cons
 // farm worker sends for a job (common/farm/band_codec.h) is what is written.
 enum class SampleFormat { kUnsupported, kUint8, kUint16, kFloat32 };
 SampleFormat output_sample_format(const std::string& path);
+// A path's extension with its dot, lower case ("a/B.PNG" -> ".png"; "" if none).
+std::string lower_extension(std::string_view path);
 
 // Writes by extension: .png (8-bit, round(255 * clamp(v, 0, 1)), no transfer
 // curve), .exr (float, linear, unclamped), .tif (16-bit). SHADING.md "Output".

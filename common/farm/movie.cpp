@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "common/base/image.h"
 #include "common/farm/process.h"
 #include "common/scene/animation.h"
 
@@ -16,13 +17,6 @@ namespace locus::farm {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string lower_extension(std::string_view name) {
-  std::string ext = fs::path(std::string(name)).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
-}
 
 // The encoder's arguments after the input. Odd sizes are padded by a row
 // or a column (yuv420p needs even ones); the RGB frames are converted with

@@ -19,6 +19,7 @@ coordinator or CLI library.
 """
 import os
 import re
+import subprocess
 import sys
 
 # Stages of common/, bottom to top. `render` is common/render.{h,cpp}.
@@ -121,11 +122,31 @@ def worker_link_line(build):
     return m.group(0)
 
 
+# Shared libraries the built locus-worker must not load: OpenImageIO (and
+# the ~250 libraries behind it) makes every worker's start slower and the
+# worker's container image six times bigger; the worker never writes an
+# image (an object file that does, pulled in for one small function, is how
+# it crept in before).
+FORBIDDEN_WORKER_NEEDED = re.compile(r"libOpenImageIO|libsqlite3|libavcodec|libhttplib")
+
+
+def worker_needed(build):
+    binary = os.path.join(build, "bin", "locus-worker")
+    if not os.path.exists(binary):
+        raise SystemExit(f"{binary}: not built")
+    out = subprocess.run(["readelf", "-d", binary], check=True, capture_output=True,
+                         text=True).stdout
+    return re.findall(r"\(NEEDED\)\s+Shared library: \[([^\]]+)\]", out)
+
+
 def check_worker_link(build):
     line = worker_link_line(build)
     bad = sorted(set(FORBIDDEN_IN_WORKER.findall(line)))
-    return [f"locus-worker links {b}: the worker is stateless and never the coordinator"
-            for b in bad]
+    found = [f"locus-worker links {b}: the worker is stateless and never the coordinator"
+             for b in bad]
+    found += [f"locus-worker loads {lib}: the worker never writes images or keeps a store"
+              for lib in worker_needed(build) if FORBIDDEN_WORKER_NEEDED.search(lib)]
+    return found
 
 
 def main(argv):

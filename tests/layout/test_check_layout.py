@@ -1,6 +1,8 @@
 """The layout check itself: each rule fails on a tree that breaks it, and a
 tree that keeps them all passes (python3 -m unittest, run by CTest)."""
+import _sqlite3
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -99,12 +101,20 @@ class Layout(unittest.TestCase):
 
 
 class WorkerLink(unittest.TestCase):
-    def link(self, libraries):
+    # A stand-in for the built worker: an ELF file whose NEEDED entries are
+    # known (/bin/true loads libc only; Python's _sqlite3 module loads
+    # libsqlite3, which a worker must not).
+    CLEAN_ELF = "/bin/true"
+    SQLITE_ELF = _sqlite3.__file__
+
+    def link(self, libraries, binary=CLEAN_ELF):
         with tempfile.TemporaryDirectory() as build:
             d = os.path.join(build, "worker", "CMakeFiles", "locus-worker.dir")
             os.makedirs(d)
             with open(os.path.join(d, "link.txt"), "w") as f:
                 f.write("/usr/bin/c++ -O2 main.cpp.o -o bin/locus-worker " + libraries + "\n")
+            os.makedirs(os.path.join(build, "bin"))
+            shutil.copy(binary, os.path.join(build, "bin", "locus-worker"))
             r = subprocess.run([sys.executable, SCRIPT, "--worker-link", build],
                                capture_output=True, text=True)
             return r.returncode, r.stdout
@@ -119,6 +129,11 @@ class WorkerLink(unittest.TestCase):
             code, out = self.link("worker/liblocus_worker.a " + lib)
             self.assertEqual(code, 1, lib + ": " + out)
             self.assertIn("locus-worker links", out)
+
+    def test_loaded_library_refused(self):
+        code, out = self.link("worker/liblocus_worker.a", binary=self.SQLITE_ELF)
+        self.assertEqual(code, 1, out)
+        self.assertIn("locus-worker loads libsqlite3", out)
 
 
 if __name__ == "__main__":
