@@ -128,8 +128,10 @@ std::optional<Polyhedron> circumscribed_polyhedron(const std::vector<Vec3>& norm
   return make_hull(vertices);
 }
 
-Polyhedron transform_polyhedron(const Polyhedron& p, const Mat4& world_from_object) {
-  Polyhedron out = p;
+Polyhedron transform_polyhedron(Polyhedron p, const Mat4& world_from_object) {
+  // Taken by value: a caller's temporary is moved in, not copied (a
+  // sphere's 20 faces are not allocated twice per sphere).
+  Polyhedron out = std::move(p);
   if (world_from_object == Mat4(1.0)) return out;
   for (Vec3& v : out.vertices) v = transform_point(world_from_object, v);
   if (glm::determinant(glm::dmat3(world_from_object)) < 0.0) {
@@ -142,7 +144,7 @@ Polyhedron bounding_polyhedron(const Sphere& s, const Mat4& world_from_object) {
   const Polyhedron& unit = unit_sphere_polyhedron();
   Polyhedron p = unit;
   for (Vec3& v : p.vertices) v = s.center + s.radius * v;
-  return transform_polyhedron(p, world_from_object);
+  return transform_polyhedron(std::move(p), world_from_object);
 }
 
 Polyhedron bounding_polyhedron(const Cone& c, const Mat4& world_from_object) {

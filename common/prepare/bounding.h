@@ -51,6 +51,6 @@ std::optional<Polyhedron> circumscribed_polyhedron(const std::vector<Vec3>& norm
 // `p` mapped by an affine transform, faces still counter-clockwise seen from
 // outside (a transform with negative determinant mirrors, so the windings
 // are reversed).
-Polyhedron transform_polyhedron(const Polyhedron& p, const Mat4& world_from_object);
+Polyhedron transform_polyhedron(Polyhedron p, const Mat4& world_from_object);
 
 }  // namespace locus

@@ -24,10 +24,11 @@ struct Projector {
   }
 };
 
-// Sutherland-Hodgman against the near plane depth >= z_near. Sets *clipped
-// when any part of the outline lay behind it.
-std::vector<Vec3> clip_near(const std::vector<Vec3>& poly, const Projector& pr, bool* clipped) {
-  std::vector<Vec3> out;
+// Sutherland-Hodgman against the near plane depth >= z_near, into `out`.
+// Sets *clipped when any part of the outline lay behind it.
+void clip_near(const std::vector<Vec3>& poly, const Projector& pr, bool* clipped,
+               std::vector<Vec3>& out) {
+  out.clear();
   const size_t n = poly.size();
   for (size_t i = 0; i < n; ++i) {
     const Vec3& a = poly[i];
@@ -39,7 +40,6 @@ std::vector<Vec3> clip_near(const std::vector<Vec3>& poly, const Projector& pr, 
     }
     if (da < 0) *clipped = true;
   }
-  return out;
 }
 
 // One face into the scan scene: clipped at the near plane, projected, its
@@ -48,13 +48,21 @@ struct FaceAdder {
   const CameraFrame& cam;
   const Projector& pr;
   ScanScene& scan;
+  std::vector<Vec3> kept;  // the clipped outline, reused from face to face
+  std::vector<Vec3> pts;   // a bounding face's outline, reused
 
   void add(const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
            bool curved, bool back = false) {
     bool clipped = false;
-    const std::vector<Vec3> kept = clip_near(outline, pr, &clipped);
+    if (back) {
+      // Only whether the near plane cuts it (clip_near's *clipped).
+      for (const Vec3& p : outline) clipped = clipped || pr.depth(p) - pr.z_near < 0;
+      if (curved && clipped) scan.trace_everything = true;
+      return;
+    }
+    clip_near(outline, pr, &clipped, kept);
     if (curved && clipped) scan.trace_everything = true;
-    if (back || kept.size() < 3) return;
+    if (kept.size() < 3) return;
     ScanFace f;
     f.normal = normal;
     f.offset = offset;
@@ -63,6 +71,7 @@ struct FaceAdder {
     if (!curved && cam.hither > 0) f.near_hither = reaches_hither(kept, normal, offset);
     f.ymin = 1e300;
     f.ymax = -1e300;
+    f.outline.reserve(kept.size());
     for (const Vec3& p : kept) {
       f.outline.push_back(pr.project(p));
       f.ymin = std::min(f.ymin, f.outline.back().y);
@@ -93,7 +102,7 @@ struct FaceAdder {
       // every eye ray.
       bool eye_inside = true;
       for (const auto& face : poly.faces) {
-        std::vector<Vec3> pts;
+        pts.clear();
         for (int v : face) pts.push_back(poly.vertices[v]);
         const Vec3 n = newell_normal(pts);
         const bool front = glm::dot(n, cam.from - pts[0]) > 0;
@@ -139,7 +148,7 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
   // surface lies within hither are traced instead, see local_rows).
   const double z_near = std::max(1e-12, 1e-6 * std::max(cam.hither, ps.eps));
   const Projector pr{cam, z_near};
-  FaceAdder faces{cam, pr, scan};
+  FaceAdder faces{cam, pr, scan, {}, {}};
   const PrimitiveSet& set = ps.prims;
   // Bounding polyhedra are per object; a CSG or quadric object is one prim.
   for (int i = 0; i < static_cast<int>(set.prims.size()); ++i) {

@@ -1,10 +1,10 @@
 // The shadow search of configuration IV (paper §4.1, Fig. 6;
 // docs/shadow-volumes.md), built per light on top of the occluders' own
-// volumes (shadow_volume.cpp): the hierarchy's boxes and their volumes, the
-// front/back relations (per receiving primitive, the occluders that can
-// shadow it), the lists of long receivers' slices (ReceiverParts), and the
-// Direct entries that the point search (common/trace/shadow_search.h)
-// reads. Used by build_shadow_volumes only.
+// volumes (shadow_volume.cpp): the hierarchy's boxes and their volumes,
+// built with the frame, and the front/back relations (per receiving
+// primitive, the occluders that can shadow it, with the lists of long
+// receivers' slices, ReceiverParts, and the Direct entries that the
+// searches read), made when a row first asks for them.
 #pragma once
 
 #include <vector>
@@ -21,13 +21,26 @@ struct ReceiverHull {
   HalfSpace plane;
 };
 
+// A ball holding a point set, for a quick first answer to "is every point
+// beyond this plane" (ball_side in shadow_candidates.cpp): a plane clear of
+// the ball, by more than any rounding of the points' own products, answers
+// for every point at once; only a plane through the ball needs the points.
+struct PointBall {
+  Vec3 centre{0.0};
+  double radius = -1;    // < 0: no ball (empty set): always look at the points
+  double magnitude = 0;  // the largest coordinate magnitude of the points
+};
+PointBall ball_of(const std::vector<Vec3>& pts);
+
 // What the search needs of the scene, the same for every light.
 struct SearchShapes {
   std::vector<ReceiverHull> hulls;  // per primitive
+  std::vector<PointBall> balls;     // per primitive: its hull's points
   // Per node of ps.bvh: its box widened to its primitives' hulls.
   std::vector<Aabb> boxes;
   // Per primitive cut into slices: each slice's hull (ReceiverParts).
   std::vector<std::vector<std::vector<Vec3>>> part_hulls;
+  std::vector<std::vector<PointBall>> part_balls;
 };
 
 // The boxes and slices for primitives with hulls `hulls`; fills `parts`
@@ -36,8 +49,12 @@ SearchShapes search_shapes(const PreparedScene& ps, std::vector<ReceiverHull> hu
                            std::vector<ReceiverParts>& parts);
 
 // Adds to lv (whose occluders' volumes are built) the boxes' volumes
-// (node_volume), the candidate lists with their Direct entries, and the
-// slices' lists.
+// (node_volume) and an empty table of candidate lists.
 void add_search(const PreparedScene& ps, const SearchShapes& shapes, LightVolumes& lv);
+
+// Receiver `receiver`'s front/back relations from light `light` (paper
+// §4.1; configuration IV, ps.volumes->search): made from ps.volumes->shapes
+// the first time any thread asks, the same list whichever thread does.
+const CandidateList& receiver_candidates(const PreparedScene& ps, int light, int receiver);
 
 }  // namespace locus

@@ -75,26 +75,139 @@ double twice_area(const std::vector<Vec2>& pts) {
   return area;
 }
 
-// A polyhedron as outlines with outward planes.
+// A polyhedron as outlines with outward planes: its faces' outlines in one
+// array (face k: points[first[k], first[k + 1])), four allocations for a
+// sphere's 20 faces rather than 22.
 struct Outlines {
-  std::vector<std::vector<Vec3>> faces;
+  std::vector<Vec3> points;
+  std::vector<int> first;
   std::vector<HalfSpace> planes;
+  // Its vertices, each once: the faces list every vertex three or more
+  // times (an icosahedron's 12 as 60), and a test against every point of
+  // the polyhedron needs each once.
+  std::vector<Vec3> corners;
 };
 
 Outlines outlines_of(const Polyhedron& p) {
   Outlines o;
   const Vec3 c = centroid(p.vertices);
+  std::vector<char> used(p.vertices.size(), 0);
+  size_t listed = 0;
   for (const auto& face : p.faces) {
-    std::vector<Vec3> pts;
+    for (int v : face) used[v] = 1;
+    listed += face.size();
+  }
+  for (size_t v = 0; v < p.vertices.size(); ++v) {
+    if (used[v]) o.corners.push_back(p.vertices[v]);
+  }
+  o.points.reserve(listed);
+  o.first.reserve(p.faces.size() + 1);
+  o.planes.reserve(p.faces.size());
+  o.first.push_back(0);
+  std::vector<Vec3> pts;
+  for (const auto& face : p.faces) {
+    pts.clear();
     for (int v : face) pts.push_back(p.vertices[v]);
     Vec3 n = newell_normal(pts);
     const Vec3 fc = centroid(pts);
     if (glm::dot(n, fc - c) < 0) n = -n;
     o.planes.push_back(HalfSpace{n, glm::dot(n, fc)});
-    o.faces.push_back(std::move(pts));
+    o.points.insert(o.points.end(), pts.begin(), pts.end());
+    o.first.push_back(static_cast<int>(o.points.size()));
   }
   return o;
 }
+
+// add_polyhedron_volume on faces given by `faces.size()`, `faces.size(k)`
+// and `faces.point(k, i)` (a list of outlines, or one flat array), and the
+// polyhedron's vertices `corners`, each once.
+template <class Faces>
+int polyhedron_volume(VolumeSet& out, const Faces& faces, const std::vector<HalfSpace>& face_planes,
+                      const Vec3& light, bool solid, const std::vector<Vec3>& verts) {
+  // The faces' points in their order, summed as centroid() sums them (the
+  // inner point is the one of the faces' points listed with repeats).
+  const size_t nf = faces.size();
+  Vec3 sum(0.0);
+  size_t listed = 0;
+  for (size_t k = 0; k < nf; ++k) {
+    const size_t m = faces.size(k);
+    for (size_t i = 0; i < m; ++i) sum += faces.point(k, i);
+    listed += m;
+  }
+  constexpr size_t kFew = 32;
+  char few[kFew];
+  std::vector<char> many(nf > kFew ? nf : 0);
+  char* front = nf > kFew ? many.data() : few;
+  bool any_front = false;
+  for (size_t k = 0; k < nf; ++k) {
+    front[k] = glm::dot(face_planes[k].m, light) - face_planes[k].h > 0;
+    any_front = any_front || front[k];
+  }
+  ShadowVolume v{VolumeKind::kConvex, static_cast<int>(out.planes.size()), 0};
+  if (!any_front) {
+    // The light inside (or on) the polyhedron. A ray from a point outside
+    // a solid occluder to the light crosses its surface, one from inside
+    // does not: the volume is the outside. A bounding polyhedron (the body
+    // may be anywhere inside it) gives no volume.
+    if (!solid) {
+      out.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
+      return static_cast<int>(out.volumes.size()) - 1;
+    }
+    v.kind = VolumeKind::kOutside;
+    out.planes.insert(out.planes.end(), face_planes.begin(), face_planes.end());
+  } else {
+    // Cap: the faces turned to the light; the volume lies behind all of
+    // them. Sides: the planes through the light and the silhouette edges,
+    // the edges of light-facing faces whose plane through the light leaves
+    // the whole polyhedron on one side (paper Fig. 6).
+    // Sides first: a point beside the volume (most points tested) is
+    // rejected by one of them, and the cap rejects only points between the
+    // light and the body.
+    const Vec3 inner = sum / static_cast<double>(std::max<size_t>(1, listed));
+    double scale = glm::length(light - inner);
+    for (const Vec3& p : verts) scale = std::max(scale, glm::length(p - inner));
+    const double tol = 1e-12 * scale;
+    for (size_t k = 0; k < nf; ++k) {
+      if (!front[k]) continue;
+      const size_t m = faces.size(k);
+      for (size_t i = 0; i < m; ++i) {
+        HalfSpace s;
+        if (!side_plane(light, faces.point(k, i), faces.point(k, (i + 1) % m), inner, &s)) continue;
+        bool silhouette = true;
+        for (const Vec3& p : verts) {
+          if (glm::dot(s.m, p) - s.h > tol) {
+            silhouette = false;
+            break;
+          }
+        }
+        if (silhouette) out.planes.push_back(s);
+      }
+    }
+    for (size_t k = 0; k < nf; ++k) {
+      if (front[k]) out.planes.push_back(face_planes[k]);
+    }
+  }
+  v.count = static_cast<int>(out.planes.size()) - v.first;
+  out.volumes.push_back(v);
+  return static_cast<int>(out.volumes.size()) - 1;
+}
+
+// Faces as a list of outlines.
+struct FaceLists {
+  const std::vector<std::vector<Vec3>>& f;
+  size_t size() const { return f.size(); }
+  size_t size(size_t k) const { return f[k].size(); }
+  const Vec3& point(size_t k, size_t i) const { return f[k][i]; }
+};
+
+// Faces as one array: face k is points[first[k], first[k + 1]).
+struct FlatFaces {
+  const std::vector<Vec3>& points;
+  const std::vector<int>& first;
+  size_t size() const { return first.size() - 1; }
+  size_t size(size_t k) const { return first[k + 1] - first[k]; }
+  const Vec3& point(size_t k, size_t i) const { return points[first[k] + i]; }
+};
 
 // Do two edges that share no vertex meet (touch or cross)?
 bool edges_meet(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
@@ -251,11 +364,13 @@ std::vector<Vec3> hull_points(const PreparedScene& ps, int prim,
     case PrimKind::kConvex:
       for (const auto& f : ps.prims.convexes[ref.index].faces)
         pts.insert(pts.end(), f.begin(), f.end());
+      // Each vertex once (the tests using these points ask whether some
+      // or every point passes, so repeats only cost time).
+      std::sort(pts.begin(), pts.end(), lex_less);
+      pts.erase(std::unique(pts.begin(), pts.end()), pts.end());
       break;
     default:
-      for (const Outlines& o : leaves) {
-        for (const auto& f : o.faces) pts.insert(pts.end(), f.begin(), f.end());
-      }
+      for (const Outlines& o : leaves) pts.insert(pts.end(), o.corners.begin(), o.corners.end());
       break;
   }
   return pts;
@@ -340,7 +455,7 @@ void add_occluder(const PreparedScene& ps, int prim, const std::vector<Outlines>
       for (size_t k = 0; k < c.normals.size(); ++k)
         planes.push_back(HalfSpace{c.normals[k], c.offsets[k]});
       oc.decides = is_opaque(ps, prim);
-      add_polyhedron_volume(lv.set, c.faces, planes, light, oc.decides);
+      add_polyhedron_volume(lv.set, c.faces, planes, light, oc.decides, nullptr);
       break;
     }
     default: {
@@ -348,7 +463,7 @@ void add_occluder(const PreparedScene& ps, int prim, const std::vector<Outlines>
       // exact test (paper §4.1).
       oc.decides = false;
       for (const Outlines& o : leaves)
-        add_polyhedron_volume(lv.set, o.faces, o.planes, light, false);
+        polyhedron_volume(lv.set, FlatFaces{o.points, o.first}, o.planes, light, false, o.corners);
       break;
     }
   }
@@ -375,63 +490,12 @@ bool VolumeSet::contains(int v, const Vec3& p, double slack) const {
 }
 
 int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& faces,
-                          const std::vector<HalfSpace>& face_planes, const Vec3& light,
-                          bool solid) {
-  std::vector<Vec3> verts;
-  for (const auto& f : faces) verts.insert(verts.end(), f.begin(), f.end());
-  std::vector<bool> front(faces.size());
-  bool any_front = false;
-  for (size_t k = 0; k < faces.size(); ++k) {
-    front[k] = glm::dot(face_planes[k].m, light) - face_planes[k].h > 0;
-    any_front = any_front || front[k];
-  }
-  ShadowVolume v{VolumeKind::kConvex, static_cast<int>(out.planes.size()), 0};
-  if (!any_front) {
-    // The light inside (or on) the polyhedron. A ray from a point outside
-    // a solid occluder to the light crosses its surface, one from inside
-    // does not: the volume is the outside. A bounding polyhedron (the body
-    // may be anywhere inside it) gives no volume.
-    if (!solid) {
-      out.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
-      return static_cast<int>(out.volumes.size()) - 1;
-    }
-    v.kind = VolumeKind::kOutside;
-    out.planes.insert(out.planes.end(), face_planes.begin(), face_planes.end());
-  } else {
-    // Cap: the faces turned to the light; the volume lies behind all of
-    // them. Sides: the planes through the light and the silhouette edges,
-    // the edges of light-facing faces whose plane through the light leaves
-    // the whole polyhedron on one side (paper Fig. 6).
-    // Sides first: a point beside the volume (most points tested) is
-    // rejected by one of them, and the cap rejects only points between the
-    // light and the body.
-    const Vec3 inner = centroid(verts);
-    double scale = glm::length(light - inner);
-    for (const Vec3& p : verts) scale = std::max(scale, glm::length(p - inner));
-    const double tol = 1e-12 * scale;
-    for (size_t k = 0; k < faces.size(); ++k) {
-      if (!front[k]) continue;
-      const auto& f = faces[k];
-      for (size_t i = 0; i < f.size(); ++i) {
-        HalfSpace s;
-        if (!side_plane(light, f[i], f[(i + 1) % f.size()], inner, &s)) continue;
-        bool silhouette = true;
-        for (const Vec3& p : verts) {
-          if (glm::dot(s.m, p) - s.h > tol) {
-            silhouette = false;
-            break;
-          }
-        }
-        if (silhouette) out.planes.push_back(s);
-      }
-    }
-    for (size_t k = 0; k < faces.size(); ++k) {
-      if (front[k]) out.planes.push_back(face_planes[k]);
-    }
-  }
-  v.count = static_cast<int>(out.planes.size()) - v.first;
-  out.volumes.push_back(v);
-  return static_cast<int>(out.volumes.size()) - 1;
+                          const std::vector<HalfSpace>& face_planes, const Vec3& light, bool solid,
+                          const std::vector<Vec3>* corners) {
+  if (corners) return polyhedron_volume(out, FaceLists{faces}, face_planes, light, solid, *corners);
+  std::vector<Vec3> all;
+  for (const auto& f : faces) all.insert(all.end(), f.begin(), f.end());
+  return polyhedron_volume(out, FaceLists{faces}, face_planes, light, solid, all);
 }
 
 std::optional<ConvexPieces> convex_pieces(const std::vector<Vec3>& verts, const Vec3& n) {
@@ -562,10 +626,11 @@ std::vector<ReceiverHull> receiver_hulls(const PreparedScene& ps, const Occluder
 // The planes' products with the camera frame (VolumeSet::cam), for the
 // scanline intervals.
 void add_camera_dots(const CameraFrame& cam, VolumeSet& set) {
-  set.cam.clear();
-  for (const HalfSpace& p : set.planes) {
-    set.cam.push_back({glm::dot(p.m, cam.u), glm::dot(p.m, cam.v), glm::dot(p.m, cam.w),
-                       glm::dot(p.m, cam.from) - p.h});
+  set.cam.resize(set.planes.size());
+  for (size_t i = 0; i < set.planes.size(); ++i) {
+    const HalfSpace& p = set.planes[i];
+    set.cam[i] = {glm::dot(p.m, cam.u), glm::dot(p.m, cam.v), glm::dot(p.m, cam.w),
+                  glm::dot(p.m, cam.from) - p.h};
   }
 }
 
@@ -576,8 +641,12 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
   sv.search = search;
   const OccluderShapes shapes = occluder_shapes(ps);
   const double scale = ps.world_scale;
-  SearchShapes search_with;
-  if (search) search_with = search_shapes(ps, receiver_hulls(ps, shapes), sv.parts);
+  std::shared_ptr<SearchShapes> search_with;
+  if (search) {
+    search_with =
+        std::make_shared<SearchShapes>(search_shapes(ps, receiver_hulls(ps, shapes), sv.parts));
+    sv.shapes = search_with;
+  }
   for (const Light& light : ps.scene.lights) {
     LightVolumes lv;
     lv.position = light.position;
@@ -587,7 +656,7 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
     for (int i = 0; i < static_cast<int>(ps.prims.prims.size()); ++i) {
       add_occluder(ps, i, shapes.leaves[i], shapes.pieces[i], lv);
     }
-    if (search) add_search(ps, search_with, lv);
+    if (search) add_search(ps, *search_with, lv);
     sv.lights.push_back(std::move(lv));
   }
   for (LightVolumes& lv : sv.lights) add_camera_dots(ps.camera, lv.set);

@@ -26,7 +26,9 @@
 // boundary.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -85,9 +87,12 @@ struct VolumeSet {
 // When no face faces the light (the light inside or on the polyhedron), the
 // volume is kOutside if `solid` (the points whose segment to the light
 // crosses the surface of a solid convex occluder: those outside it), else
-// kEverywhere. Returns the index of the volume.
+// kEverywhere. `corners`, if given, are the polyhedron's vertices, each
+// once (the faces repeat them); the volume is the same with or without
+// them. Returns the index of the volume.
 int add_polyhedron_volume(VolumeSet& out, const std::vector<std::vector<Vec3>>& faces,
-                          const std::vector<HalfSpace>& face_planes, const Vec3& light, bool solid);
+                          const std::vector<HalfSpace>& face_planes, const Vec3& light, bool solid,
+                          const std::vector<Vec3>* corners = nullptr);
 
 // A planar outline (normal n) cut into convex pieces, as index lists into
 // its vertices: itself if it is convex; else an ear-clipping triangulation
@@ -107,6 +112,53 @@ int add_polygon_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const Ve
 int add_pieces_volumes(VolumeSet& out, const std::vector<Vec3>& verts, const ConvexPieces& pieces,
                        const Vec3& n, double d, const Vec3& light);
 
+// One receiving primitive's front/back relations from one light (paper
+// §4.1): the occluders that can shadow it, increasing, and, for a receiver
+// cut into slices (ReceiverParts), those of each slice.
+struct CandidateList {
+  // Where the occluder is one convex volume with no bound (most curved
+  // bodies and polygons), its planes, so the search reads them without two
+  // dependent lookups; count < 0 otherwise.
+  struct Direct {
+    int first = 0, count = -1;
+    bool decides = false;  // the occluder's
+  };
+  std::vector<int> ids;
+  std::vector<Direct> direct;  // per entry of ids
+  // Slice q's occluders (a subset of ids): part_ids[part_first[q],
+  // part_first[q + 1]), increasing, with their Direct entries.
+  std::vector<int> part_first;
+  std::vector<int> part_ids;
+  std::vector<Direct> part_direct;
+};
+
+// Per receiving primitive, its CandidateList, made the first time a row
+// asks for it (receiver_candidates, shadow_candidates.h): a frame's rows
+// reach only some of the primitives, often a third or less of a big
+// scene's. Any thread may make a list; the first one installed is kept,
+// and every thread makes the same one, so neither the thread nor the order
+// changes anything a row computes.
+class CandidateTable {
+ public:
+  CandidateTable() = default;
+  explicit CandidateTable(size_t receivers);
+  CandidateTable(CandidateTable&& o) noexcept;
+  CandidateTable& operator=(CandidateTable&& o) noexcept;
+  ~CandidateTable();
+
+  const CandidateList* find(int receiver) const {
+    return slots_[receiver].load(std::memory_order_acquire);
+  }
+  // Keeps `list` as receiver's unless another thread installed one first;
+  // returns the one kept.
+  const CandidateList& install(int receiver, std::unique_ptr<CandidateList> list) const;
+
+ private:
+  void clear();
+  std::unique_ptr<std::atomic<const CandidateList*>[]> slots_;
+  size_t size_ = 0;
+};
+
 // What one light's shadow search needs.
 struct LightVolumes {
   Vec3 position;
@@ -123,25 +175,9 @@ struct LightVolumes {
   };
   std::vector<Occluder> occluders;
   std::vector<int> node_volume;  // per BVH node: index into set.volumes
-  // Per receiving primitive r: the occluders that can shadow it,
-  // candidates[candidate_first[r], candidate_first[r + 1]), increasing.
-  std::vector<int> candidate_first;
-  std::vector<int> candidates;
-  // Per entry of `candidates`: where the occluder is one convex volume with
-  // no bound (most curved bodies and polygons), its planes, so the search
-  // reads them without two dependent lookups; count < 0 otherwise.
-  struct Direct {
-    int first = 0, count = -1;
-    bool decides = false;  // the occluder's
-  };
-  std::vector<Direct> candidate_direct;
-  // Per slice of a receiver cut into parts (ShadowVolumes::parts): the
-  // occluders that can shadow that slice, a subset of the receiver's
-  // candidates, part_candidates[part_first[slot], part_first[slot + 1]),
-  // increasing, with their Direct entries.
-  std::vector<int> part_first;
-  std::vector<int> part_candidates;
-  std::vector<Direct> part_direct;
+  // Per receiving primitive: the occluders that can shadow it, made when
+  // first asked for (receiver_candidates).
+  CandidateTable candidates;
   // Slack of the conservative tests (boxes, bounding polyhedra, transparent
   // occluders, candidates): beyond the offset of shadow-ray origins
   // (PreparedScene::eps) and far beyond rounding.
@@ -155,12 +191,15 @@ struct LightVolumes {
 struct ReceiverParts {
   Vec3 base{0.0}, scaled_axis{0.0};  // (apex - base) / |apex - base|^2
   int count = 0;                     // 0: not cut
-  int slot = 0;                      // its first slice's index in part_first
 };
+
+struct SearchShapes;  // common/prepare/shadow_candidates.h
 
 struct ShadowVolumes {
   std::vector<LightVolumes> lights;
   std::vector<ReceiverParts> parts;  // per primitive (search only)
+  // What the candidate lists are made from (search only).
+  std::shared_ptr<const SearchShapes> shapes;
   // Configuration IV: the boxes' volumes (node_volume) and the front/back
   // relations (candidates) are built, and points reached by secondary rays
   // search them (volume_transmittance). Otherwise (II, III) only the

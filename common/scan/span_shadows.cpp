@@ -10,6 +10,7 @@
 
 #include "common/geometry/bvh.h"
 #include "common/prepare/prepared.h"
+#include "common/prepare/shadow_candidates.h"
 #include "common/scan/scanline.h"
 
 namespace locus {
@@ -237,14 +238,16 @@ namespace {
 // box only where `box_meets(volume)` says the box's volume may meet the
 // span or group of lines.
 template <class BoxMeets, class Occluder>
-void for_each_candidate(const PreparedScene& ps, const LightVolumes& lv, int prim, Stats& stats,
+void for_each_candidate(const PreparedScene& ps, int light, int prim, Stats& stats,
                         BoxMeets&& box_meets, Occluder&& occluder) {
+  const LightVolumes& lv = ps.volumes->lights[light];
   if (!ps.volumes->search) {
     for (int c = 0; c < static_cast<int>(lv.occluders.size()); ++c) occluder(c);
     return;
   }
-  const int* cb = lv.candidates.data() + lv.candidate_first[prim];
-  const int* ce = lv.candidates.data() + lv.candidate_first[prim + 1];
+  const CandidateList& list = receiver_candidates(ps, light, prim);
+  const int* cb = list.ids.data();
+  const int* ce = cb + list.ids.size();
   if (ce - cb <= kWalkAbove) {
     for (const int* c = cb; c != ce; ++c) occluder(*c);
     return;
@@ -332,7 +335,7 @@ const SpanShadows::GroupSlot& SpanShadows::group_candidates(int j) {
   // concave polygon cut into many convex pieces: SPD gears). The walk is
   // the lines' own, with the rectangle: its order is kept.
   for_each_candidate(
-      ps_, lv, ps_.scan->faces[face_].prim, stats_,
+      ps_, j, ps_.scan->faces[face_].prim, stats_,
       [&](int v) { return meets_rect(lv.set, v, r, kNodeSlack * lv.slack); },
       [&](int c) {
         const LightVolumes::Occluder& oc = lv.occluders[c];
@@ -469,7 +472,7 @@ void SpanShadows::compute_light(int j) {
     // The line's own candidates, each with all its volumes; the hierarchy's
     // boxes tested by their volumes against the span.
     for_each_candidate(
-        ps_, lv, ps_.scan->faces[face_].prim, stats_,
+        ps_, j, ps_.scan->faces[face_].prim, stats_,
         [&](int v) { return meets_span(lv.set, v, ll.line, kNodeSlack * lv.slack); },
         [&](int c) {
           const LightVolumes::Occluder& oc = lv.occluders[c];

@@ -5,6 +5,7 @@
 #include "common/geometry/bvh.h"
 #include "common/geometry/pencil.h"
 #include "common/prepare/prepared.h"
+#include "common/prepare/shadow_candidates.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/trace/raytrace.h"
 
@@ -115,24 +116,25 @@ Color volume_transmittance(const PreparedScene& ps, const Vec3& origin, int ligh
   };
   const int* cb = nullptr;
   const int* ce = nullptr;
-  const LightVolumes::Direct* db = nullptr;
-  if (receiver >= 0) {
+  const CandidateList::Direct* db = nullptr;
+  if (receiver >= 0 && ps.volumes->search) {
+    const CandidateList& list = receiver_candidates(ps, light, receiver);
     const ReceiverParts* rp = ps.volumes->parts.empty() ? nullptr : &ps.volumes->parts[receiver];
     if (rp && rp->count > 0) {
       // The slice of the receiver that holds the origin.
       const double s = glm::dot(origin - rp->base, rp->scaled_axis) * rp->count;
-      const int slot = rp->slot + clamped_floor(s, 0, rp->count - 1);
-      cb = lv.part_candidates.data() + lv.part_first[slot];
-      ce = lv.part_candidates.data() + lv.part_first[slot + 1];
-      db = lv.part_direct.data() + lv.part_first[slot];
+      const int q = clamped_floor(s, 0, rp->count - 1);
+      cb = list.part_ids.data() + list.part_first[q];
+      ce = list.part_ids.data() + list.part_first[q + 1];
+      db = list.part_direct.data() + list.part_first[q];
     } else {
-      cb = lv.candidates.data() + lv.candidate_first[receiver];
-      ce = lv.candidates.data() + lv.candidate_first[receiver + 1];
-      db = lv.candidate_direct.data() + lv.candidate_first[receiver];
+      cb = list.ids.data();
+      ce = cb + list.ids.size();
+      db = list.direct.data();
     }
   }
   if (cb && ce - cb <= kWalkAbove) {
-    const LightVolumes::Direct* d = db;
+    const CandidateList::Direct* d = db;
     for (const int* c = cb; c != ce; ++c, ++d) {
       if (skip(*c)) continue;
       if (d->count < 0) {
