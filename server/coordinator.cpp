@@ -26,24 +26,6 @@ namespace locus::farm {
 namespace fs = std::filesystem;
 namespace {
 
-// A result's pixels as floats, decoded from the encoding they travelled in
-// (common/farm/band_codec.h); what does not decode is named in `malformed`,
-// with no pixels, for the scheduler to refuse. A failed or handed-back band
-// has no pixels to decode.
-void decode_pixels(BandOutput& o) {
-  if (o.handed_back || !o.error.empty()) return;
-  if (o.encoded.encoding == BandEncoding::kFloat32 && o.encoded.bytes.empty()) return;
-  if (!o.rgb.empty()) {
-    o.malformed = "both float rgb and encoded pixels";
-  } else if (auto rgb = decode_band(o.encoded); rgb.ok()) {
-    o.rgb = std::move(*rgb);
-    return;
-  } else {
-    o.malformed = rgb.status().message();
-  }
-  o.rgb.clear();
-}
-
 constexpr size_t kChunkBytes = 1 << 20;
 constexpr Millis kWatchInterval{100};  // at most ~10 updates a second per watcher
 
@@ -140,7 +122,7 @@ Status Coordinator::recover() {
       if (whole) {
         kept.push_back(b);
       } else {
-        const std::string why = from_legacy     ? "its 0.13 band file is missing or damaged"
+        const std::string why = from_legacy   ? "its 0.13 band file is missing or damaged"
                                 : record.ok() ? "its record is damaged (checksum or size)"
                                               : record.status().message();
         spdlog::warn("job {}: band {} of frame {}: {}; rendering it again", j.record.job_id, b.band,
@@ -167,40 +149,6 @@ Status Coordinator::recover() {
                  db, state->jobs.size(), state->leases_voided, to_write_.size());
   }
   return Status::Ok();
-}
-
-Status Coordinator::persist() {
-  std::vector<Event> events = scheduler_.take_events();
-  if (crashed_) return Status(Code::kAborted, "crashed (test)");
-  // Each accepted band's record, in the transaction that says "done".
-  if (!band_records_.empty()) {
-    for (Event& e : events) {
-      auto* d = std::get_if<event::BandDone>(&e);
-      if (!d) continue;
-      auto it = band_records_.find({d->job_id, d->frame, d->band});
-      if (it == band_records_.end()) continue;
-      d->pixels = std::move(it->second);
-      band_records_.erase(it);
-    }
-  }
-  metrics_->observe(events);
-  // A job that ends and is to be told so: pending in the same transaction.
-  std::vector<JobInfo> ended;
-  if (job_ended_) {
-    const size_t n = events.size();
-    for (size_t i = 0; i < n; ++i) {
-      const auto* c = std::get_if<event::JobStateChanged>(&events[i]);
-      if (!c || !is_terminal(c->state)) continue;
-      auto info = scheduler_.job(c->job_id);
-      if (!info.ok() || (!notify_every_job_ && info->spec.notify_url.empty())) continue;
-      events.push_back(event::JobNotified{c->job_id, event::NotifyPhase::kPending, ""});
-      ended.push_back(std::move(*info));
-    }
-  }
-  Status s = store_ ? store_->apply(events) : Status::Ok();
-  if (!s.ok()) spdlog::error("{} ({} changes not recorded)", s.message(), events.size());
-  for (const JobInfo& j : ended) job_ended_(j);
-  return s;
 }
 
 void Coordinator::on_job_ended(std::function<void(const JobInfo&)> fn, bool every_job) {
@@ -351,6 +299,7 @@ void Coordinator::tick_loop() {
     changed_.wait_for(lk, options_.tick, [&] { return stopping_; });
     scheduler_.expire();
     persist();
+    check_storage();
     if (SteadyClock::now() - retained >= options_.retention_check) {
       retained = SteadyClock::now();
       apply_retention();
@@ -395,7 +344,8 @@ Status Coordinator::load_scene(const std::string& hash, const std::string& job_i
 bool Coordinator::write_pending(const std::string& job_id, int frame) const {
   const auto same = [&](const FrameReady& f) { return f.job_id == job_id && f.frame == frame; };
   return std::any_of(writing_.begin(), writing_.end(), same) ||
-         std::any_of(to_write_.begin(), to_write_.end(), same);
+         std::any_of(to_write_.begin(), to_write_.end(), same) ||
+         std::any_of(held_frames_.begin(), held_frames_.end(), same);
 }
 
 void Coordinator::write_loop() {
@@ -422,8 +372,9 @@ void Coordinator::write_loop() {
     }
     lk.lock();
     // Once the store says "written" it deletes the frame's band records, in
-    // the same transaction (JobStore, event::FrameWritten).
-    scheduler_.frame_written(f.job_id, f.frame, st);
+    // the same transaction (JobStore, event::FrameWritten). A frame that
+    // found no space waits for it.
+    if (!hold_frame(f, st)) scheduler_.frame_written(f.job_id, f.frame, st);
     persist();
     writing_.erase(mine);
     changed_.notify_all();
@@ -447,6 +398,14 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   if (stopping_ || draining_) {
     return Status(Code::kUnavailable,
                   "the coordinator is shutting down; submit again once it is back");
+  }
+  if (Status s = storage_refusal("new jobs are refused"); !s.ok()) return s;
+  if (const uint64_t avail = free_bytes(); avail < options_.min_free_bytes) {
+    return Status(Code::kResourceExhausted,
+                  "the coordinator's data directory " + options_.data_dir + " has " +
+                      std::to_string(avail >> 20) + " MiB free, under its --min-free-mb " +
+                      std::to_string(options_.min_free_bytes >> 20) +
+                      ": new jobs are refused until space is freed");
   }
   if (auto earlier = scheduler_.job_for_request(r.request_id)) {
     return resubmitted(*earlier, r.request_id, fingerprint);
@@ -499,6 +458,11 @@ Result<JobInfo> Coordinator::record_job(const JobSpec& spec, std::shared_ptr<con
   if (Status st = store_->put_scene(spec.scene_hash, bytes); !st.ok()) {
     return Status(Code::kUnavailable, "cannot record the job: " + st.message());
   }
+  // What is pending first, so that a failure below holds this job's events
+  // only, which are then dropped with the job.
+  if (Status st = persist(); !st.ok()) {
+    return Status(Code::kUnavailable, "cannot record the job: " + st.message());
+  }
   scenes_stored_.insert(spec.scene_hash);
   // With a movie, its notification goes with the movie job (the end of it all).
   JobSpec render = spec;
@@ -508,6 +472,7 @@ Result<JobInfo> Coordinator::record_job(const JobSpec& spec, std::shared_ptr<con
   const std::string movie_id =
       spec.movie.empty() ? std::string() : scheduler_.add_job(movie_spec(spec, id));
   if (Status st = persist(); !st.ok()) {
+    unstored_.clear();
     if (!movie_id.empty()) scheduler_.forget_job(movie_id);
     scheduler_.forget_job(id);
     return Status(Code::kUnavailable, "cannot record the job: " + st.message());
@@ -587,7 +552,8 @@ Result<JobInfo> Coordinator::reopen(const std::string& job_id,
   if (!j.ok()) return j.status();
   if (is_terminal(j->state)) {
     if (stopping_ || draining_) {
-      return Status(Code::kUnavailable, "the coordinator is shutting down; try again once it is back");
+      return Status(Code::kUnavailable,
+                    "the coordinator is shutting down; try again once it is back");
     }
     const int max_jobs = options_.limits.max_jobs;
     if (scheduler_.unfinished_jobs() >= static_cast<size_t>(max_jobs)) {
@@ -843,6 +809,8 @@ std::optional<Coordinator::PollAnswer> Coordinator::try_lease(const std::string&
   // retry backoff) rather than here.
   if (closing_) return PollAnswer(Status(Code::kUnavailable, "the coordinator is shutting down"));
   if (stopping_) return PollAnswer(std::optional<BandLease>());
+  // No space to store what it would bring: the poll waits.
+  if (!storage_trouble_.ok()) return std::nullopt;
   // Draining: no new leases; the poll waits out its time as on an idle farm
   // (the worker still counts as seen).
   PollAnswer r = std::optional<BandLease>();
@@ -1003,135 +971,6 @@ Result<std::shared_ptr<const v1::Scene>> Coordinator::get_scene(const std::strin
   auto it = scenes_.find(hash);
   if (it == scenes_.end()) return NotFound("scene " + hash + " is not held (its jobs are over)");
   return it->second;
-}
-
-void Coordinator::complete_band_async(BandOutput output, CompleteDone done) {
-  // Decoded for the checks (size, encoding) outside the lock; the store
-  // keeps the bytes as they came.
-  decode_pixels(output);
-  const std::string malformed = output.malformed;
-  if (!malformed.empty()) {
-    // The scheduler charges it (as pixels of the wrong size) if the lease
-    // stands; the worker hears what was wrong either way.
-    done = [done = std::move(done), malformed, lease = output.lease_id](Result<CompleteOutcome> r) {
-      if (r.ok() || r.status().code() == Code::kInvalidArgument) {
-        std::string m = "lease '";
-        m.append(lease).append("': malformed pixels: ").append(malformed);
-        r = InvalidArgument(m);
-      }
-      done(std::move(r));
-    };
-  }
-  std::unique_lock lk(mu_);
-  std::optional<BandTarget> target = scheduler_.result_target(output);
-  std::optional<BandLogScope> log_scope;
-  if (target) log_scope.emplace(target->job_id, target->frame, target->band);
-  std::string record;
-  if (target) {
-    // The record is made outside the lock (a copy and a checksum of the
-    // pixels); the lease may lapse meanwhile, or another copy win: then
-    // complete_band() below drops the result.
-    lk.unlock();
-    const BandPixels rows{target->width, target->y0, target->y1};
-    record = pack_band(rows, stored_band(output, rows));
-    lk.lock();
-    target = scheduler_.result_target(output);
-  }
-  auto r = scheduler_.complete_band(output);
-  changed_.notify_all();
-  if (!target || !r.ok() || !r->accepted) {
-    // Nothing to make durable: a refusal, a failure, a hand-back.
-    persist();
-    lk.unlock();
-    done(std::move(r));
-    return;
-  }
-  // Accepted: its record goes into the store with the band's "done" (the
-  // next persist()), and the worker hears "accepted" once that transaction
-  // is on disk with the rest of its batch (commit_loop()).
-  band_records_[{target->job_id, target->frame, target->band}] = std::move(record);
-  std::optional<FrameReady> frame = std::move(r->frame);
-  r->frame.reset();
-  commits_.push_back({std::move(done), std::move(*r), std::move(frame), SteadyClock::now()});
-  commit_ready_.notify_one();
-}
-
-Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {
-  return await_answer<Result<CompleteOutcome>>(
-      [&](CompleteDone done) { complete_band_async(std::move(output), std::move(done)); });
-}
-
-void Coordinator::commit_loop() {
-  // Group commit (docs/farm.md "Durability"): the bands accepted while the
-  // last batch was being synced, or within group_commit of the first of
-  // them, are made durable together: one transaction (persist()), one sync
-  // of the store's log, then every worker of the batch hears "accepted".
-  constexpr size_t kMaxBatch = 512;
-  std::unique_lock lk(mu_);
-  for (;;) {
-    commit_ready_.wait(lk, [&] { return stopping_ || !commits_.empty(); });
-    if (commits_.empty()) return;  // stopping, and nothing left
-    if (options_.fsync && !stopping_) {
-      const TimePoint until = commits_.front().queued + options_.group_commit;
-      commit_ready_.wait_until(lk, until,
-                               [&] { return stopping_ || commits_.size() >= kMaxBatch; });
-    }
-    Status s = persist();
-    std::deque<Commit> batch = std::move(commits_);
-    commits_.clear();
-    if (s.ok()) {
-      for (Commit& c : batch) {
-        if (c.frame) to_write_.push_back(std::move(*c.frame));
-      }
-      write_ready_.notify_all();
-    }
-    lk.unlock();
-    if (s.ok() && options_.fsync) s = sync_log();
-    for (Commit& c : batch) {
-      if (s.ok()) {
-        c.done(std::move(c.outcome));
-      } else {
-        c.done(Status(Code::kUnavailable, "the coordinator cannot store the band: " + s.message()));
-      }
-    }
-    lk.lock();
-  }
-}
-
-Status Coordinator::sync_log() {
-  // The WAL holds every transaction committed since the last checkpoint;
-  // fdatasync on it is the sync SQLite's synchronous=FULL does at each
-  // commit (store.cpp), done here once per batch and outside the lock.
-  if (log_fd_ < 0) {
-    const std::string wal = (fs::path(options_.data_dir) / "locus.db-wal").string();
-    log_fd_ = ::open(wal.c_str(), O_RDONLY | O_CLOEXEC);
-    if (log_fd_ < 0) return Internal(wal + ": cannot open to sync: " + std::strerror(errno));
-  }
-  if (::fdatasync(log_fd_) != 0) {
-    return Internal(options_.data_dir + "/locus.db-wal: fdatasync failed: " + std::strerror(errno));
-  }
-  log_syncs_.fetch_add(1, std::memory_order_relaxed);
-  return Status::Ok();
-}
-
-void Coordinator::close_store_files() {
-  {
-    std::lock_guard lk(reader_mu_);
-    reader_.reset();
-  }
-  if (log_fd_ >= 0) ::close(log_fd_);
-  log_fd_ = -1;
-  band_records_.clear();
-}
-
-Result<std::string> Coordinator::read_band_record(const std::string& job_id, int frame, int band) {
-  std::lock_guard lk(reader_mu_);
-  if (!reader_) {
-    auto r = JobStore::open_reader((fs::path(options_.data_dir) / "locus.db").string());
-    if (!r.ok()) return r.status();
-    reader_ = std::move(*r);
-  }
-  return reader_->band_record(job_id, frame, band);
 }
 
 Result<std::vector<std::string>> Coordinator::heartbeat(const std::string& worker_id,

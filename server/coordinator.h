@@ -67,6 +67,11 @@ struct CoordinatorOptions {
   // pixel: one thread writes fewer than 4 frames of 1080p a second);
   // 0: one per core, at most 8.
   int frame_writers = 0;
+  // A full disk (docs/farm.md "A full disk"): below this many free bytes
+  // in the data directory new jobs are refused, and a coordinator whose
+  // store or frames could not be written waits for at least this much
+  // before it carries on.
+  uint64_t min_free_bytes = 64ull << 20;
   // Cut frames into bands of equal predicted cost (common/farm/band_split.h)
   // rather than equal height; local method only.
   bool cost_bands = true;
@@ -297,7 +302,18 @@ class Coordinator {
   Status remove_job(const JobInfo& job, bool outputs);
   void apply_retention();  // mu_ held
   // Hands the Scheduler's events to the store in one transaction; mu_ held.
+  // When it fails they are kept (unstored_) for the next one, and the
+  // coordinator is in storage trouble.
   Status persist();
+  // ---- storage trouble (server/coordinator_commit.cpp); mu_ held
+  uint64_t free_bytes() const;  // in the data directory
+  // The error a client or worker gets while in trouble (Ok otherwise).
+  Status storage_refusal(const char* what) const;
+  void storage_failed(const Status& why);  // enters it, logs it once
+  // The ticker's: out of it once space is back and what was kept is stored.
+  void check_storage();
+  // A frame whose write failed for want of space waits (true), else false.
+  bool hold_frame(const FrameReady& f, const Status& written);
   // PERMISSION_DENIED when --private-jobs hides the job from the caller.
   Status may_read(const JobInfo& job, const Caller& caller) const;
   // An action on one job under mu_: the Scheduler's call, then the store.
@@ -317,8 +333,8 @@ class Coordinator {
   std::unique_ptr<CoordinatorMetrics> metrics_;
   std::condition_variable write_ready_;
   std::list<FrameReady> writing_;  // the frames the writer threads hold
-  bool draining_ = false;  // drain()
-  bool closing_ = false;   // stop_waiting()
+  bool draining_ = false;          // drain()
+  bool closing_ = false;           // stop_waiting()
   bool stopping_ = false;
   bool crashed_ = false;  // crash_for_test()
   bool started_ = false;
@@ -343,6 +359,15 @@ class Coordinator {
   };
   std::deque<Commit> commits_;
   std::condition_variable commit_ready_;
+  // Storage trouble: the store's last transaction failed, or a frame found
+  // no space (Ok: none). Meanwhile no job is accepted, no band leased and
+  // no result taken; the failed transaction's events wait in unstored_,
+  // the frames to write in held_frames_.
+  Status storage_trouble_;
+  TimePoint trouble_checked_{};
+  bool storage_retry_ = false;  // check_storage(): persist() may try the store
+  std::vector<Event> unstored_;
+  std::deque<FrameReady> held_frames_;
   // Records of accepted bands, until persist() puts them with their "done".
   std::map<std::tuple<std::string, int, int>, std::string> band_records_;
   int log_fd_ = -1;  // the WAL, for sync_log(); the commit thread's

@@ -48,6 +48,7 @@ struct Flags {
   double retention_days = 0;
   bool no_fsync = false;
   int group_commit_ms = 5;
+  int min_free_mb = 64;
   int frame_writers = 0;
   bool equal_bands = false;
   std::string health_address, metrics_address, http_address;
@@ -127,6 +128,10 @@ void add_farm_flags(CLI::App& app, Flags& f) {
                  "Longest an accepted band waits for others to share its sync to disk (group "
                  "commit; default 5)")
       ->check(CLI::Range(0, 1000));
+  app.add_option("--min-free-mb", f.min_free_mb,
+                 "Refuse new jobs while the data directory has less free space than this; after "
+                 "its disk filled up, carry on once this much is free again (default 64)")
+      ->check(CLI::Range(0, 1 << 20));
   app.add_flag("--equal-bands", f.equal_bands,
                "Cut frames into bands of equal height instead of equal predicted cost");
 }
@@ -227,6 +232,7 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
   options.fsync = !f.no_fsync;
   options.group_commit = farm::Millis(f.group_commit_ms);
   options.frame_writers = f.frame_writers;
+  options.min_free_bytes = static_cast<uint64_t>(f.min_free_mb) << 20;
   options.cost_bands = !f.equal_bands;
   return options;
 }

@@ -304,16 +304,29 @@ void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req, v1::Complet
   farm::BandOutput output = FromProto(req);
   output.error = output.error.substr(0, 4096);
   for (std::string& l : output.log_lines) l = printable(l, kMaxBandLogLineBytes);
-  c_.complete_band_async(std::move(output),
-                         [resp, done = std::move(done)](Result<farm::CompleteOutcome> r) {
-                           if (!r.ok()) {
-                             done(r.status());
-                             return;
-                           }
-                           resp->set_accepted(r->accepted);
-                           resp->set_reason(r->reason);
-                           done(Status::Ok());
-                         });
+  // A hand-back is the worker leaving: no next band for it.
+  const bool want_next = req.want_next() && !req.handed_back();
+  c_.complete_band_async(
+      std::move(output), [this, resp, want_next, worker_id = req.worker_id(),
+                          done = std::move(done)](Result<farm::CompleteOutcome> r) {
+        if (!r.ok()) {
+          done(r.status());
+          return;
+        }
+        resp->set_accepted(r->accepted);
+        resp->set_reason(r->reason);
+        if (want_next) {
+          // Leased only now that the result is durable (or refused), as the
+          // worker's next GetTask would be. A wait of 0 answers at once,
+          // here; a failure (a worker no longer known, a closing
+          // coordinator) leaves `next` out and the worker's GetTask hears it.
+          c_.poll_band(worker_id, farm::Millis(0), [&](farm::Coordinator::PollAnswer a) {
+            v1::GetTaskResponse next;
+            if (answer_poll(worker_id, std::move(a), &next).ok()) *resp->mutable_next() = next;
+          });
+        }
+        done(Status::Ok());
+      });
 }
 
 Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {

@@ -144,6 +144,10 @@ class WorkerClient::Impl {
   bool wedged_ = false;   // its render outlived abandon_grace: exiting
   bool sending_ = false;  // its result is on the way: a revocation now only echoes it
   grpc::ClientContext* poll_ctx_ = nullptr;
+  // The next band, leased with the last result's answer
+  // (CompleteBandRequest.want_next): run() takes it instead of a GetTask.
+  // The run thread's alone (send() runs on it).
+  std::optional<v1::GetTaskResponse> next_;
   bool outage_ = false;
   bool refused_ = false;
   bool ready_ = false;
@@ -191,9 +195,12 @@ int WorkerClient::Impl::run() {
     std::string id;
     {
       std::lock_guard lk(mu_);
-      if (stopping_) break;
+      // A band leased with the last answer is handed back below, not
+      // left to lapse.
+      if (stopping_ && !next_) break;
       id = worker_id_;
     }
+    if (id.empty()) next_.reset();  // leased to the registration that ended
     if (id.empty()) {
       if (!register_worker()) {
         pause(backoff);
@@ -203,23 +210,31 @@ int WorkerClient::Impl::run() {
       }
       continue;
     }
-    // GetTask (the wire's name): a long poll for the next band's lease.
-    v1::GetTaskRequest req;
-    req.set_worker_id(id);
-    req.set_wait_ms(static_cast<int32_t>(o_.poll.count()));
     v1::GetTaskResponse resp;
-    grpc::ClientContext ctx;
-    rpc::prepare(ctx, conn_, o_.poll + rpc::kPollSlack);
-    {
-      std::lock_guard lk(mu_);
-      if (stopping_) break;
-      poll_ctx_ = &ctx;
-    }
-    const grpc::Status gs = stub_->GetTask(&ctx, req, &resp);
-    metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
-    {
+    grpc::Status gs;
+    if (next_) {
+      // Leased with the last result's answer: no call.
+      resp = std::move(*next_);
+      next_.reset();
+    } else {
+      // GetTask (the wire's name): a long poll for the next band's lease.
+      v1::GetTaskRequest req;
+      req.set_worker_id(id);
+      req.set_wait_ms(static_cast<int32_t>(o_.poll.count()));
+      grpc::ClientContext ctx;
+      rpc::prepare(ctx, conn_, o_.poll + rpc::kPollSlack);
+      {
+        std::lock_guard lk(mu_);
+        if (stopping_) break;
+        poll_ctx_ = &ctx;
+      }
+      gs = stub_->GetTask(&ctx, req, &resp);
+      metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
       std::lock_guard lk(mu_);
       poll_ctx_ = nullptr;
+    }
+    {
+      std::lock_guard lk(mu_);
       if (gs.ok() && resp.drain()) drain_locked();
       if (stopping_ && !resp.has_task()) break;
     }
@@ -448,7 +463,12 @@ WorkerClient::Impl::BandEnd WorkerClient::Impl::send(BandOutput o) {
     o.lease_id = lease_;
   }
   const BandEnd sent = o.error.empty() ? BandEnd::kDone : BandEnd::kFailed;
-  const v1::CompleteBandRequest req = rpc::ToProto(std::move(o));
+  v1::CompleteBandRequest req = rpc::ToProto(std::move(o));
+  {
+    // The next band with the answer, unless this worker is stopping.
+    std::lock_guard lk(mu_);
+    req.set_want_next(!stopping_);
+  }
   // A brief outage should not cost the band: retry while the lease may
   // still stand.
   for (int attempt = 0; attempt < 3; ++attempt) {
@@ -458,6 +478,7 @@ WorkerClient::Impl::BandEnd WorkerClient::Impl::send(BandOutput o) {
     const Status s = rpc::FromGrpc(stub_->CompleteBand(&ctx, req, &resp), peer_);
     metrics_.add_bytes(resp.ByteSizeLong(), req.ByteSizeLong());
     if (s.ok()) {
+      if (resp.has_next()) next_ = std::move(*resp.mutable_next());
       if (!resp.accepted()) {
         spdlog::info("result for lease {} dropped: {}", req.lease_id(), resp.reason());
         return BandEnd::kDropped;

@@ -39,6 +39,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <queue>
 #include <random>
 #include <string>
@@ -192,6 +193,9 @@ struct Shared {
   Timers* timers = nullptr;
   double delay_ms = 0;
   double delay_sigma = 0;  // log-normal spread of the delay; 0: fixed
+  bool want_next = true;   // CompleteBandRequest.want_next (--no-next: GetTask for each band)
+  int revive_ms = 0;       // a dying worker comes back after this long (0: never)
+  bool outage_ok = false;  // the coordinator restarts during the run (a soak)
   std::atomic<bool> stopping{false};
 
   std::mutex mu;
@@ -200,6 +204,10 @@ struct Shared {
   std::map<std::pair<int, int>, std::shared_ptr<const std::string>> payloads;  // by rows
   int64_t accepted = 0, refused = 0, errors = 0, scene_fetches = 0, heartbeats = 0,
           registrations = 0;
+  int64_t get_tasks = 0;      // GetTask calls
+  int64_t outage_errors = 0;  // calls failed while the coordinator was away (--outage-ok)
+  int64_t revived = 0;        // dead workers come back (--revive-ms)
+  int64_t with_answer = 0;    // bands leased with a CompleteBand's answer
   Clock::time_point first_accept{}, last_accept{};
 
   // The CompleteBandRequest's pixels for rows [y0, y1), serialized once.
@@ -223,8 +231,12 @@ class SimWorker {
  public:
   SimWorker(Shared& shared, int index, Behaviour behaviour)
       : s_(shared), index_(index), behaviour_(behaviour), rng_(static_cast<unsigned>(index) + 1) {
+    connect();
+  }
+
+  // A connection of its own, as a worker on its own host has.
+  void connect() {
     grpc::ChannelArguments args;
-    // A connection of its own, as a worker on its own host has.
     args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
     args.SetMaxReceiveMessageSize(64 << 20);
     args.SetMaxSendMessageSize(64 << 20);
@@ -257,11 +269,15 @@ class SimWorker {
     call->req.set_worker_id(id_);
     call->req.set_wait_ms(10000);
     track(call->ctx.get());
+    {
+      std::lock_guard lk(s_.mu);
+      ++s_.get_tasks;
+    }
     const auto sent = Clock::now();
     stub_->async()->GetTask(call->ctx.get(), &call->req, &call->resp,
                             [this, call, sent](grpc::Status st) {
                               untrack(call->ctx.get());
-                              on_task(*call, st, sent);
+                              on_task(call->resp, st, sent);
                             });
   }
 
@@ -326,33 +342,57 @@ class SimWorker {
         std::lock_guard lk(s_.mu);
         ++s_.registrations;
       }
-      if (start()) poll();
+      if (start()) {
+        poll();
+      } else if (s_.outage_ok && !s_.stopping) {
+        register_again_later();  // the coordinator is away: again shortly
+      }
     });
   }
+  void register_again_later() {
+    s_.timers->at(Clock::now() + Ms(500), [this] { register_again(); });
+  }
 
-  void on_task(const Call<v1::GetTaskRequest, v1::GetTaskResponse>& call, const grpc::Status& st,
-               Clock::time_point sent) {
+  // A call that failed because the coordinator is away (restarting), in a
+  // run that expects it: counted apart, not as an error.
+  bool outage(const grpc::Status& st) {
+    if (!s_.outage_ok) return false;
+    const auto code = st.error_code();
+    if (code != grpc::StatusCode::UNAVAILABLE && code != grpc::StatusCode::DEADLINE_EXCEEDED &&
+        code != grpc::StatusCode::CANCELLED)
+      return false;
+    std::lock_guard lk(s_.mu);
+    ++s_.outage_errors;
+    return true;
+  }
+
+  // A GetTask's answer, or (no `sent`) the one that came with a
+  // CompleteBand's (CompleteBandResponse.next).
+  void on_task(const v1::GetTaskResponse& resp, const grpc::Status& st,
+               std::optional<Clock::time_point> sent) {
     if (s_.stopping) return;
     if (st.error_code() == grpc::StatusCode::NOT_FOUND) {
       register_again();
       return;
     }
     if (!st.ok()) {
-      std::lock_guard lk(s_.mu);
-      ++s_.errors;
-      if (s_.errors <= 5)
-        std::fprintf(stderr, "worker %d: GetTask: %s\n", index_, st.error_message().c_str());
+      if (!outage(st)) {
+        std::lock_guard lk(s_.mu);
+        ++s_.errors;
+        if (s_.errors <= 5)
+          std::fprintf(stderr, "worker %d: GetTask: %s\n", index_, st.error_message().c_str());
+      }
       s_.timers->at(Clock::now() + Ms(100), [this] { poll(); });
       return;
     }
-    if (!call.resp.has_task()) {
+    if (!resp.has_task()) {
       poll();
       return;
     }
-    const v1::BandTask& task = call.resp.task();
-    {
+    const v1::BandTask& task = resp.task();
+    if (sent) {
       std::lock_guard lk(s_.mu);
-      s_.dispatch_ms.push_back(seconds_since(sent) * 1000);
+      s_.dispatch_ms.push_back(seconds_since(*sent) * 1000);
     }
     {
       std::lock_guard lk(mu_);
@@ -362,6 +402,21 @@ class SimWorker {
       // A killed host: its connection goes, its band is never returned.
       dead_ = true;
       stop();
+      if (s_.revive_ms > 0) {
+        // ... and comes back (a restarted host): a new connection, a new
+        // registration; it dies again after its next lease.
+        s_.timers->at(Clock::now() + Ms(s_.revive_ms), [this] {
+          if (s_.stopping) return;
+          connect();
+          has_scene_ = false;
+          dead_ = false;
+          {
+            std::lock_guard lk(s_.mu);
+            ++s_.revived;
+          }
+          register_again();
+        });
+      }
       return;
     }
     if (behaviour_ == Behaviour::kStall) {
@@ -385,7 +440,7 @@ class SimWorker {
                              [this, call, task](grpc::Status st) {
                                untrack(call->ctx.get());
                                if (!st.ok()) {
-                                 {
+                                 if (!outage(st)) {
                                    std::lock_guard lk(s_.mu);
                                    ++s_.errors;
                                  }
@@ -424,6 +479,7 @@ class SimWorker {
     call->req.ParseFromString(*s_.payload(task.y0(), task.y1()));
     call->req.set_worker_id(id_);
     call->req.set_lease_id(task.lease_id());
+    call->req.set_want_next(s_.want_next);
     track(call->ctx.get());
     const auto sent = Clock::now();
     stub_->async()->CompleteBand(call->ctx.get(), &call->req, &call->resp,
@@ -449,9 +505,13 @@ class SimWorker {
       register_again();
       return;
     }
+    const bool away = !st.ok() && outage(st);
     {
       std::lock_guard lk(s_.mu);
-      if (!st.ok()) {
+      if (away) {
+        // The coordinator went away with the band: its lease is void, the
+        // band is rendered again.
+      } else if (!st.ok()) {
         ++s_.errors;
         if (s_.errors <= 5)
           std::fprintf(stderr, "worker %d: CompleteBand: %s\n", index_, st.error_message().c_str());
@@ -464,6 +524,14 @@ class SimWorker {
       } else {
         ++s_.refused;
       }
+    }
+    if (st.ok() && call.resp.has_next()) {
+      {
+        std::lock_guard lk(s_.mu);
+        ++s_.with_answer;
+      }
+      on_task(call.resp.next(), grpc::Status::OK, std::nullopt);
+      return;
     }
     poll();
   }
@@ -528,6 +596,18 @@ int main(int argc, char** argv) {
   app.add_option("--rows", rows, "Rows per band")->check(CLI::Range(1, 8192));
   app.add_option("--delay-ms", delay_ms, "Time a worker takes per band (median); 0: none");
   app.add_option("--delay-sigma", delay_sigma, "Log-normal spread of that time; 0: fixed");
+  bool no_next = false;
+  int revive_ms = 0;
+  bool outage_ok = false;
+  app.add_option("--revive-ms", revive_ms,
+                 "A --die worker reconnects as a new worker after this long, and dies again after "
+                 "its next lease (0: never)")
+      ->check(CLI::Range(0, 3600000) & !CLI::Range(1, 999));
+  app.add_flag("--outage-ok", outage_ok,
+               "The coordinator restarts during the run: calls failed meanwhile are counted as "
+               "outage_errors, not errors");
+  app.add_flag("--no-next", no_next,
+               "Lease each band with a GetTask (not with the last result's answer)");
   app.add_option("--die", die, "Workers that drop their connection after their first lease");
   app.add_option("--stall", stall, "Workers that go silent after their first lease");
   app.add_option("--late", late, "Workers that return each band after its lease lapsed");
@@ -550,6 +630,9 @@ int main(int argc, char** argv) {
   shared.width = width;
   shared.delay_ms = delay_ms;
   shared.delay_sigma = delay_sigma;
+  shared.want_next = !no_next;
+  shared.revive_ms = revive_ms;
+  shared.outage_ok = outage_ok;
   shared.scene = locus::scene_to_proto(*scene);
 
   // The reference: the frame through the worker's own renderer, once.
@@ -708,6 +791,7 @@ int main(int argc, char** argv) {
   const int64_t total_bands = static_cast<int64_t>(jobs) * frames * bands;
   double window = 0;
   int64_t accepted = 0, refused = 0, errors = 0, fetches = 0, heartbeats = 0, registrations = 0;
+  int64_t get_tasks = 0, with_answer = 0, outage_errors = 0, revived = 0;
   std::vector<double> dispatch, completion;
   {
     std::lock_guard lk(shared.mu);
@@ -718,6 +802,10 @@ int main(int argc, char** argv) {
     fetches = shared.scene_fetches;
     heartbeats = shared.heartbeats;
     registrations = shared.registrations;
+    get_tasks = shared.get_tasks;
+    outage_errors = shared.outage_errors;
+    revived = shared.revived;
+    with_answer = shared.with_answer;
     dispatch = shared.dispatch_ms;
     completion = shared.completion_ms;
   }
@@ -728,6 +816,11 @@ int main(int argc, char** argv) {
               static_cast<long long>(fetches));
   std::printf("heartbeats %lld\nregistered_again %lld\n", static_cast<long long>(heartbeats),
               static_cast<long long>(registrations));
+  // Calls per band: GetTask is saved for each band leased with an answer.
+  std::printf("get_tasks %lld\nbands_with_answer %lld\n", static_cast<long long>(get_tasks),
+              static_cast<long long>(with_answer));
+  std::printf("outage_errors %lld\nworkers_revived %lld\n", static_cast<long long>(outage_errors),
+              static_cast<long long>(revived));
   std::printf("seconds %.3f\nbands_per_second %.0f\n", window,
               window > 0 ? static_cast<double>(accepted) / window : 0.0);
   std::printf("dispatch_ms_p50 %.3f\ndispatch_ms_p99 %.3f\ndispatch_ms_max %.3f\n",

@@ -7,6 +7,10 @@
 #   DELAY_MS (0) DELAY_SIGMA (0) DIE STALL LATE (0) TIMEOUT (600)
 #   KEEP=1 keeps the data directory (its path is printed).
 #   SCALE_FLAGS: more flags for locus-farm-scale (bench/farm/big_jobs.sh).
+#   RESTART_AFTER=S: kill -9 the coordinator S seconds into the run and
+#   start it again on the same port and data (a soak; the harness counts
+#   calls failed meanwhile apart, --outage-ok; no CPU or sync figures).
+#   REVIVE_MS: DIE workers come back after this long, and die again.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build}
@@ -15,6 +19,7 @@ tmp=$(mktemp -d)
 coord=
 cleanup() {
   [ -n "$coord" ] && kill -9 "$coord" 2>/dev/null || true
+  [ -f "$tmp/coord2.pid" ] && kill -9 "$(cat "$tmp/coord2.pid")" 2>/dev/null || true
   wait 2>/dev/null || true
   if [ "${KEEP:-0}" = 1 ]; then echo "data_dir $tmp"; else rm -rf "$tmp"; fi
 }
@@ -24,6 +29,7 @@ trap cleanup EXIT
 # checkpoints, the frames'), with strace filtering in the kernel (seccomp):
 # the truth for "syncs per band", at a small cost.
 syncs=${SYNCS:-$(command -v strace >/dev/null && echo 1 || echo 0)}
+[ -n "${RESTART_AFTER:-}" ] && syncs=0
 if [ "$syncs" = 1 ]; then
   strace -f --seccomp-bpf -c -e trace=fsync,fdatasync -o "$tmp/syncs.txt" \
     "$bin/locus-coordinator" --insecure --listen 127.0.0.1:0 --data "$tmp/data" \
@@ -46,8 +52,27 @@ for _ in $(seq 200); do
   sleep 0.05
 done
 [ -n "$port" ] || { echo "the coordinator did not start"; cat "$tmp/coord.log"; exit 1; }
+pid_flag=(--coordinator-pid "$coord")
+restarter=
+if [ -n "${RESTART_AFTER:-}" ]; then
+  pid_flag=(--outage-ok)
+  (
+    sleep "$RESTART_AFTER"
+    kill -9 "$coord"
+    echo "restart: coordinator $coord killed at $(date +%T)" >&2
+    sleep 1
+    "$bin/locus-coordinator" --insecure --listen "127.0.0.1:$port" --data "$tmp/data" \
+      ${COORDINATOR_FLAGS:-} >>"$tmp/coord2.out" 2>>"$tmp/coord2.log" &
+    echo $! >"$tmp/coord2.pid"
+    echo "restart: coordinator $! started at $(date +%T)" >&2
+    wait
+  ) &
+  restarter=$!
+fi
+revive=()
+[ -n "${REVIVE_MS:-}" ] && revive=(--revive-ms "$REVIVE_MS")
 status=0
-"$bin/locus-farm-scale" --farm "127.0.0.1:$port" --data "$tmp/data" --coordinator-pid "$coord" \
+"$bin/locus-farm-scale" --farm "127.0.0.1:$port" --data "$tmp/data" "${pid_flag[@]}" "${revive[@]}" \
   --scene "$root/scenes/simple/spheres.json" --workers "${WORKERS:-1000}" --jobs "${JOBS:-20}" \
   --frames "${FRAMES:-50}" --bands "${BANDS:-64}" --rows "${ROWS:-4}" --width "${WIDTH:-256}" \
   --delay-ms "${DELAY_MS:-0}" --delay-sigma "${DELAY_SIGMA:-0}" --die "${DIE:-0}" \
@@ -64,6 +89,11 @@ fi
 # worker, to its lease), logged when it stops; the workers' figures above
 # include waiting for a band, which is most of a saturated farm's time.
 if [ -n "$coord" ]; then kill -TERM "$coord" 2>/dev/null || true; wait "$coord" 2>/dev/null || true; coord=; fi
+if [ -f "$tmp/coord2.pid" ]; then
+  kill -TERM "$(cat "$tmp/coord2.pid")" 2>/dev/null || true
+  wait "$restarter" 2>/dev/null || true
+  cat "$tmp/coord2.log" >>"$tmp/coord.log"
+fi
 sed -n 's/.*dispatch latency: \([0-9]*\) bands, p50 \([0-9]*\) us, p99 \([0-9]*\) us, max \([0-9]*\) us.*/coordinator_dispatch_us_p50 \2\ncoordinator_dispatch_us_p99 \3\ncoordinator_dispatch_us_max \4/p' "$tmp/coord.log"
 if [ "$status" != 0 ]; then
   echo "--- coordinator log (last 40 lines)"

@@ -1,0 +1,73 @@
+// A worker driven by hand through the raw WorkerService (tests/wire/), for
+// tests that shape its calls themselves.
+#pragma once
+
+#include "tests/farm_fixture.h"
+
+namespace locus::farm::testing_farm {
+
+// A worker driven by hand through the raw WorkerService: it leases, fetches
+// the scene and renders with the worker's own BandRenderer, and sends what
+// the test makes of the result.
+class HandWorker {
+ public:
+  HandWorker(std::unique_ptr<v1::WorkerService::Stub> stub,
+             std::function<void(grpc::ClientContext&)> prepare)
+      : stub_(std::move(stub)), prepare_(std::move(prepare)), renderer_(1) {
+    grpc::ClientContext ctx;
+    prepare_(ctx);
+    v1::RegisterResponse who;
+    EXPECT_TRUE(stub_->Register(&ctx, v1::RegisterRequest(), &who).ok());
+    id_ = who.worker_id();
+  }
+
+  std::optional<v1::BandTask> lease() {
+    grpc::ClientContext ctx;
+    prepare_(ctx);
+    v1::GetTaskRequest get;
+    get.set_worker_id(id_);
+    get.set_wait_ms(2000);
+    v1::GetTaskResponse leased;
+    EXPECT_TRUE(stub_->GetTask(&ctx, get, &leased).ok());
+    if (!leased.has_task()) return std::nullopt;
+    return leased.task();
+  }
+
+  // The band rendered as a worker of this release would, or of an older one
+  // (which knows no encodings and sends floats) when `as_older`.
+  v1::CompleteBandRequest render(const v1::BandTask& task, bool as_older) {
+    BandLease lease = rpc::FromProto(task);
+    if (!renderer_.has_scene(lease.scene_hash)) {
+      grpc::ClientContext ctx;
+      prepare_(ctx);
+      v1::GetSceneRequest req;
+      req.set_worker_id(id_);
+      req.set_scene_hash(lease.scene_hash);
+      v1::GetSceneResponse resp;
+      EXPECT_TRUE(stub_->GetScene(&ctx, req, &resp).ok());
+      EXPECT_TRUE(renderer_.add_scene(lease.scene_hash, resp.scene(), "scene").ok());
+    }
+    if (as_older) lease.encoding = BandEncoding::kFloat32;
+    auto out = renderer_.render(lease);
+    EXPECT_TRUE(out.ok()) << out.status().message();
+    out->worker_id = id_;
+    out->lease_id = lease.lease_id;
+    return rpc::ToProto(std::move(*out));
+  }
+
+  grpc::Status send(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {
+    grpc::ClientContext ctx;
+    prepare_(ctx);
+    return stub_->CompleteBand(&ctx, req, resp);
+  }
+
+  const std::string& id() const { return id_; }
+
+ private:
+  std::unique_ptr<v1::WorkerService::Stub> stub_;
+  std::function<void(grpc::ClientContext&)> prepare_;
+  BandRenderer renderer_;
+  std::string id_;
+};
+
+}  // namespace locus::farm::testing_farm
