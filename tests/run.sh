@@ -39,8 +39,16 @@ bash deploy/local/build.sh
 # Loader tests, the farm's scheduling, store, restart, drain and metrics logic,
 # the log formatter, and the tessellation of Bezier surfaces (without
 # rendering), again under AddressSanitizer and UndefinedBehaviorSanitizer.
+# Only the files that hold those suites are compiled (LOCUS_TEST_FILES).
 phase asan-build
-cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON >/dev/null
+asan_files="scene/nff_test.cpp;scene/scene_json_test.cpp;scene/polyhedron_test.cpp;scene/loader_fuzz_test.cpp"
+asan_files+=";scene/animation_test.cpp;geometry/geometry_test.cpp;geometry/optics_test.cpp"
+asan_files+=";wire/farm_security_test.cpp;wire/health_test.cpp;fuzz_corpus_test.cpp;base/log_test.cpp"
+asan_files+=";server/scheduler_test.cpp;server/store_test.cpp;server/metrics_test.cpp;server/operations_test.cpp"
+asan_files+=";server/movie_test.cpp;server/bad_results_test.cpp;server/upgrade_test.cpp"
+asan_files+=";prepare/tessellate_test.cpp;render_test.cpp;client/http_api_test.cpp;farm/band_codec_test.cpp"
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON \
+  "-DLOCUS_TEST_FILES=$asan_files" >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
 phase asan-tests
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
@@ -50,7 +58,8 @@ ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and
 # leaves the input as build-fuzz/<target>-crash-* (docs/farm.md "Fuzzing").
 phase fuzz-build
-CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLOCUS_FUZZ=ON >/dev/null
+CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLOCUS_FUZZ=ON \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -DNDEBUG" >/dev/null
 cmake --build build-fuzz -j "$(nproc)" --target fuzz_nff fuzz_scene_json fuzz_coordinator fuzz_http
 phase fuzz
 for pair in nff:nff scene_json:json coordinator:coordinator http:http; do
