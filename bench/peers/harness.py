@@ -265,6 +265,9 @@ def git_head():
 
 
 def save_raw(path, obj):
+    # The cache directory may not exist yet on a fresh machine: a run's
+    # measurements must not be lost for want of it.
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w") as f:
         json.dump(obj, f, indent=1, default=str)
 

@@ -26,7 +26,7 @@ import harness as H  # noqa: E402
 import spdgen  # noqa: E402
 
 SHARED_LEVELS = {"balls": {1: "s1", 2: "s2", 4: "def"}, "tetra": {1: "s1", 2: "s2", 6: "def"}}
-# balls level 6 (597,871 spheres) needs ~10 GB in Locus's prepare (level 5: 1.2 GB).
+# balls level 6 (597,871 spheres) would need ~9 GB in Locus (level 5: 1.0 GB).
 FULL = {"size": 512, "levels": {"balls": [1, 2, 3, 4, 5], "tetra": [1, 2, 3, 4, 5, 6, 7, 8, 9]}}
 QUICK = {"size": 128, "levels": {"balls": [1, 2, 3], "tetra": [1, 2, 3, 4]}}
 IV = ["--method", "local", "--boxes", "eye+shadow"]
