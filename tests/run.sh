@@ -4,11 +4,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # The container test (tests/container/run.sh, CTest container_farm: builds
-# both images from the sources, runs a farm in containers) runs every time.
-# Its images build in the background from the start (install-deps.sh brings
-# the engine and debootstrap), so that debootstrap and apt, which mostly wait
-# on the network and dpkg, and its compile overlap the builds below; its
-# CTest test then finds every layer cached (docs/deploy.md "Tests"). A
+# both images, runs a farm in containers) runs every time.
+# Its images are made in the background once the Release build is done,
+# from its binaries (no second compile), so that debootstrap and apt, which
+# mostly wait on the network and dpkg, overlap the builds below; its CTest
+# test then finds every layer cached (docs/deploy.md "Tests"). A
 # developer may leave it out with LOCUS_CONTAINER_TEST=0 (CI does not set it).
 # Each phase's wall time, printed last (also when a phase fails), so that
 # the tail of a CI log says where the time went.
@@ -23,15 +23,13 @@ report_phases() {
   echo "tests/run.sh phases (wall): $(paste -sd, "$phase_log" | sed 's/,/, /g'); total $SECONDS s"
 }
 container_prepare=
-if [ "${LOCUS_CONTAINER_TEST:-1}" != 0 ]; then
-  bash deploy/local/install-deps.sh
-  mkdir -p build
-  bash tests/container/run.sh --prepare build/bin . >build/container-prepare.log 2>&1 &
-  container_prepare=$!
-fi
 trap 'kill "$container_prepare" 2>/dev/null || true; report_phases' EXIT
 phase build
 bash deploy/local/build.sh
+if [ "${LOCUS_CONTAINER_TEST:-1}" != 0 ]; then
+  bash tests/container/run.sh --prepare build/bin . >build/container-prepare.log 2>&1 &
+  container_prepare=$!
+fi
 # The dependency direction (docs/architecture.md "Rules") before the long
 # builds: a second to fail; CTest runs it again with the worker's link line.
 /usr/bin/python3 tests/layout/check_layout.py .

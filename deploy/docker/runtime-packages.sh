@@ -2,7 +2,8 @@
 # runtime-packages.sh BINARY...: the Debian packages that own the shared
 # libraries the binaries load (ldd), one a line, sorted. The image's build
 # stage (deploy/docker/Dockerfile) runs it for each runtime stage, which
-# then installs exactly those packages: no list to keep in step by hand.
+# then installs exactly those packages: no list to keep in step by hand
+# (tests/container/run.sh runs it on the host for the `prebuilt` stage).
 # Fails when a library is not found or belongs to no package.
 set -eu
 out=$(ldd "$@")
@@ -11,15 +12,19 @@ if printf '%s\n' "$out" | grep -F 'not found'; then
   exit 1
 fi
 libs=$(printf '%s\n' "$out" | awk '$2 == "=>" && $3 ~ /^\// {print $3}' | sort -u)
-names=
+# dpkg knows a file by the path its package ships, /lib or /usr/lib
+# (merged /usr): both forms are looked up, in one pass over dpkg's file
+# lists (dpkg -S per library reads its whole database each time: minutes
+# on a host with many packages).
+paths=$(for lib in $libs; do
+  real=$(readlink -f "$lib")
+  printf '%s\n%s\n' "/usr${real#/usr}" "${real#/usr}"
+done)
+owners=$(printf '%s\n' "$paths" | grep -H -F -x -f - /var/lib/dpkg/info/*.list || true)
 for lib in $libs; do
   real=$(readlink -f "$lib")
-  # dpkg knows a file by the path its package ships, /lib or /usr/lib
-  # (merged /usr), so the pattern leaves the /usr prefix open.
-  owners=$(dpkg -S "*${real#/usr}" 2>/dev/null | grep -v '^diversion ') ||
+  printf '%s\n' "$owners" | grep -q -F -e ":${real#/usr}" -e ":/usr${real#/usr}" ||
     { echo "runtime-packages: no package owns $real" >&2; exit 1; }
-  # "pkg-a:amd64, pkg-b: /path": the names before the path
-  names="$names
-$(printf '%s\n' "$owners" | sed 's/: \/.*//' | tr ',' '\n' | sed 's/^ *//; s/:.*//')"
 done
-printf '%s\n' "$names" | sed '/^$/d' | sort -u
+# "/var/lib/dpkg/info/libfoo1:amd64.list:/path": the package's name
+printf '%s\n' "$owners" | sed 's|^/var/lib/dpkg/info/||; s|\.list:.*||; s|:.*||' | sort -u

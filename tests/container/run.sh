@@ -25,10 +25,17 @@
 # Debian's mirror. Prints each phase's time and "N passed, M failed".
 #
 # tests/container/run.sh --prepare BINDIR SOURCE: the engine and the images
-# only (tests/run.sh starts it in the background before its builds, so that
-# debootstrap and apt, which mostly wait on the network and dpkg, overlap
-# them; the test itself then finds every layer cached). BINDIR need not
-# exist yet.
+# only (tests/run.sh starts it in the background after its Release build,
+# so that debootstrap and apt, which mostly wait on the network and dpkg,
+# overlap the sanitizer and fuzz builds; the test itself then finds every
+# layer cached).
+#
+# The images hold BINDIR's binaries (the Dockerfile's `prebuilt` stage: the
+# same sources built on this Debian 12 host; the runtime packages found
+# here by deploy/docker/runtime-packages.sh), so that CI compiles the
+# sources once, not again inside the image build. LOCUS_CONTAINER_FROM_SOURCE=1
+# builds them from the sources as a user does (the Dockerfile's build
+# stages; about 20 more minutes of compile on 2 cores).
 set -uo pipefail
 prepare=
 if [ "${1:-}" = --prepare ]; then
@@ -111,10 +118,29 @@ fi
 # it runs independent stages at once and shares the steps both builds have
 # in common, so the worker's image (its compile a part of the
 # coordinator's) is done while the coordinator's compile goes on.
+binaries=()
+if [ "${LOCUS_CONTAINER_FROM_SOURCE:-0}" = 1 ]; then
+  phase "images from the sources (LOCUS_CONTAINER_FROM_SOURCE=1)"
+else
+  # build/docker-bin/: the binaries and the packages that own the
+  # libraries they load, as the build stages would make them.
+  stage=$src/build/docker-bin
+  rm -rf "$stage"
+  mkdir -p "$stage/worker" "$stage/coordinator"
+  bin_dir=$(cd "$1" && pwd) || { bad "no binaries in $1"; exit 1; }
+  cp "$bin_dir/locus-worker" "$stage/worker/" &&
+    cp "$bin_dir/locus" "$bin_dir/locus-coordinator" "$bin_dir/locus-worker" "$stage/coordinator/" &&
+    bash "$src/deploy/docker/runtime-packages.sh" "$stage/worker/locus-worker" >"$stage/worker/packages" &&
+    bash "$src/deploy/docker/runtime-packages.sh" "$stage/coordinator/locus" \
+      "$stage/coordinator/locus-coordinator" "$stage/coordinator/locus-worker" >"$stage/coordinator/packages" ||
+    { bad "staging the binaries of $1 for the images"; exit 1; }
+  binaries=(--build-arg WORKER_BINARIES=prebuilt --build-arg COORDINATOR_BINARIES=prebuilt)
+  phase "binaries of $bin_dir staged"
+fi
 build_pids=()
 for target in worker coordinator; do
   DOCKER_BUILDKIT=1 "$docker" build --progress plain --network host -f "$src/deploy/docker/Dockerfile" \
-    --build-arg "BASE=$base" --target "$target" -t "locus-$target:$tag" "$src" \
+    --build-arg "BASE=$base" "${binaries[@]}" --target "$target" -t "locus-$target:$tag" "$src" \
     >"$tmp/build-$target.log" 2>&1 &
   build_pids+=($!)
 done
