@@ -23,12 +23,8 @@ std::string file_bytes(const fs::path& path) {
   return s.str();
 }
 
-class BandEncodingTest : public FarmTest {
+class BandEncodingTest : public HandWorkerTest {
  protected:
-  HandWorker hand_worker() {
-    return HandWorker(worker_stub(worker_creds_),
-                      [this](grpc::ClientContext& ctx) { prepare(ctx); });
-  }
   // The fetched frame file, byte for byte the single-process render's as
   // written by the same writer (expect_identical compares the pixels). Only
   // for PNG: TIFF and EXR files also carry the second they were written.
@@ -66,11 +62,10 @@ TEST_F(BandEncodingTest, EachOutputsBandsTravelInItsEncodingAndFramesAreBitIdent
 }
 
 TEST_F(BandEncodingTest, TheLeaseNamesTheEncodingAndAnOlderWorkersFloatsAreAccepted) {
-  start();
-  HandWorker w = hand_worker();
   const SubmitRequest r = request(kSpheres, 32, 16, 1, 1, 2, "o.png");
-  auto job = client_->submit(r);
-  ASSERT_TRUE(job.ok()) << job.status().message();
+  const std::string job = start_with_job(r);
+  ASSERT_FALSE(job.empty());
+  HandWorker w = hand_worker();
   // Band 0 from a worker of this release, band 1 from an older one.
   for (bool older : {false, true}) {
     const auto task = w.lease();
@@ -94,9 +89,8 @@ TEST_F(BandEncodingTest, TheLeaseNamesTheEncodingAndAnOlderWorkersFloatsAreAccep
     ASSERT_TRUE(st.ok()) << st.error_message();
     EXPECT_TRUE(resp.accepted()) << resp.reason();
   }
-  auto done = client_->watch(job->job_id, [](const JobInfo&) {});
-  ASSERT_TRUE(done.ok());
-  expect_identical(*done, r);
+  const std::optional<JobInfo> done = succeeded(job, r);
+  ASSERT_TRUE(done);
   expect_same_file(*done, r, 1);
 }
 

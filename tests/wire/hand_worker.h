@@ -70,4 +70,31 @@ class HandWorker {
   std::string id_;
 };
 
+// A farm whose bands the test leases and returns itself.
+class HandWorkerTest : public FarmTest {
+ protected:
+  HandWorker hand_worker() {
+    return HandWorker(worker_stub(worker_creds_),
+                      [this](grpc::ClientContext& ctx) { prepare(ctx); });
+  }
+  // The farm started, a hand worker registered, the job submitted; its id
+  // ("" with a test failure if it was refused).
+  std::string start_with_job(const SubmitRequest& r) {
+    start();
+    auto job = client_->submit(r);
+    EXPECT_TRUE(job.ok()) << job.status().message();
+    return job.ok() ? job->job_id : "";
+  }
+  // The job once it ended, which must be a success whose frames are a
+  // single-process render's (nullopt with a test failure otherwise).
+  std::optional<JobInfo> succeeded(const std::string& job_id, const SubmitRequest& r) {
+    auto done = client_->watch(job_id, [](const JobInfo&) {});
+    EXPECT_TRUE(done.ok()) << done.status().message();
+    if (!done.ok()) return std::nullopt;
+    EXPECT_EQ(done->state, JobState::kSucceeded) << done->error;
+    expect_identical(*done, r);
+    return *done;
+  }
+};
+
 }  // namespace locus::farm::testing_farm

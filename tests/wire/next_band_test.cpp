@@ -11,20 +11,13 @@ namespace locus::farm {
 namespace {
 using namespace testing_farm;
 
-class NextBandTest : public FarmTest {
- protected:
-  HandWorker hand_worker() {
-    return HandWorker(worker_stub(worker_creds_),
-                      [this](grpc::ClientContext& ctx) { prepare(ctx); });
-  }
-};
+using NextBandTest = HandWorkerTest;
 
 TEST_F(NextBandTest, EachAnswerCarriesTheNextBandUntilNoneIsLeft) {
-  start();
-  HandWorker w = hand_worker();
   const SubmitRequest r = request(kSpheres, 32, 24, 1, 1, 3, "n.png");
-  auto job = client_->submit(r);
-  ASSERT_TRUE(job.ok()) << job.status().message();
+  const std::string job = start_with_job(r);
+  ASSERT_FALSE(job.empty());
+  HandWorker w = hand_worker();
   std::optional<v1::BandTask> task = w.lease();  // the first by GetTask
   ASSERT_TRUE(task);
   std::set<int> bands;
@@ -45,18 +38,14 @@ TEST_F(NextBandTest, EachAnswerCarriesTheNextBandUntilNoneIsLeft) {
     EXPECT_EQ(resp.next().has_task(), i < 2) << "answer " << i;
   }
   EXPECT_EQ(bands, (std::set<int>{0, 1, 2}));
-  auto done = client_->watch(job->job_id, [](const JobInfo&) {});
-  ASSERT_TRUE(done.ok()) << done.status().message();
-  EXPECT_EQ(done->state, JobState::kSucceeded);
-  expect_identical(*done, r);
+  EXPECT_TRUE(succeeded(job, r));
 }
 
 TEST_F(NextBandTest, AHandBackOrAWorkerThatDoesNotAskGetsNone) {
-  start();
-  HandWorker w = hand_worker();
   const SubmitRequest r = request(kSpheres, 32, 24, 1, 1, 3, "h.png");
-  auto job = client_->submit(r);
-  ASSERT_TRUE(job.ok()) << job.status().message();
+  const std::string job = start_with_job(r);
+  ASSERT_FALSE(job.empty());
+  HandWorker w = hand_worker();
 
   // A hand-back is the worker leaving: no next band, whatever it asks.
   std::optional<v1::BandTask> task = w.lease();
@@ -82,19 +71,15 @@ TEST_F(NextBandTest, AHandBackOrAWorkerThatDoesNotAskGetsNone) {
     if (bands.size() == 3) break;
   }
   EXPECT_EQ(bands, (std::set<int>{0, 1, 2}));
-  auto done = client_->watch(job->job_id, [](const JobInfo&) {});
-  ASSERT_TRUE(done.ok()) << done.status().message();
-  expect_identical(*done, r);
+  EXPECT_TRUE(succeeded(job, r));
 }
 
 TEST_F(NextBandTest, AStaleResultIsRefusedAndStillAnsweredWithABand) {
   // A result for a lease the coordinator no longer knows is dropped, and
   // the worker asking is free for work all the same.
-  start();
-  HandWorker w = hand_worker();
   const SubmitRequest r = request(kSpheres, 32, 24, 1, 1, 2, "s.png");
-  auto job = client_->submit(r);
-  ASSERT_TRUE(job.ok()) << job.status().message();
+  ASSERT_FALSE(start_with_job(r).empty());
+  HandWorker w = hand_worker();
   std::optional<v1::BandTask> task = w.lease();
   ASSERT_TRUE(task);
   v1::CompleteBandRequest req = w.render(*task, false);
