@@ -322,7 +322,8 @@ void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req, v1::Complet
           // coordinator) leaves `next` out and the worker's GetTask hears it.
           c_.poll_band(worker_id, farm::Millis(0), [&](farm::Coordinator::PollAnswer a) {
             v1::GetTaskResponse next;
-            if (answer_poll(worker_id, std::move(a), &next).ok()) *resp->mutable_next() = next;
+            if (answer_poll(worker_id, std::move(a), &next).ok())
+              *resp->mutable_next() = std::move(next);
           });
         }
         done(Status::Ok());
