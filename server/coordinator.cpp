@@ -852,6 +852,19 @@ uint64_t Coordinator::poll_band(const std::string& worker_id, Millis wait, PollD
   return ticket;
 }
 
+std::vector<BandLease> Coordinator::lease_more(const std::string& worker_id, int n) {
+  std::vector<BandLease> out;
+  if (n <= 0) return out;
+  std::unique_lock lk(mu_);
+  while (static_cast<int>(out.size()) < n) {
+    std::optional<PollAnswer> a = try_lease(worker_id);
+    if (!a || !a->ok() || !a->value().has_value()) break;
+    out.push_back(std::move(*a->value()));
+  }
+  if (!out.empty()) changed_.notify_all();
+  return out;
+}
+
 void Coordinator::cancel_poll(uint64_t ticket) {
   std::unique_lock lk(mu_);
   auto it = polls_.find(ticket);

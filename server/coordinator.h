@@ -219,6 +219,11 @@ class Coordinator {
   using PollAnswer = Result<std::optional<BandLease>>;
   using PollDone = std::function<void(PollAnswer)>;
   uint64_t poll_band(const std::string& worker_id, Millis wait, PollDone done);
+  // Up to `n` further bands for a worker that has just been given one
+  // (GetTaskRequest.max_bands), leased at once as poll_band's first try
+  // would, each under its own lease; fewer (or none) when the queue holds
+  // no more for it.
+  std::vector<BandLease> lease_more(const std::string& worker_id, int n);
   // The caller went away: its poll ends now with nothing (a no-op once
   // it was answered).
   void cancel_poll(uint64_t ticket);

@@ -1,6 +1,8 @@
 #include "server/handlers.h"
 
 #include <algorithm>
+#include <memory>
+#include <mutex>
 
 #include "common/base/log.h"
 #include "proto/wire/rpc.h"
@@ -15,6 +17,10 @@ constexpr size_t kMaxNameBytes = 200;
 constexpr size_t kMaxOutputBytes = 1024;
 constexpr int kMaxLeasesPerHeartbeat = 1024;
 constexpr int kMaxFetchFrames = farm::kMaxFramesPerJob;
+// Bands in one GetTask answer or one CompleteBand call (max_bands, more).
+constexpr int kMaxBandsPerCall = 64;
+
+int bands_per_call(int asked) { return std::clamp(asked, 1, kMaxBandsPerCall); }
 
 Status check_id(const std::string& id, const char* what) {
   if (id.empty()) return InvalidArgument(std::string(what) + " is required");
@@ -254,9 +260,13 @@ Status Handlers::Register(const v1::RegisterRequest& req, const std::string& pee
 }
 
 Status Handlers::answer_poll(const std::string& worker_id, farm::Coordinator::PollAnswer answer,
-                             v1::GetTaskResponse* resp) {
+                             int max_bands, v1::GetTaskResponse* resp) {
   if (!answer.ok()) return answer.status();
-  if (answer->has_value()) *resp->mutable_task() = ToProto(**answer);
+  if (answer->has_value()) {
+    *resp->mutable_task() = ToProto(**answer);
+    for (const farm::BandLease& l : c_.lease_more(worker_id, bands_per_call(max_bands) - 1))
+      *resp->add_more() = ToProto(l);
+  }
   resp->set_drain(c_.worker_draining(worker_id));
   return Status::Ok();
 }
@@ -268,9 +278,9 @@ uint64_t Handlers::StartGetTask(const v1::GetTaskRequest& req, v1::GetTaskRespon
     return 0;
   }
   return c_.poll_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())),
-                      [this, worker_id = req.worker_id(), resp,
+                      [this, worker_id = req.worker_id(), max_bands = req.max_bands(), resp,
                        done = std::move(done)](farm::Coordinator::PollAnswer answer) {
-                        done(answer_poll(worker_id, std::move(answer), resp));
+                        done(answer_poll(worker_id, std::move(answer), max_bands, resp));
                       });
 }
 
@@ -279,7 +289,8 @@ Status Handlers::GetTask(const v1::GetTaskRequest& req, const farm::CancelledFn&
   if (Status s = check_id(req.worker_id(), "worker_id"); !s.ok()) return s;
   return answer_poll(
       req.worker_id(),
-      c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled), resp);
+      c_.lease_band(req.worker_id(), farm::Millis(std::max(0, req.wait_ms())), cancelled),
+      req.max_bands(), resp);
 }
 
 Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* resp) {
@@ -291,43 +302,106 @@ Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* 
   return Status::Ok();
 }
 
-void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp,
-                                 std::function<void(Status)> done) {
-  Status checked = check_id(req.worker_id(), "worker_id");
+namespace {
+
+// One result of a CompleteBand call (the request itself or one of its
+// `more`), checked and bounded before it reaches the coordinator.
+// `worker_id`: the call's (a further result's own may be left empty).
+Result<farm::BandOutput> band_output(const v1::CompleteBandRequest& req,
+                                     const std::string& worker_id) {
+  Status checked = check_id(worker_id, "worker_id");
   if (checked.ok()) checked = check_id(req.lease_id(), "lease_id");
   if (checked.ok() && req.log_lines_size() > static_cast<int>(kMaxBandLogLines) + 1)
     checked = InvalidArgument("log_lines: at most " + std::to_string(kMaxBandLogLines));
+  if (!checked.ok()) return checked;
+  farm::BandOutput output = FromProto(req);
+  output.worker_id = worker_id;
+  output.error = output.error.substr(0, 4096);
+  for (std::string& l : output.log_lines) l = printable(l, kMaxBandLogLineBytes);
+  return output;
+}
+
+}  // namespace
+
+void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp,
+                                 std::function<void(Status)> done) {
+  // Every result is checked before any is stored: a bad one refuses the
+  // call and stores none of them.
+  std::vector<farm::BandOutput> outputs;
+  Status checked = req.more_size() < kMaxBandsPerCall
+                       ? Status::Ok()
+                       : InvalidArgument("more: at most " + std::to_string(kMaxBandsPerCall - 1) +
+                                         " further results in one call");
+  auto one = [&req](int i) -> Result<farm::BandOutput> {
+    if (i < 0) return band_output(req, req.worker_id());
+    const v1::CompleteBandRequest& m = req.more(i);
+    const std::string where = "more[" + std::to_string(i) + "]: ";
+    if (m.more_size() > 0 || m.want_next() || m.max_next() > 0)
+      return InvalidArgument(where + "a further result carries no more, want_next or max_next");
+    if (!m.worker_id().empty() && m.worker_id() != req.worker_id())
+      return InvalidArgument(where + "worker_id differs from the call's");
+    Result<farm::BandOutput> r = band_output(m, req.worker_id());
+    if (!r.ok()) return InvalidArgument(where + r.status().message());
+    return r;
+  };
+  for (int i = -1; checked.ok() && i < req.more_size(); ++i) {
+    Result<farm::BandOutput> r = one(i);
+    if (r.ok()) {
+      outputs.push_back(std::move(*r));
+    } else {
+      checked = r.status();
+    }
+  }
   if (!checked.ok()) {
     done(checked);
     return;
   }
-  farm::BandOutput output = FromProto(req);
-  output.error = output.error.substr(0, 4096);
-  for (std::string& l : output.log_lines) l = printable(l, kMaxBandLogLineBytes);
+  for (int i = 0; i < req.more_size(); ++i) resp->add_more();
   // A hand-back is the worker leaving: no next band for it.
   const bool want_next = req.want_next() && !req.handed_back();
-  c_.complete_band_async(
-      std::move(output), [this, resp, want_next, worker_id = req.worker_id(),
-                          done = std::move(done)](Result<farm::CompleteOutcome> r) {
-        if (!r.ok()) {
-          done(r.status());
-          return;
-        }
-        resp->set_accepted(r->accepted);
-        resp->set_reason(r->reason);
-        if (want_next) {
-          // Leased only now that the result is durable (or refused), as the
-          // worker's next GetTask would be. A wait of 0 answers at once,
-          // here; a failure (a worker no longer known, a closing
-          // coordinator) leaves `next` out and the worker's GetTask hears it.
-          c_.poll_band(worker_id, farm::Millis(0), [&](farm::Coordinator::PollAnswer a) {
-            v1::GetTaskResponse next;
-            if (answer_poll(worker_id, std::move(a), &next).ok())
-              *resp->mutable_next() = std::move(next);
-          });
-        }
-        done(Status::Ok());
+  // The answer goes once every result has its outcome (an accepted one
+  // once it is durable); the first failure, if any, is the call's.
+  struct Pending {
+    std::mutex mu;
+    size_t left = 0;
+    Status failed = Status::Ok();
+    std::function<void(Status)> done;
+  };
+  auto pending = std::make_shared<Pending>();
+  pending->left = outputs.size();
+  pending->done = std::move(done);
+  auto finish = [this, resp, pending, want_next, worker_id = req.worker_id(),
+                 max_next = req.max_next()](size_t index, Result<farm::CompleteOutcome> r) {
+    std::unique_lock lk(pending->mu);
+    if (!r.ok()) {
+      if (pending->failed.ok()) pending->failed = r.status();
+    } else {
+      v1::CompleteBandResponse* one =
+          index == 0 ? resp : resp->mutable_more(static_cast<int>(index - 1));
+      one->set_accepted(r->accepted);
+      one->set_reason(r->reason);
+    }
+    if (--pending->left > 0) return;
+    const Status failed = pending->failed;
+    lk.unlock();
+    if (failed.ok() && want_next) {
+      // Leased only now that the results are durable (or refused), as the
+      // worker's next GetTask would be. A wait of 0 answers at once, here;
+      // a failure (a worker no longer known, a closing coordinator) leaves
+      // `next` out and the worker's GetTask hears it.
+      c_.poll_band(worker_id, farm::Millis(0), [&](farm::Coordinator::PollAnswer a) {
+        v1::GetTaskResponse next;
+        if (answer_poll(worker_id, std::move(a), max_next, &next).ok())
+          *resp->mutable_next() = std::move(next);
       });
+    }
+    pending->done(failed);
+  };
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    c_.complete_band_async(std::move(outputs[i]), [finish, i](Result<farm::CompleteOutcome> r) {
+      finish(i, std::move(r));
+    });
+  }
 }
 
 Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {

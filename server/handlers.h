@@ -92,8 +92,10 @@ class Handlers {
 
  private:
   // GetTask's response from the poll's answer.
+  // GetTask's response from the poll's answer, with up to max_bands - 1
+  // further bands (GetTaskRequest.max_bands) when it holds one.
   Status answer_poll(const std::string& worker_id, farm::Coordinator::PollAnswer answer,
-                     v1::GetTaskResponse* resp);
+                     int max_bands, v1::GetTaskResponse* resp);
   farm::Coordinator& c_;
 };
 

@@ -194,6 +194,7 @@ struct Shared {
   double delay_ms = 0;
   double delay_sigma = 0;  // log-normal spread of the delay; 0: fixed
   bool want_next = true;   // CompleteBandRequest.want_next (--no-next: GetTask for each band)
+  int batch = 1;           // bands per call (GetTaskRequest.max_bands, CompleteBandRequest.more)
   int revive_ms = 0;       // a dying worker comes back after this long (0: never)
   bool outage_ok = false;  // the coordinator restarts during the run (a soak)
   std::atomic<bool> stopping{false};
@@ -208,6 +209,7 @@ struct Shared {
   int64_t outage_errors = 0;  // calls failed while the coordinator was away (--outage-ok)
   int64_t revived = 0;        // dead workers come back (--revive-ms)
   int64_t with_answer = 0;    // bands leased with a CompleteBand's answer
+  int64_t complete_calls = 0;  // CompleteBand calls (several results each with --batch)
   Clock::time_point first_accept{}, last_accept{};
 
   // The CompleteBandRequest's pixels for rows [y0, y1), serialized once.
@@ -268,6 +270,7 @@ class SimWorker {
     auto call = std::make_shared<Call<v1::GetTaskRequest, v1::GetTaskResponse>>(Ms(15000));
     call->req.set_worker_id(id_);
     call->req.set_wait_ms(10000);
+    call->req.set_max_bands(s_.batch);
     track(call->ctx.get());
     {
       std::lock_guard lk(s_.mu);
@@ -283,15 +286,15 @@ class SimWorker {
 
   // Heartbeats the band in hand, if any (the timer thread, every second).
   void heartbeat() {
-    std::string lease;
+    std::vector<std::string> leases;
     {
       std::lock_guard lk(mu_);
-      lease = lease_;
+      leases = leases_;
     }
-    if (lease.empty() || dead_ || behaviour_ != Behaviour::kNormal || s_.stopping) return;
+    if (leases.empty() || dead_ || behaviour_ != Behaviour::kNormal || s_.stopping) return;
     auto call = std::make_shared<Call<v1::HeartbeatRequest, v1::HeartbeatResponse>>(Ms(5000));
     call->req.set_worker_id(id_);
-    call->req.add_lease_ids(lease);
+    for (const std::string& l : leases) call->req.add_lease_ids(l);
     track(call->ctx.get());
     stub_->async()->Heartbeat(call->ctx.get(), &call->req, &call->resp,
                               [this, call](grpc::Status) { untrack(call->ctx.get()); });
@@ -389,14 +392,17 @@ class SimWorker {
       poll();
       return;
     }
-    const v1::BandTask& task = resp.task();
+    // The band, and the further ones of a batch (--batch).
+    std::vector<v1::BandTask> tasks{resp.task()};
+    tasks.insert(tasks.end(), resp.more().begin(), resp.more().end());
     if (sent) {
       std::lock_guard lk(s_.mu);
       s_.dispatch_ms.push_back(seconds_since(*sent) * 1000);
     }
     {
       std::lock_guard lk(mu_);
-      lease_ = task.lease_id();
+      leases_.clear();
+      for (const v1::BandTask& t : tasks) leases_.push_back(t.lease_id());
     }
     if (behaviour_ == Behaviour::kDie) {
       // A killed host: its connection goes, its band is never returned.
@@ -424,20 +430,20 @@ class SimWorker {
       return;
     }
     if (!has_scene_) {
-      fetch_scene(task);
+      fetch_scene(std::move(tasks));
       return;
     }
-    after_delay(task);
+    after_delay(std::move(tasks));
   }
 
   // The scene once per worker, as a real one fetches it once per hash.
-  void fetch_scene(const v1::BandTask& task) {
+  void fetch_scene(std::vector<v1::BandTask> tasks) {
     auto call = std::make_shared<Call<v1::GetSceneRequest, v1::GetSceneResponse>>(Ms(30000));
     call->req.set_worker_id(id_);
-    call->req.set_scene_hash(task.scene_hash());
+    call->req.set_scene_hash(tasks.front().scene_hash());
     track(call->ctx.get());
     stub_->async()->GetScene(call->ctx.get(), &call->req, &call->resp,
-                             [this, call, task](grpc::Status st) {
+                             [this, call, tasks](grpc::Status st) {
                                untrack(call->ctx.get());
                                if (!st.ok()) {
                                  if (!outage(st)) {
@@ -452,34 +458,49 @@ class SimWorker {
                                  ++s_.scene_fetches;
                                }
                                has_scene_ = true;
-                               after_delay(task);
+                               after_delay(tasks);
                              });
   }
 
-  void after_delay(const v1::BandTask& task) {
-    double ms = s_.delay_ms;
-    if (s_.delay_sigma > 0 && ms > 0) {
-      // Log-normal with median `delay_ms`: real band times are skewed.
-      std::lognormal_distribution<double> d(std::log(ms), s_.delay_sigma);
-      ms = d(rng_);
+  // The bands rendered one after the other: the sum of their times.
+  void after_delay(std::vector<v1::BandTask> tasks) {
+    double ms = 0;
+    for (size_t i = 0; i < tasks.size() && s_.delay_ms > 0; ++i) {
+      double one = s_.delay_ms;
+      if (s_.delay_sigma > 0) {
+        // Log-normal with median `delay_ms`: real band times are skewed.
+        std::lognormal_distribution<double> d(std::log(one), s_.delay_sigma);
+        one = d(rng_);
+      }
+      ms += one;
     }
     if (behaviour_ == Behaviour::kLate) ms = static_cast<double>(lease_ms_) + 500;
     if (ms <= 0) {
-      complete(task);
+      complete(tasks);
       return;
     }
     s_.timers->at(Clock::now() + std::chrono::microseconds(static_cast<int64_t>(ms * 1000)),
-                  [this, task] { complete(task); });
+                  [this, tasks = std::move(tasks)] { complete(tasks); });
   }
 
-  void complete(const v1::BandTask& task) {
+  // Every band in hand in one call: the first as the request, the others
+  // in its `more`.
+  void complete(const std::vector<v1::BandTask>& tasks) {
     if (s_.stopping) return;
     auto call =
         std::make_shared<Call<v1::CompleteBandRequest, v1::CompleteBandResponse>>(Ms(30000));
-    call->req.ParseFromString(*s_.payload(task.y0(), task.y1()));
+    for (size_t i = 0; i < tasks.size(); ++i) {
+      v1::CompleteBandRequest* one = i == 0 ? &call->req : call->req.add_more();
+      one->ParseFromString(*s_.payload(tasks[i].y0(), tasks[i].y1()));
+      one->set_lease_id(tasks[i].lease_id());
+    }
     call->req.set_worker_id(id_);
-    call->req.set_lease_id(task.lease_id());
     call->req.set_want_next(s_.want_next);
+    call->req.set_max_next(s_.batch);
+    {
+      std::lock_guard lk(s_.mu);
+      ++s_.complete_calls;
+    }
     track(call->ctx.get());
     const auto sent = Clock::now();
     stub_->async()->CompleteBand(call->ctx.get(), &call->req, &call->resp,
@@ -493,14 +514,14 @@ class SimWorker {
                     const grpc::Status& st, Clock::time_point sent) {
     {
       std::lock_guard lk(mu_);
-      lease_.clear();
+      leases_.clear();
     }
     if (st.error_code() == grpc::StatusCode::NOT_FOUND) {
       // The worker was dropped while it held the band: refused, as a result
       // for a lapsed lease is.
       {
         std::lock_guard lk(s_.mu);
-        ++s_.refused;
+        s_.refused += 1 + call.req.more_size();
       }
       register_again();
       return;
@@ -515,20 +536,26 @@ class SimWorker {
         ++s_.errors;
         if (s_.errors <= 5)
           std::fprintf(stderr, "worker %d: CompleteBand: %s\n", index_, st.error_message().c_str());
-      } else if (call.resp.accepted()) {
-        ++s_.accepted;
-        s_.completion_ms.push_back(seconds_since(sent) * 1000);
-        const auto now = Clock::now();
-        if (s_.first_accept == Clock::time_point{}) s_.first_accept = now;
-        s_.last_accept = now;
       } else {
-        ++s_.refused;
+        // Each result of the call is judged alone (CompleteBandResponse.more).
+        const int accepted = (call.resp.accepted() ? 1 : 0) +
+                             static_cast<int>(std::count_if(
+                                 call.resp.more().begin(), call.resp.more().end(),
+                                 [](const v1::CompleteBandResponse& m) { return m.accepted(); }));
+        s_.accepted += accepted;
+        s_.refused += 1 + call.req.more_size() - accepted;
+        if (accepted > 0) {
+          s_.completion_ms.push_back(seconds_since(sent) * 1000);
+          const auto now = Clock::now();
+          if (s_.first_accept == Clock::time_point{}) s_.first_accept = now;
+          s_.last_accept = now;
+        }
       }
     }
     if (st.ok() && call.resp.has_next()) {
       {
         std::lock_guard lk(s_.mu);
-        ++s_.with_answer;
+        if (call.resp.next().has_task()) s_.with_answer += 1 + call.resp.next().more_size();
       }
       on_task(call.resp.next(), grpc::Status::OK, std::nullopt);
       return;
@@ -545,7 +572,7 @@ class SimWorker {
   std::mutex mu_;
   std::string id_;
   int lease_ms_ = 5000;
-  std::string lease_;  // the band in hand
+  std::vector<std::string> leases_;  // the bands in hand
   std::vector<grpc::ClientContext*> in_flight_;
   std::atomic<bool> dead_{false};
   bool has_scene_ = false;  // touched by this worker's own callbacks only, one at a time
@@ -597,6 +624,7 @@ int main(int argc, char** argv) {
   app.add_option("--delay-ms", delay_ms, "Time a worker takes per band (median); 0: none");
   app.add_option("--delay-sigma", delay_sigma, "Log-normal spread of that time; 0: fixed");
   bool no_next = false;
+  int batch = 1;
   int revive_ms = 0;
   bool outage_ok = false;
   app.add_option("--revive-ms", revive_ms,
@@ -606,6 +634,10 @@ int main(int argc, char** argv) {
   app.add_flag("--outage-ok", outage_ok,
                "The coordinator restarts during the run: calls failed meanwhile are counted as "
                "outage_errors, not errors");
+  app.add_option("--batch", batch,
+                 "Bands per call: up to this many leased in one answer (GetTaskRequest.max_bands) "
+                 "and returned together in one CompleteBand (CompleteBandRequest.more)")
+      ->check(CLI::Range(1, 64));
   app.add_flag("--no-next", no_next,
                "Lease each band with a GetTask (not with the last result's answer)");
   app.add_option("--die", die, "Workers that drop their connection after their first lease");
@@ -631,6 +663,7 @@ int main(int argc, char** argv) {
   shared.delay_ms = delay_ms;
   shared.delay_sigma = delay_sigma;
   shared.want_next = !no_next;
+  shared.batch = batch;
   shared.revive_ms = revive_ms;
   shared.outage_ok = outage_ok;
   shared.scene = locus::scene_to_proto(*scene);
@@ -791,7 +824,7 @@ int main(int argc, char** argv) {
   const int64_t total_bands = static_cast<int64_t>(jobs) * frames * bands;
   double window = 0;
   int64_t accepted = 0, refused = 0, errors = 0, fetches = 0, heartbeats = 0, registrations = 0;
-  int64_t get_tasks = 0, with_answer = 0, outage_errors = 0, revived = 0;
+  int64_t get_tasks = 0, with_answer = 0, outage_errors = 0, revived = 0, complete_calls = 0;
   std::vector<double> dispatch, completion;
   {
     std::lock_guard lk(shared.mu);
@@ -806,6 +839,7 @@ int main(int argc, char** argv) {
     outage_errors = shared.outage_errors;
     revived = shared.revived;
     with_answer = shared.with_answer;
+    complete_calls = shared.complete_calls;
     dispatch = shared.dispatch_ms;
     completion = shared.completion_ms;
   }
@@ -817,8 +851,9 @@ int main(int argc, char** argv) {
   std::printf("heartbeats %lld\nregistered_again %lld\n", static_cast<long long>(heartbeats),
               static_cast<long long>(registrations));
   // Calls per band: GetTask is saved for each band leased with an answer.
-  std::printf("get_tasks %lld\nbands_with_answer %lld\n", static_cast<long long>(get_tasks),
-              static_cast<long long>(with_answer));
+  std::printf("get_tasks %lld\nbands_with_answer %lld\ncomplete_calls %lld\n",
+              static_cast<long long>(get_tasks), static_cast<long long>(with_answer),
+              static_cast<long long>(complete_calls));
   std::printf("outage_errors %lld\nworkers_revived %lld\n", static_cast<long long>(outage_errors),
               static_cast<long long>(revived));
   std::printf("seconds %.3f\nbands_per_second %.0f\n", window,

@@ -22,15 +22,30 @@ class HandWorker {
   }
 
   std::optional<v1::BandTask> lease() {
+    std::vector<v1::BandTask> one = leases(1);
+    if (one.empty()) return std::nullopt;
+    return one.front();
+  }
+
+  // Up to `max_bands` bands in one GetTask (GetTaskRequest.max_bands).
+  std::vector<v1::BandTask> leases(int max_bands) {
     grpc::ClientContext ctx;
     prepare_(ctx);
     v1::GetTaskRequest get;
     get.set_worker_id(id_);
     get.set_wait_ms(2000);
+    get.set_max_bands(max_bands);
     v1::GetTaskResponse leased;
     EXPECT_TRUE(stub_->GetTask(&ctx, get, &leased).ok());
-    if (!leased.has_task()) return std::nullopt;
-    return leased.task();
+    return tasks(leased);
+  }
+
+  // The bands of a GetTask answer: its task and its `more`.
+  static std::vector<v1::BandTask> tasks(const v1::GetTaskResponse& r) {
+    std::vector<v1::BandTask> out;
+    if (r.has_task()) out.push_back(r.task());
+    out.insert(out.end(), r.more().begin(), r.more().end());
+    return out;
   }
 
   // The band rendered as a worker of this release would, or of an older one
