@@ -268,17 +268,26 @@ def interp_loglog(xs, ys, x):
     return float(np.exp(np.interp(math.log(x), lx, ly)))
 
 
-def curve_below(locus_pts, rt_pts):
-    """Is Locus's error below raytrace's at equal time? Both curves are
-    piecewise linear in log-log between their measured points (sorted by
-    time); they are compared at every measured time of either curve inside
-    the overlap of their time ranges. Returns (verdict, details)."""
+def curve_below(locus_pts, rt_pts, other="raytrace", other_first="raytrace --spp 1",
+                flat_ends=False):
+    """Is Locus's error below the other curve's (raytrace's, or POV-Ray's
+    envelope) at equal time? Both curves are piecewise linear in log-log
+    between their measured points (sorted by time); they are compared at
+    every measured time of either curve inside the overlap of their time
+    ranges, and a Locus point faster than every other point must beat the
+    fastest other point (`other_first`) outright. With flat_ends, each curve
+    is held flat beyond its end points (np.interp's clamping: the error of
+    its fastest point to the left, of its slowest to the right, as more time
+    can always buy a curve's best point) and the two are compared at every
+    measured time of either. Returns (verdict, details)."""
     L = sorted((t, e) for t, e in locus_pts if t > 0 and e > 0)
     R = sorted((t, e) for t, e in rt_pts if t > 0 and e > 0)
     if len(L) < 1 or len(R) < 1:
         return None, "not enough points"
-    lo = max(L[0][0], R[0][0])
-    hi = min(L[-1][0], R[-1][0])
+    if flat_ends:
+        lo, hi = min(L[0][0], R[0][0]), max(L[-1][0], R[-1][0])
+    else:
+        lo, hi = max(L[0][0], R[0][0]), min(L[-1][0], R[-1][0])
     details = []
     ok = True
     if lo <= hi:
@@ -288,17 +297,21 @@ def curve_below(locus_pts, rt_pts):
             el, er = interp_loglog(lt, le, t), interp_loglog(rt, re_, t)
             if el >= er:
                 ok = False
-                details.append(f"at {t:.3g} s Locus {el:.4g} >= raytrace {er:.4g}")
+                where = (" (Locus's curve held flat)" if t < lt[0] or t > lt[-1] else
+                         f" ({other} held flat)" if t < rt[0] or t > rt[-1] else "")
+                details.append(f"at {t:.3g} s Locus {el:.4g} >= {other} {er:.4g}{where}")
     else:
         details.append("time ranges do not overlap")
         ok = None
+    if flat_ends:
+        return ok, "; ".join(details)
     # Points outside the overlap: a Locus point faster than every raytrace
     # point is "below" only if it beats the fastest raytrace point outright.
     for t, e in L:
         if t < R[0][0]:
             if e >= R[0][1]:
-                details.append(f"Locus at {t:.3g} s (faster than raytrace --spp 1) has RMSE "
-                               f"{e:.4g} >= raytrace --spp 1's {R[0][1]:.4g}")
+                details.append(f"Locus at {t:.3g} s (faster than {other_first}) has RMSE "
+                               f"{e:.4g} >= {other_first}'s {R[0][1]:.4g}")
                 ok = False
     return ok, "; ".join(details)
 

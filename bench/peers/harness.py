@@ -12,6 +12,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 
 import numpy as np
 
@@ -24,9 +25,13 @@ ACCURACY = os.path.join(ROOT, "bench", "accuracy")
 
 def _load_accuracy():
     # Loaded under its own name: `import run` would find bench/peers/run.py.
+    # Its sys.path entry (for povscene) is taken out again, so that `import
+    # run` beside this file still finds bench/peers/run.py.
     spec = importlib.util.spec_from_file_location("accuracy_run", os.path.join(ACCURACY, "run.py"))
     mod = importlib.util.module_from_spec(spec)
+    saved = list(sys.path)
     spec.loader.exec_module(mod)
+    sys.path[:] = saved
     return mod
 
 
@@ -105,8 +110,81 @@ def best(runs):
     return b
 
 
+def summarize(row, runs, image=None, ref=None, mask=None, ref_label=None):
+    """Into row: the best of the runs' times (best()) and, given a reference,
+    the image's error against it (bench/accuracy's metrics, edge mask).
+    Returns the best run's record (with its --stats, for Locus)."""
+    b = best(runs)
+    row.update({k: b[k] for k in ("cpu", "wall", "prepare", "runs", "all_cpu", "all_wall")})
+    if ref is not None:
+        row.update(metrics(read_image(image), ref, mask))
+        row["reference"] = ref_label
+        row["edge_fraction"] = float(mask.mean())
+    return b
+
+
 def best_of(fn, n):
     return best([fn() for _ in range(max(1, n))])
+
+
+def rounds(jobs, repeat, tag, tmp, prefix):
+    """Every job once per round, `repeat` rounds, so a change of load on the
+    machine falls on all of them alike. jobs: (key, label, renderer, fn(out)
+    -> record); a job that fails is noted and not run again. Returns
+    (records per key, each key's image path (the last round's), notes)."""
+    ext = {"locus": ".exr", "povray": ".png"}
+    results = {key: [] for key, *_ in jobs}
+    images, notes = {}, {}
+    for rnd in range(repeat):
+        for key, label, renderer, fn in jobs:
+            if key in notes:
+                continue
+            out = os.path.join(tmp, f"{prefix}-{key}{ext[renderer]}")
+            try:
+                results[key].append(fn(out))
+                images.setdefault(key, out)
+            except RuntimeError as e:
+                notes[key] = str(e)
+                log(f"{tag} {label}: FAILED: {e}")
+        log(f"{tag}: round {rnd + 1}/{repeat}: " + ", ".join(
+            f"{k} {results[k][-1]['cpu']:.3f}" for k, *_ in jobs if results[k]))
+    return results, images, notes
+
+
+def references(tag, path, pfile, size, ref_spp, pov_ref, locus, pov, cache, tmp, ncpu):
+    """Each renderer's own converged reference, cached under bench/accuracy's
+    keys (so the benchmarks share them): Locus `--method raytrace --spp
+    ref_spp`, POV-Ray its own `+AM1 +R<pov_ref> +A0.0`, both on all cores.
+    Returns ({renderer: image}, {renderer: edge mask}, {renderer: label})."""
+    scene_hash = sha256_file(path)
+    lkey = f"locus-{locus.sha[:16]}-{scene_hash[:16]}-{size}-spp{ref_spp}"
+
+    def lref(dst):
+        dst = dst or os.path.join(tmp, lkey + ".exr")
+        log(f"{tag}: reference --method raytrace --spp {ref_spp} ({ncpu} threads)")
+        locus.stats(path, size, ["--method", "raytrace", "--spp", str(ref_spp)], dst,
+                    threads=ncpu)
+        return dst
+
+    pkey = (f"pov-{sha256_text(pov.version)[:8]}-{sha256_file(pfile)[:16]}-{size}"
+            f"-am1r{pov_ref}")
+
+    def pref(dst):
+        dst = dst or os.path.join(tmp, pkey + ".png")
+        log(f"{tag}: POV-Ray reference +AM1 +R{pov_ref} +A0.0 ({ncpu} threads)")
+        pov.timed(pfile, size, ["+A0.0", "+AM1", f"+R{pov_ref}"], dst, threads=ncpu)
+        return dst
+
+    refs = {}
+    for renderer, key, produce, ext in (("locus", lkey, lref, ".exr"),
+                                        ("povray", pkey, pref, ".png")):
+        try:
+            refs[renderer] = read_image(cache.get(key, produce, ext))
+        except RuntimeError as e:
+            log(f"{tag}: {renderer} reference FAILED: {e}")
+    labels = {"locus": f"locus raytrace --spp {ref_spp}",
+              "povray": f"povray +AM1 +R{pov_ref} +A0.0"}
+    return refs, {k: edge_mask(v) for k, v in refs.items()}, labels
 
 
 # ------------------------------------------------------------------ scenes

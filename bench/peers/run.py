@@ -198,7 +198,6 @@ def run_scene(name, path, checked_in, size, plan, repeat, locus, pov, cache, tmp
     if is_stale:
         stale.append(name)
     spd_pov = os.path.join(H.SPD, "pov", name + ".pov")
-    ext = {"locus": ".exr", "povray": ".png"}
 
     jobs = []   # (key, label, renderer, fn(out) -> record)
     configs = LOCUS + (LOCUS_ACCEPT if name == ACCEPT_SCENE else [])
@@ -213,56 +212,11 @@ def run_scene(name, path, checked_in, size, plan, repeat, locus, pov, cache, tmp
         jobs.append(("spdpov_noaa", "POV-Ray -A on SPD's own .pov", "povray",
                      lambda out: pov.timed(spd_pov, size, ["-A"], out, include=True)))
 
-    # Rounds: every configuration once per round, so a change of load on the
-    # machine falls on all of them alike; the best of the rounds is kept.
-    results = {key: [] for key, *_ in jobs}
-    images = {}
-    notes = {}
-    for rnd in range(repeat):
-        for key, label, renderer, fn in jobs:
-            if key in notes:
-                continue
-            out = os.path.join(tmp, f"{name}-{key}{ext[renderer]}")
-            try:
-                results[key].append(fn(out))
-                images.setdefault(key, out)
-            except RuntimeError as e:
-                notes[key] = str(e)
-                H.log(f"{tag} {label}: FAILED: {e}")
-        H.log(f"{tag}: round {rnd + 1}/{repeat}: " + ", ".join(
-            f"{k} {results[k][-1]['cpu']:.3f}" for k, *_ in jobs if results[k]))
-
+    results, images, notes = H.rounds(jobs, repeat, tag, tmp, name)
     # References, cached: Locus raytrace --spp 16 on all cores; POV-Ray its own
     # +AM1 +R8 +A0.0 (bench/accuracy's keys, so the two benchmarks share them).
-    scene_hash = H.sha256_file(path)
-    spp = plan["ref_spp"]
-    lkey = f"locus-{locus.sha[:16]}-{scene_hash[:16]}-{size}-spp{spp}"
-
-    def lref(dst):
-        dst = dst or os.path.join(tmp, lkey + ".exr")
-        H.log(f"{tag}: reference --method raytrace --spp {spp} ({ncpu} threads)")
-        locus.stats(path, size, ["--method", "raytrace", "--spp", str(spp)], dst, threads=ncpu)
-        return dst
-
-    pr = plan["pov_ref"]
-    pkey = f"pov-{H.sha256_text(pov.version)[:8]}-{H.sha256_file(pfile)[:16]}-{size}-am1r{pr}"
-
-    def pref(dst):
-        dst = dst or os.path.join(tmp, pkey + ".png")
-        H.log(f"{tag}: POV-Ray reference +AM1 +R{pr} +A0.0 ({ncpu} threads)")
-        pov.timed(pfile, size, ["+A0.0", "+AM1", f"+R{pr}"], dst, threads=ncpu)
-        return dst
-
-    refs = {}
-    try:
-        refs["locus"] = H.read_image(cache.get(lkey, lref))
-    except RuntimeError as e:
-        H.log(f"{tag}: Locus reference FAILED: {e}")
-    try:
-        refs["povray"] = H.read_image(cache.get(pkey, pref, ".png"))
-    except RuntimeError as e:
-        H.log(f"{tag}: POV-Ray reference FAILED: {e}")
-    masks = {k: H.edge_mask(v) for k, v in refs.items()}
+    refs, masks, ref_labels = H.references(tag, path, pfile, size, plan["ref_spp"],
+                                           plan["pov_ref"], locus, pov, cache, tmp, ncpu)
     cross = (H.metrics(refs["povray"], refs["locus"], masks["locus"])
              if len(refs) == 2 else {})
 
@@ -275,9 +229,9 @@ def run_scene(name, path, checked_in, size, plan, repeat, locus, pov, cache, tmp
             row["note"] = notes[key]
             rows.append(row)
             continue
-        best = H.best(results[key])
-        row.update({k: best[k] for k in ("cpu", "wall", "prepare", "runs", "all_cpu",
-                                         "all_wall")})
+        ref_of = renderer if key not in ("floor", "spdpov_noaa") else None
+        best = H.summarize(row, results[key], images[key], refs.get(ref_of), masks.get(ref_of),
+                           ref_labels[renderer])
         st = best.get("stats")
         if st:
             row.update({"rays_eye": st["rays"]["eye"], "rays_reflected": st["rays"]["reflected"],
@@ -285,12 +239,6 @@ def run_scene(name, path, checked_in, size, plan, repeat, locus, pov, cache, tmp
                         "rays_shadow": st["rays"]["shadow"],
                         "pixels_ray_traced": st["pixels"]["ray_traced"],
                         "pixels_total": st["pixels"]["total"]})
-        ref_of = renderer if key not in ("floor", "spdpov_noaa") else None
-        if ref_of in refs:
-            row.update(H.metrics(H.read_image(images[key]), refs[ref_of], masks[ref_of]))
-            row["reference"] = (f"locus raytrace --spp {spp}" if ref_of == "locus"
-                                else f"povray +AM1 +R{pr} +A0.0")
-            row["edge_fraction"] = float(masks[ref_of].mean())
         if key == "pov_r2" and cross:
             row["refs_rmse"] = cross["rmse"]
         if args.keep:

@@ -18,8 +18,9 @@ PACKAGES=(
   # --movie: H.264 MP4, WebM, GIF); ffprobe for the movie tests.
   ffmpeg
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio python3-yaml
-  # bench/peers: the Embree 3 Whitted caster (locus-embree-whitted, optional).
-  libembree-dev
+  # bench/peers: the Embree 3 Whitted caster (locus-embree-whitted, optional);
+  # POV-Ray 3.7, the peer of bench/peers and bench/accuracy.
+  libembree-dev povray
   # The Python client (client/python, docs/python.md); its stubs come from
   # protobuf-compiler-grpc's grpc_python_plugin, above.
   python3-grpcio python3-protobuf
