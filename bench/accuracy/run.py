@@ -269,23 +269,28 @@ def interp_loglog(xs, ys, x):
 
 
 def curve_below(locus_pts, rt_pts, other="raytrace", other_first="raytrace --spp 1",
-                flat_ends=False):
+                within_time=False):
     """Is Locus's error below the other curve's (raytrace's, or POV-Ray's
     envelope) at equal time? Both curves are piecewise linear in log-log
     between their measured points (sorted by time); they are compared at
     every measured time of either curve inside the overlap of their time
     ranges, and a Locus point faster than every other point must beat the
-    fastest other point (`other_first`) outright. With flat_ends, each curve
-    is held flat beyond its end points (np.interp's clamping: the error of
-    its fastest point to the left, of its slowest to the right, as more time
-    can always buy a curve's best point) and the two are compared at every
-    measured time of either. Returns (verdict, details)."""
+    fastest other point (`other_first`) outright.
+
+    With within_time, each curve stands for the error its renderer reaches
+    within a time: none before its fastest point, then the curve, then flat
+    after its slowest point (more time always buys its most accurate point).
+    They are compared at every measured time of either curve from the other
+    curve's fastest point on: Locus must reach a lower error there, so an
+    other point faster than Locus's fastest fails, and a Locus point faster
+    than every other point is not compared (nothing else is that fast).
+    Returns (verdict, details)."""
     L = sorted((t, e) for t, e in locus_pts if t > 0 and e > 0)
     R = sorted((t, e) for t, e in rt_pts if t > 0 and e > 0)
     if len(L) < 1 or len(R) < 1:
         return None, "not enough points"
-    if flat_ends:
-        lo, hi = min(L[0][0], R[0][0]), max(L[-1][0], R[-1][0])
+    if within_time:
+        lo, hi = R[0][0], max(L[-1][0], R[-1][0])
     else:
         lo, hi = max(L[0][0], R[0][0]), min(L[-1][0], R[-1][0])
     details = []
@@ -294,16 +299,20 @@ def curve_below(locus_pts, rt_pts, other="raytrace", other_first="raytrace --spp
         lt, le = zip(*L)
         rt, re_ = zip(*R)
         for t in sorted(set([t for t in lt + rt if lo <= t <= hi])):
+            if t < lt[0]:
+                ok = False
+                details.append(f"{other} at {t:.3g} s, faster than Locus's fastest point "
+                               f"({lt[0]:.3g} s)")
+                continue
             el, er = interp_loglog(lt, le, t), interp_loglog(rt, re_, t)
             if el >= er:
                 ok = False
-                where = (" (Locus's curve held flat)" if t < lt[0] or t > lt[-1] else
-                         f" ({other} held flat)" if t < rt[0] or t > rt[-1] else "")
-                details.append(f"at {t:.3g} s Locus {el:.4g} >= {other} {er:.4g}{where}")
+                held = " (held flat)" if t > lt[-1] or t > rt[-1] else ""
+                details.append(f"at {t:.3g} s Locus {el:.4g} >= {other} {er:.4g}{held}")
     else:
         details.append("time ranges do not overlap")
         ok = None
-    if flat_ends:
+    if within_time:
         return ok, "; ".join(details)
     # Points outside the overlap: a Locus point faster than every raytrace
     # point is "below" only if it beats the fastest raytrace point outright.

@@ -19,7 +19,6 @@ Writes bench/results/curve.{md,csv,png} (--quick: a temporary directory).
 """
 import argparse
 import csv
-import datetime
 import os
 import shutil
 import sys
@@ -68,7 +67,8 @@ def scene_list(want, quick, tmp):
     for name, kind, level in BIG:
         if name in names:
             paths[name] = (scaling.scene_file(kind, level, tmp)[0], None)
-    return [(n,) + paths[n] for n in ORDER if n in names]
+    # In the order asked for (a long run can put the scenes it must have first).
+    return [(n,) + paths[n] for n in dict.fromkeys(names)]
 
 
 def main():
@@ -107,20 +107,12 @@ def main():
                            else tempfile.mkdtemp(prefix="locus-curve-quick-"))
     ncpu = os.cpu_count() or 1
     started = time.time()
-    info = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
-            "load_start": H.loadavg(), "quick": args.quick, "repeat": repeat, "size": size,
-            "plan": plan, "commit": H.git_head(), "ncpu": ncpu}
+    info = H.run_info(args.quick, repeat, size, plan=plan)
     tmp = tempfile.mkdtemp(prefix="locus-curve-")
     rows, stale = [], []
-    raw_path = args.raw or (os.path.join(args.cache, "curve-raw.json") if args.cache and
-                            not args.quick else os.path.join(out_dir, "curve-raw.json"))
+    raw_path = H.raw_path(args.raw, args.cache, args.quick, out_dir, "curve-raw.json")
     try:
-        locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
-        pov = H.PovRay(tmp)
-        cache = H.Cache(args.cache)
-        info.update(locus=locus.sha[:12], pov=pov.version)
-        H.log(f"locus {locus.sha[:12]} (HEAD {info['commit']}), {pov.version}, "
-              f"load {info['load_start']}")
+        locus, pov, cache = H.renderers(args.locus, tmp, args.cache, info)
         for name, path, checked_in in scene_list(args.scenes, args.quick, tmp):
             rows += run_scene(name, path, checked_in, plan, repeat, locus, pov, cache, tmp,
                               ncpu, stale)
@@ -206,12 +198,12 @@ def time_at_error(env, err):
 
 def verdict(rows, scene, metric="rmse"):
     """(ok, line, envelope, Locus points): Locus's curve against POV-Ray's
-    envelope by bench/accuracy's curve_below, both held flat beyond their
-    ends (README "POV-Ray's best curve")."""
+    envelope by bench/accuracy's curve_below, each as the error it reaches
+    within a time (README "POV-Ray's best curve")."""
     lp = points(rows, scene, "locus", metric)
     env = envelope(points(rows, scene, "povray", metric))
-    ok, det = H.acc.curve_below([p[:2] for p in lp], [p[:2] for p in env],
-                                other="POV-Ray's envelope", flat_ends=True)
+    ok, det = H.acc.curve_below([p[:2] for p in envelope(lp)], [p[:2] for p in env],
+                                other="POV-Ray's envelope", within_time=True)
     gains = []
     for t, e, r in lp:
         te = time_at_error(env, e)

@@ -5,6 +5,7 @@ files, callgrind instruction counts and the log-log fit.
 Image reading, error metrics, the reference cache and the POV-Ray
 translation are bench/accuracy's (run.py, povscene.py), imported, not copied.
 """
+import datetime
 import importlib.util
 import json
 import math
@@ -326,6 +327,32 @@ def loglog_slope(xs, ys):
         return float("nan")
     lx, ly = np.log(np.asarray(xs, float)), np.log(np.asarray(ys, float))
     return float(np.polyfit(lx, ly, 1)[0])
+
+
+def run_info(quick, repeat, size, **extra):
+    """What every report's header gives: date, load average at the start, the
+    commit, the number of cores, and the run's settings."""
+    return dict({"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
+                 "load_start": loadavg(), "quick": quick, "repeat": repeat, "size": size,
+                 "commit": git_head(), "ncpu": os.cpu_count() or 1}, **extra)
+
+
+def renderers(binary, tmp, cache_dir, info):
+    """A copy of the locus binary (a rebuild during the run cannot mix
+    versions), POV-Ray and the reference cache; their versions go into info."""
+    locus = Locus(copy_binary(binary, tmp), tmp)
+    pov = PovRay(tmp)
+    info.update(locus=locus.sha[:12], pov=pov.version)
+    log(f"locus {locus.sha[:12]} (HEAD {info['commit']}), {pov.version}, "
+        f"load {info['load_start']}")
+    return locus, pov, Cache(cache_dir)
+
+
+def raw_path(given, cache_dir, quick, out_dir, name):
+    """Where a run's measurements are saved: --raw, else the cache directory
+    (a full run), else the output directory (quick, or no cache)."""
+    return given or (os.path.join(cache_dir, name) if cache_dir and not quick
+                     else os.path.join(out_dir, name))
 
 
 def copy_binary(src, tmp):

@@ -20,7 +20,6 @@ Writes bench/results/peers.{md,csv,png} (--quick: a temporary directory).
 """
 import argparse
 import csv
-import datetime
 import os
 import shutil
 import sys
@@ -130,19 +129,12 @@ def main():
     size = plan["size"]
     ncpu = os.cpu_count() or 1
     started = time.time()
-    info = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
-            "load_start": H.loadavg(), "quick": args.quick, "repeat": repeat, "size": size,
-            "plan": plan, "commit": H.git_head(), "ncpu": ncpu}
+    info = H.run_info(args.quick, repeat, size, plan=plan)
 
     tmp = tempfile.mkdtemp(prefix="locus-peers-")
     rows, excluded, stale, cg_rows = [], [], [], []
     try:
-        locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
-        pov = H.PovRay(tmp)
-        cache = H.Cache(args.cache)
-        info.update(locus=locus.sha[:12], pov=pov.version)
-        H.log(f"locus {locus.sha[:12]} (HEAD {info['commit']}), {pov.version}, "
-              f"load {info['load_start']}")
+        locus, pov, cache = H.renderers(args.locus, tmp, args.cache, info)
 
         for name, path, checked_in in scenes:
             rows += run_scene(name, path, checked_in, size, plan, repeat, locus, pov, cache,
@@ -161,8 +153,7 @@ def main():
 
     info.update(load_end=H.loadavg(), minutes=(time.time() - started) / 60.0, stale=stale)
     raw = {"rows": rows, "cg_rows": cg_rows, "excluded": excluded, "info": info}
-    raw_path = args.raw or (os.path.join(args.cache, "peers-raw.json") if args.cache and
-                            not args.quick else os.path.join(out_dir, "peers-raw.json"))
+    raw_path = H.raw_path(args.raw, args.cache, args.quick, out_dir, "peers-raw.json")
     H.save_raw(raw_path, raw)
     H.log(f"raw measurements in {raw_path}")
     report(out_dir, **raw)

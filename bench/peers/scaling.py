@@ -13,7 +13,6 @@ Writes bench/results/scaling.{md,csv,png} (--quick: a temporary directory).
 """
 import argparse
 import csv
-import datetime
 import os
 import shutil
 import sys
@@ -74,9 +73,7 @@ def main():
     out_dir = args.out or (os.path.join(H.ROOT, "bench", "results") if not args.quick
                            else tempfile.mkdtemp(prefix="locus-scaling-quick-"))
     started = time.time()
-    info = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
-            "load_start": H.loadavg(), "quick": args.quick, "repeat": repeat, "size": size,
-            "commit": H.git_head(), "ncpu": os.cpu_count() or 1}
+    info = H.run_info(args.quick, repeat, size)
     tmp = tempfile.mkdtemp(prefix="locus-scaling-")
     rows = []
     try:
@@ -127,9 +124,7 @@ def run_level(kind, level, size, repeat, locus, pov, tmp):
         if key in notes:
             row["note"] = notes[key]
         else:
-            b = H.best(runs[key])
-            row.update({k: b[k] for k in ("cpu", "wall", "prepare", "runs", "all_cpu",
-                                          "all_wall")})
+            b = H.summarize(row, runs[key])
             if b.get("stats"):
                 row["pixels_ray_traced"] = b["stats"]["pixels"]["ray_traced"]
                 row["tests_shadow_volume"] = b["stats"]["tests"]["shadow_volume"]
