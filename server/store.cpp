@@ -315,11 +315,16 @@ Status JobStore::exec(const char* sql) {
 Status JobStore::apply(const std::vector<Event>& events) {
   if (events.empty()) return Status::Ok();
   if (Status s = exec("BEGIN IMMEDIATE"); !s.ok()) return s;
+  job_totals_.clear();
   for (const Event& e : events) {
     if (Status s = apply_one(e); !s.ok()) {
       exec("ROLLBACK");
       return s;
     }
+  }
+  if (Status s = write_job_totals(); !s.ok()) {
+    exec("ROLLBACK");
+    return s;
   }
   if (Status s = exec("COMMIT"); !s.ok()) {
     exec("ROLLBACK");
@@ -402,10 +407,7 @@ Status JobStore::apply_one(const Event& e) {
         !s.ok()) {
       return s;
     }
-    Statement acc(*this,
-                  "UPDATE jobs SET band_seconds_failed = ?, band_seconds_lost = ? WHERE id = ?");
-    acc.bind(l->job_account.failed, l->job_account.lost, l->job_id);
-    if (Status s = acc.run(); !s.ok()) return s;
+    job_totals_[l->job_id].failed_lost = {l->job_account.failed, l->job_account.lost};
     if (!is_charged(l->outcome)) return Status::Ok();
     Statement band(*this,
                    "INSERT INTO bands(job_id, frame, band, failures, last_error) VALUES(?,?,?,1,?) "
@@ -443,9 +445,8 @@ Status JobStore::apply_one(const Event& e) {
       px.bind(d->job_id, d->frame, d->band, Blob{d->pixels});
       if (Status s = px.run(); !s.ok()) return s;
     }
-    Statement stats(*this, "UPDATE jobs SET stats = ?, band_seconds = ? WHERE id = ?");
-    stats.bind(encode_stats(d->job_stats), d->job_account.done, d->job_id);
-    return stats.run();
+    job_totals_[d->job_id].stats = {encode_stats(d->job_stats), d->job_account.done};
+    return Status::Ok();
   }
   if (const auto* f = std::get_if<event::FrameWritten>(&e)) {
     Statement st(*this,
@@ -518,6 +519,24 @@ Status JobStore::apply_one(const Event& e) {
     st.bind(std::to_string(w->next_worker));
     return st.run();
   }
+  return Status::Ok();
+}
+
+Status JobStore::write_job_totals() {
+  for (const auto& [job_id, t] : job_totals_) {
+    if (t.stats) {
+      Statement st(*this, "UPDATE jobs SET stats = ?, band_seconds = ? WHERE id = ?");
+      st.bind(t.stats->first, t.stats->second, job_id);
+      if (Status s = st.run(); !s.ok()) return s;
+    }
+    if (t.failed_lost) {
+      Statement st(*this,
+                   "UPDATE jobs SET band_seconds_failed = ?, band_seconds_lost = ? WHERE id = ?");
+      st.bind(t.failed_lost->first, t.failed_lost->second, job_id);
+      if (Status s = st.run(); !s.ok()) return s;
+    }
+  }
+  job_totals_.clear();
   return Status::Ok();
 }
 

@@ -9,6 +9,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -82,6 +83,14 @@ class JobStore {
   explicit JobStore(sqlite3* db) : db_(db) {}
   Status exec(const char* sql);
   Status apply_one(const Event& e);
+  // The job rows' running totals, written once per transaction (apply())
+  // rather than once per band: the last value of each job's in the batch.
+  struct JobTotals {
+    std::optional<std::pair<std::string, double>> stats;  // encoded stats, band_seconds
+    std::optional<std::pair<double, double>> failed_lost;  // band_seconds_failed, _lost
+  };
+  Status write_job_totals();
+  std::map<std::string, JobTotals> job_totals_;
   Status add_history(const std::string& job_id, int frame, int band, const std::string& text);
   class Statement;
   sqlite3* db_;
