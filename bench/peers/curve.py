@@ -88,12 +88,13 @@ def main():
     ap.add_argument("--out", help="output directory (default bench/results; quick: a temp dir)")
     ap.add_argument("--raw", help="save every measurement as JSON here (default: "
                     "curve-raw.json in the cache directory; quick: in the output directory)")
-    ap.add_argument("--report-only", metavar="RAW",
-                    help="no measuring: write curve.{md,csv,png} again from a saved RAW file")
+    ap.add_argument("--report-only", metavar="RAW[,RAW...]",
+                    help="no measuring: write curve.{md,csv,png} again from saved RAW files "
+                    "(several: runs of other scenes, e.g. two halves run at once)")
     args = ap.parse_args()
     if args.report_only:
         report(args.out or os.path.join(H.ROOT, "bench", "results"),
-               **H.load_raw(args.report_only))
+               **merge_raws(args.report_only.split(",")))
         return
     if not H.which("povray"):
         raise SystemExit("povray not found (apt-get install povray): this benchmark compares "
@@ -128,6 +129,22 @@ def main():
     H.save_raw(raw_path, raw)
     H.log(f"raw measurements in {raw_path}")
     report(out_dir, **raw)
+
+
+def merge_raws(paths):
+    """One report from several runs' raw files: every scene from the first
+    file that has it; the runs' headers are kept in info["runs"]."""
+    raws = [H.load_raw(p) for p in paths]
+    if len(raws) == 1:
+        return raws[0]
+    rows, seen = [], set()
+    for raw in raws:
+        scenes = {r["scene"] for r in raw["rows"]} - seen
+        rows += [r for r in raw["rows"] if r["scene"] in scenes]
+        seen |= scenes
+    info = dict(raws[0]["info"], runs=[dict(r["info"], scenes=sorted(
+        {x["scene"] for x in r["rows"]})) for r in raws])
+    return {"rows": rows, "info": info}
 
 
 def run_scene(name, path, checked_in, plan, repeat, locus, pov, cache, tmp, ncpu, stale):
@@ -286,6 +303,14 @@ def write_md(path, rows, lines, edge_lines, info):
          f"`+AM1 +R{info['plan']['pov_ref']} +A0.0`). POV-Ray's envelope: the points no "
          "other POV-Ray point beats in both time and RMSE, joined in log-log. Definitions: "
          "bench/peers/README.md, \"POV-Ray's best curve\".", ""]
+    for run in info.get("runs", []):
+        L += [f"- run of {run['date']} ({', '.join(run['scenes'])}): locus `{run['locus']}`, "
+              f"load average {run['load_start']} at the start and "
+              f"{run.get('load_end', '?')} at the end, {run.get('minutes', float('nan')):.0f} "
+              "min" + (", cut short" if run.get("partial") else "")]
+    if info.get("runs"):
+        L += ["", "The header's figures are the first run's; the runs above were made at the "
+              "same time, each on its own scenes (every point of a scene in the same run).", ""]
     if info.get("locus_changed"):
         L += ["**The locus binary changed during the run; every figure comes from the copy "
               "taken at the start.**", ""]
@@ -329,7 +354,8 @@ def chart(path, rows, info):
         return
     ncol = min(4, len(scenes))
     nrow = (len(scenes) + ncol - 1) // ncol
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.6 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(max(4.2 * ncol, 8.4), 3.6 * nrow + 0.8),
+                             squeeze=False)
     handles = {}
     fam_style = {"+AM2": ("C3", "v"), "+AM1": ("C2", "^")}
     for ax, s in zip(axes.flat, scenes):
@@ -361,10 +387,10 @@ def chart(path, rows, info):
     for ax in list(axes.flat)[len(scenes):]:
         ax.axis("off")
     fig.legend(list(handles.values()), list(handles.keys()), loc="lower center",
-               ncol=min(4, len(handles)), fontsize=8, frameon=False)
+               ncol=min(4 if ncol > 2 else 2, len(handles)), fontsize=8, frameon=False)
     fig.suptitle("Locus against POV-Ray's adaptive anti-aliasing (RMSE vs each renderer's "
                  "own reference; lower left is better)", fontsize=10)
-    fig.tight_layout(rect=(0, 0.06 if nrow > 1 else 0.12, 1, 0.96))
+    fig.tight_layout(rect=(0, 0.8 / (3.6 * nrow + 0.8) + (0.04 if ncol <= 2 else 0), 1, 0.95))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
