@@ -284,7 +284,16 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
         {"jobs", "movie", "movie TEXT NOT NULL DEFAULT ''"},
         {"jobs", "fps", "fps INTEGER NOT NULL DEFAULT 0"},
         {"jobs", "notify_url", "notify_url TEXT NOT NULL DEFAULT ''"},
-        {"jobs", "notify_pending", "notify_pending INTEGER NOT NULL DEFAULT 0"}}) {
+        {"jobs", "notify_pending", "notify_pending INTEGER NOT NULL DEFAULT 0"},
+        // A lease's events live in its attempts row, not as two history
+        // rows of text (issue #25 "compact history"): its cursors in the
+        // history's sequence, its attempt number, the render time reported
+        // with its result, whether its band went back to the queue.
+        {"attempts", "grant_seq", "grant_seq INTEGER"},
+        {"attempts", "end_seq", "end_seq INTEGER"},
+        {"attempts", "attempt", "attempt INTEGER NOT NULL DEFAULT 0"},
+        {"attempts", "seconds", "seconds REAL NOT NULL DEFAULT 0"},
+        {"attempts", "requeued", "requeued INTEGER NOT NULL DEFAULT 0"}}) {
     Statement has(*store, "SELECT COUNT(*) FROM pragma_table_info(?) WHERE name = ?");
     has.bind(table, column);
     if (has.step() != SQLITE_ROW) return has.error();
@@ -294,6 +303,18 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
       if (Status s = store->exec(alter.c_str()); !s.ok()) return s;
     }
   }
+  if (Status s = store->exec(
+          "CREATE INDEX IF NOT EXISTS attempts_by_grant ON attempts(job_id, grant_seq);"
+          "CREATE INDEX IF NOT EXISTS attempts_by_end ON attempts(job_id, end_seq);");
+      !s.ok()) {
+    return s;
+  }
+  Statement seq(*store,
+                "SELECT MAX(IFNULL((SELECT MAX(seq) FROM history), 0), "
+                "IFNULL((SELECT MAX(grant_seq) FROM attempts), 0), "
+                "IFNULL((SELECT MAX(end_seq) FROM attempts), 0))");
+  if (seq.step() != SQLITE_ROW) return seq.error();
+  store->next_seq_ = seq.integer(0) + 1;
   return store;
 }
 
@@ -379,34 +400,24 @@ Status JobStore::apply_one(const Event& e) {
                            (c->error.empty() ? "" : ": " + c->error));
   }
   if (const auto* g = std::get_if<event::LeaseGranted>(&e)) {
-    Statement st(*this,
-                 "INSERT INTO attempts(lease_id, job_id, frame, band, worker_id, worker_name, "
-                 "speculative, started_at) VALUES(?,?,?,?,?,?,?,?)");
-    st.bind(g->lease_id, g->job_id, g->frame, g->band, g->worker_id, g->worker_name, g->speculative,
-            now);
-    if (Status s = st.run(); !s.ok()) return s;
+    // Its history line is made from this row when read (history()).
     Statement n(*this, "SELECT COUNT(*) FROM attempts WHERE job_id = ? AND frame = ? AND band = ?");
     n.bind(g->job_id, g->frame, g->band);
-    const int64_t attempt = n.step() == SQLITE_ROW ? n.integer(0) : 0;
-    return add_history(g->job_id, g->frame, g->band,
-                       fmt::format("lease {}: band {} of frame {} to worker {} ({}), attempt {}{}",
-                                   g->lease_id, g->band, g->frame, g->worker_id, g->worker_name,
-                                   attempt, g->speculative ? ", speculative" : ""));
+    const int64_t attempt = (n.step() == SQLITE_ROW ? n.integer(0) : 0) + 1;
+    Statement st(*this,
+                 "INSERT INTO attempts(lease_id, job_id, frame, band, worker_id, worker_name, "
+                 "speculative, started_at, grant_seq, attempt) VALUES(?,?,?,?,?,?,?,?,?,?)");
+    st.bind(g->lease_id, g->job_id, g->frame, g->band, g->worker_id, g->worker_name, g->speculative,
+            now, next_seq_++, attempt);
+    return st.run();
   }
   if (const auto* l = std::get_if<event::LeaseEnded>(&e)) {
     Statement st(*this,
-                 "UPDATE attempts SET ended_at = ?, outcome = ?, error = ?, charged = ? "
-                 "WHERE lease_id = ? AND outcome IS NULL");
-    st.bind(now, lease_outcome_name(l->outcome), l->error, is_charged(l->outcome), l->lease_id);
+                 "UPDATE attempts SET ended_at = ?, outcome = ?, error = ?, charged = ?, "
+                 "end_seq = ?, requeued = ? WHERE lease_id = ? AND outcome IS NULL");
+    st.bind(now, lease_outcome_name(l->outcome), l->error, is_charged(l->outcome), next_seq_++,
+            l->requeued, l->lease_id);
     if (Status s = st.run(); !s.ok()) return s;
-    if (Status s =
-            add_history(l->job_id, l->frame, l->band,
-                        fmt::format("lease {} {}{}{}", l->lease_id, lease_outcome_name(l->outcome),
-                                    l->error.empty() ? "" : ": " + l->error,
-                                    l->requeued ? "; band back in the queue" : ""));
-        !s.ok()) {
-      return s;
-    }
     job_totals_[l->job_id].failed_lost = {l->job_account.failed, l->job_account.lost};
     if (!is_charged(l->outcome)) return Status::Ok();
     Statement band(*this,
@@ -426,17 +437,10 @@ Status JobStore::apply_one(const Event& e) {
               encode_stats(d->band_stats));
     if (Status s = band.run(); !s.ok()) return s;
     Statement attempt(*this,
-                      "UPDATE attempts SET ended_at = ?, outcome = 'done' WHERE lease_id = ? AND "
-                      "outcome IS NULL");
-    attempt.bind(now, d->lease_id);
+                      "UPDATE attempts SET ended_at = ?, outcome = 'done', end_seq = ?, seconds = ? "
+                      "WHERE lease_id = ? AND outcome IS NULL");
+    attempt.bind(now, next_seq_++, d->seconds, d->lease_id);
     if (Status s = attempt.run(); !s.ok()) return s;
-    if (Status s =
-            add_history(d->job_id, d->frame, d->band,
-                        fmt::format("lease {} done: band {} of frame {} by worker {} in {:.3f} s",
-                                    d->lease_id, d->band, d->frame, d->worker_id, d->seconds));
-        !s.ok()) {
-      return s;
-    }
     // The pixels in the same transaction as "done": never one without the other.
     if (!d->pixels.empty()) {
       Statement px(*this,
@@ -542,24 +546,55 @@ Status JobStore::write_job_totals() {
 
 Status JobStore::add_history(const std::string& job_id, int frame, int band,
                              const std::string& text) {
-  Statement st(*this, "INSERT INTO history(job_id, at, frame, band, text) VALUES(?,?,?,?,?)");
-  st.bind(job_id, wall_now(), frame, band, text);
+  Statement st(*this,
+               "INSERT INTO history(seq, job_id, at, frame, band, text) VALUES(?,?,?,?,?,?)");
+  st.bind(next_seq_++, job_id, wall_now(), frame, band, text);
   return st.run();
 }
 
 Result<std::vector<HistoryEntry>> JobStore::history(const std::string& job_id, int64_t after,
                                                     int limit) {
+  // The history table's rows and each lease's two events from its attempts
+  // row (granted; ended or done), merged by their cursor. Each arm reads an
+  // index in cursor order (history_by_job, attempts_by_grant,
+  // attempts_by_end), so a page costs its length, not the job's size.
+  // Stores written before the leases' events moved (no grant_seq) keep
+  // them as history rows, and those read as before.
   Statement st(*this,
-               "SELECT seq, at, frame, band, text FROM history WHERE job_id = ? AND seq > ? "
-               "ORDER BY seq LIMIT ?");
+               "SELECT seq, at, frame, band, text, 0, '', '', '', 0, 0, '', '', 0.0, 0 "
+               "FROM history WHERE job_id = ?1 AND seq > ?2 "
+               "UNION ALL SELECT grant_seq, started_at, frame, band, '', 1, lease_id, worker_id, "
+               "worker_name, attempt, speculative, '', '', 0.0, 0 "
+               "FROM attempts WHERE job_id = ?1 AND grant_seq > ?2 "
+               "UNION ALL SELECT end_seq, ended_at, frame, band, '', 2, lease_id, worker_id, '', 0, "
+               "0, outcome, error, seconds, requeued "
+               "FROM attempts WHERE job_id = ?1 AND end_seq > ?2 "
+               "ORDER BY 1 LIMIT ?3");
   st.bind(job_id, after, limit);
   std::vector<HistoryEntry> out;
   for (;;) {
     const int rc = st.step();
     if (rc == SQLITE_DONE) break;
     if (rc != SQLITE_ROW) return st.error();
-    out.push_back({st.integer(0), st.real(1), static_cast<int>(st.integer(2)),
-                   static_cast<int>(st.integer(3)), st.text(4)});
+    HistoryEntry h{st.integer(0), st.real(1), static_cast<int>(st.integer(2)),
+                   static_cast<int>(st.integer(3)), st.text(4)};
+    const int64_t kind = st.integer(5);
+    const std::string lease = st.text(6), worker = st.text(7);
+    if (kind == 1) {
+      h.text = fmt::format("lease {}: band {} of frame {} to worker {} ({}), attempt {}{}", lease,
+                           h.band, h.frame, worker, st.text(8), st.integer(9),
+                           st.integer(10) ? ", speculative" : "");
+    } else if (kind == 2) {
+      const std::string outcome = st.text(11), error = st.text(12);
+      if (outcome == "done") {
+        h.text = fmt::format("lease {} done: band {} of frame {} by worker {} in {:.3f} s", lease,
+                             h.band, h.frame, worker, st.real(13));
+      } else {
+        h.text = fmt::format("lease {} {}{}{}", lease, outcome, error.empty() ? "" : ": " + error,
+                             st.integer(14) ? "; band back in the queue" : "");
+      }
+    }
+    out.push_back(std::move(h));
   }
   return out;
 }
@@ -583,15 +618,14 @@ Result<RecoveredState> JobStore::recover() {
                         static_cast<int>(st.integer(3))});
       }
     }
-    Statement st(*this,
-                 "UPDATE attempts SET ended_at = ?, outcome = 'void', "
-                 "error = 'the coordinator restarted' WHERE outcome IS NULL");
-    st.bind(now);
-    Status s = st.run();
+    Status s = Status::Ok();
     for (size_t i = 0; s.ok() && i < open.size(); ++i) {
-      s = add_history(open[i].job, open[i].frame, open[i].band,
-                      "lease " + open[i].lease +
-                          " void: the coordinator restarted; band back in the queue");
+      Statement st(*this,
+                   "UPDATE attempts SET ended_at = ?, outcome = 'void', "
+                   "error = 'the coordinator restarted', end_seq = ?, requeued = 1 "
+                   "WHERE lease_id = ?");
+      st.bind(now, next_seq_++, open[i].lease);
+      s = st.run();
     }
     if (s.ok()) s = exec("COMMIT");
     if (!s.ok()) {

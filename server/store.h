@@ -91,6 +91,10 @@ class JobStore {
   };
   Status write_job_totals();
   std::map<std::string, JobTotals> job_totals_;
+  // The next history cursor (HistoryEntry::seq): one sequence for the
+  // history table's rows and the leases' events kept in `attempts`
+  // (grant_seq, end_seq), so that history() merges them in order.
+  int64_t next_seq_ = 1;
   Status add_history(const std::string& job_id, int frame, int band, const std::string& text);
   class Statement;
   sqlite3* db_;

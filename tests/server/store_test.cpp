@@ -51,6 +51,81 @@ Result<std::unique_ptr<JobStore>> open_store(const fs::path& dir) {
   return JobStore::open((dir / "locus.db").string());
 }
 
+// Each lease's events are kept in its attempts row, not as history rows of
+// text (issue #25 "compact history"), and read back as the lines they were,
+// merged with the job's own history in order, through a cursor, and across
+// a restart that voids the leases in flight.
+TEST(JobStore, LeaseLinesComeFromTheAttemptsInOrder) {
+  TempDir dir;
+  FakeClock clock;
+  std::string job, w1, w2;
+  std::vector<BandLease> t;
+  {
+    auto store = open_store(dir.path);
+    ASSERT_TRUE(store.ok()) << store.status().message();
+    Scheduler s(SchedulerOptions{}, clock.fn());
+    job = s.add_job(spec(4, 6, 1, 1, 3), "", "");
+    w1 = s.add_worker("host:1", 1);
+    w2 = s.add_worker("host:2", 1);
+    t.push_back(**s.next_band(w1));
+    t.push_back(**s.next_band(w2));
+    t.push_back(**s.next_band(w2));
+    clock.advance(250);  // the lease's time, in its "done" line
+    ASSERT_TRUE(s.complete_band(pixels(w1, t[0]))->accepted);
+    BandOutput failed;
+    failed.worker_id = w2;
+    failed.lease_id = t[1].lease_id;
+    failed.error = "out of memory";
+    ASSERT_TRUE(s.complete_band(failed).ok());
+    ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+    // No history row of text per lease: only the job's own lines.
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir.path / "locus.db").string().c_str(), &db), SQLITE_OK);
+    sqlite3_stmt* st = nullptr;
+    ASSERT_EQ(sqlite3_prepare_v2(db, "SELECT COUNT(*) FROM history WHERE text LIKE 'lease %'", -1,
+                                 &st, nullptr),
+              SQLITE_OK);
+    ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
+    EXPECT_EQ(sqlite3_column_int(st, 0), 0);
+    sqlite3_finalize(st);
+    sqlite3_close(db);
+  }
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok());
+  ASSERT_TRUE((*store)->recover().ok());  // t[2] was in flight: void
+  auto h = (*store)->history(job, 0, 100);
+  ASSERT_TRUE(h.ok()) << h.status().message();
+  std::vector<std::string> lines;
+  for (const HistoryEntry& e : *h) lines.push_back(e.text);
+  const auto lease = [&](int i) { return "lease " + t[i].lease_id; };
+  const auto where = [&](int i) {
+    return "band " + std::to_string(t[i].band) + " of frame " + std::to_string(t[i].frame);
+  };
+  ASSERT_EQ(lines.size(), 8u) << ::testing::PrintToString(lines);
+  EXPECT_NE(lines[0].find("submitted"), std::string::npos) << lines[0];
+  EXPECT_EQ(lines[1], "state running");
+  EXPECT_EQ(lines[2], lease(0) + ": " + where(0) + " to worker " + w1 + " (host:1), attempt 1");
+  EXPECT_EQ(lines[3], lease(1) + ": " + where(1) + " to worker " + w2 + " (host:2), attempt 1");
+  EXPECT_EQ(lines[4], lease(2) + ": " + where(2) + " to worker " + w2 + " (host:2), attempt 1");
+  EXPECT_EQ(lines[5], lease(0) + " done: " + where(0) + " by worker " + w1 + " in 0.250 s");
+  EXPECT_EQ(lines[6], lease(1) + " failed: worker " + w2 +
+                          " (host:2): out of memory; band back in the queue");
+  EXPECT_EQ(lines[7], lease(2) + " void: the coordinator restarted; band back in the queue");
+  for (size_t i = 1; i < h->size(); ++i) EXPECT_LT((*h)[i - 1].seq, (*h)[i].seq);
+  EXPECT_EQ((*h)[5].frame, t[0].frame);
+  EXPECT_EQ((*h)[5].band, t[0].band);
+  // A cursor: what came after the 4th line, two at a time.
+  auto page = (*store)->history(job, (*h)[3].seq, 2);
+  ASSERT_TRUE(page.ok());
+  ASSERT_EQ(page->size(), 2u);
+  EXPECT_EQ((*page)[0].text, lines[4]);
+  EXPECT_EQ((*page)[1].text, lines[5]);
+  // New lines after the restart continue the sequence.
+  auto more = (*store)->history(job, h->back().seq, 100);
+  ASSERT_TRUE(more.ok());
+  EXPECT_TRUE(more->empty());
+}
+
 TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   TempDir dir;
   FakeClock clock;
