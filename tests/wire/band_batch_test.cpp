@@ -12,7 +12,24 @@ namespace locus::farm {
 namespace {
 using namespace testing_farm;
 
-using BandBatchTest = HandWorkerTest;
+class BandBatchTest : public HandWorkerTest {
+ protected:
+  struct Leased {
+    std::string job;
+    HandWorker worker;
+    std::vector<v1::BandTask> tasks;
+  };
+  // The job submitted to a started farm, and `n` of its bands leased by a
+  // hand worker in one GetTask (fewer, with a test failure, when not).
+  Leased submit_and_lease(const SubmitRequest& r, int n) {
+    std::string job = start_with_job(r);
+    HandWorker w = hand_worker();
+    std::vector<v1::BandTask> tasks;
+    if (!job.empty()) tasks = w.leases(n);
+    EXPECT_EQ(tasks.size(), static_cast<size_t>(n));
+    return {job, std::move(w), tasks};
+  }
+};
 
 // One CompleteBand call holding the results of `tasks`.
 v1::CompleteBandRequest batch(HandWorker& w, const std::vector<v1::BandTask>& tasks) {
@@ -28,10 +45,7 @@ v1::CompleteBandRequest batch(HandWorker& w, const std::vector<v1::BandTask>& ta
 TEST_F(BandBatchTest, BandsComeAndGoThreeToACall) {
   // 2 frames x 4 bands: 3 + 3 + 2 bands in three calls.
   const SubmitRequest r = request(kSpheres, 32, 24, 0, 1, 4, "b_#.png");
-  const std::string job = start_with_job(r);
-  ASSERT_FALSE(job.empty());
-  HandWorker w = hand_worker();
-  std::vector<v1::BandTask> tasks = w.leases(3);
+  auto [job, w, tasks] = submit_and_lease(r, 3);
   ASSERT_EQ(tasks.size(), 3u);
   std::set<std::pair<int, int>> seen;
   std::set<std::string> lease_ids;
@@ -62,10 +76,7 @@ TEST_F(BandBatchTest, BandsComeAndGoThreeToACall) {
 
 TEST_F(BandBatchTest, AStaleResultIsRefusedAloneAndTheOthersAccepted) {
   const SubmitRequest r = request(kSpheres, 32, 24, 1, 1, 3, "s.png");
-  const std::string job = start_with_job(r);
-  ASSERT_FALSE(job.empty());
-  HandWorker w = hand_worker();
-  std::vector<v1::BandTask> tasks = w.leases(3);
+  auto [job, w, tasks] = submit_and_lease(r, 3);
   ASSERT_EQ(tasks.size(), 3u);
   v1::CompleteBandRequest req = batch(w, tasks);
   // A result for a lease the coordinator never gave, between two good ones.
@@ -87,10 +98,7 @@ TEST_F(BandBatchTest, AStaleResultIsRefusedAloneAndTheOthersAccepted) {
 
 TEST_F(BandBatchTest, AMalformedResultRefusesTheCallAndStoresNone) {
   const SubmitRequest r = request(kSpheres, 32, 24, 1, 1, 2, "m.png");
-  const std::string job = start_with_job(r);
-  ASSERT_FALSE(job.empty());
-  HandWorker w = hand_worker();
-  std::vector<v1::BandTask> tasks = w.leases(2);
+  auto [job, w, tasks] = submit_and_lease(r, 2);
   ASSERT_EQ(tasks.size(), 2u);
   const v1::CompleteBandRequest good = batch(w, tasks);
 
