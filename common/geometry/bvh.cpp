@@ -1,6 +1,8 @@
 #include "common/geometry/bvh.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <numeric>
 
 namespace locus {
@@ -12,6 +14,10 @@ constexpr int kBins = 16;
 // of a node at depth kMaxDepth - 1): within walk_bvh's checked bound.
 constexpr int kMaxDepth = 100;
 static_assert(kMaxDepth + 1 <= kBvhWalkStack, "walk_bvh's stack must hold the deepest path");
+// A wide node's children lie at least one binary level below it, so the
+// 4-wide tree is at most kMaxDepth + 1 levels deep, each leaving at most 3
+// children pending in traverse_bvh.
+static_assert(3 * (kMaxDepth + 1) <= kBvhRayStack, "traverse_bvh's stack must hold the deepest path");
 constexpr int kLeafMax = 4;
 
 struct BuildCtx {
@@ -96,7 +102,109 @@ int build_node(BuildCtx& ctx, int begin, int end, int depth) {
   return id;
 }
 
+// A wide node of empty slots (lo = +inf, hi = -inf: no ray meets them).
+BvhWideNode empty_wide_node() {
+  BvhWideNode w;
+  for (int k = 0; k < 4; ++k) {
+    for (int a = 0; a < 3; ++a) {
+      w.planes[a][0][k] = std::numeric_limits<float>::infinity();
+      w.planes[a][1][k] = -std::numeric_limits<float>::infinity();
+    }
+    w.ref[k] = 0;
+    w.count[k] = -1;
+  }
+  return w;
+}
+
+// Child slot k: `box` rounded outward to float, and the child.
+void set_slot(BvhWideNode& w, int k, const Aabb& box, int ref, int count) {
+  for (int a = 0; a < 3; ++a) {
+    w.planes[a][0][k] = float_down(box.lo[a]);
+    w.planes[a][1][k] = float_up(box.hi[a]);
+  }
+  w.ref[k] = ref;
+  w.count[k] = count;
+}
+
+// Collapses binary inner node ni into a wide node: its children, the inner
+// child of largest area replaced by its two children while there are fewer
+// than 4. Returns the wide node's index.
+int collapse(Bvh& bvh, int ni) {
+  int child[4] = {ni + 1, bvh.nodes[ni].first, -1, -1};
+  int n = 2;
+  while (n < 4) {
+    int widest = -1;
+    double widest_area = -1.0;
+    for (int k = 0; k < n; ++k) {
+      const BvhNode& c = bvh.nodes[child[k]];
+      if (c.count == 0 && c.box.area() > widest_area) widest = k, widest_area = c.box.area();
+    }
+    if (widest < 0) break;
+    const int w = child[widest];
+    child[widest] = w + 1;
+    child[n++] = bvh.nodes[w].first;
+  }
+  const int id = static_cast<int>(bvh.wide.size());
+  bvh.wide.push_back(empty_wide_node());
+  for (int k = 0; k < n; ++k) {
+    const BvhNode& c = bvh.nodes[child[k]];
+    const int ref = c.count > 0 ? c.first : collapse(bvh, child[k]);  // may move bvh.wide
+    set_slot(bvh.wide[id], k, c.box, ref, c.count);
+  }
+  return id;
+}
+
 }  // namespace
+
+float float_down(double x) {
+  const float f = static_cast<float>(x);
+  return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
+}
+
+float float_up(double x) {
+  const float f = static_cast<float>(x);
+  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+}
+
+WideRay::WideRay(const Ray& r) {
+  double shift = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double inv_d = 1.0 / r.dir[a];
+    origin[a] = static_cast<float>(r.origin[a]);
+    near_plane[a] = std::signbit(inv_d) ? 1 : 0;
+    if (std::isinf(inv_d)) {
+      // Parallel to the slabs: the distances are infinite or NaN, and their
+      // signs are those of the exact origin's (rounding is monotonic and
+      // the planes are rounded outward), so no shift.
+      inv[a] = static_cast<float>(inv_d);
+    } else if (std::abs(inv_d) > 1e30) {
+      // Nearly parallel: this axis is not tested (a NaN distance), which is
+      // conservative, rather than rounded to an infinite reciprocal.
+      inv[a] = std::numeric_limits<float>::quiet_NaN();
+    } else {
+      inv[a] = static_cast<float>(inv_d);
+      // The float origin's error along the ray.
+      shift = std::max(shift, std::abs((r.origin[a] - static_cast<double>(origin[a])) * inv_d));
+    }
+  }
+  // Twice the shift, rounded up generously; kept finite (an infinite slack
+  // would turn the test's infinite bounds into NaN).
+  slack = static_cast<float>(std::min(2.0 * 1.01 * shift + 1e-30, 1e30));
+}
+
+void build_wide(Bvh& bvh) {
+  bvh.wide.clear();
+  if (bvh.nodes.empty()) return;
+  const BvhNode& root = bvh.nodes[0];
+  if (root.count > 0) {
+    // A root leaf: one wide node holding it.
+    bvh.wide.push_back(empty_wide_node());
+    set_slot(bvh.wide[0], 0, root.box, root.first, root.count);
+    return;
+  }
+  bvh.wide.reserve(bvh.nodes.size() / 2 + 1);
+  collapse(bvh, 0);
+}
 
 Bvh build_bvh(const std::vector<Aabb>& bounds) {
   Bvh bvh;
@@ -120,6 +228,7 @@ Bvh build_bvh(const std::vector<Aabb>& bounds) {
   for (const Aabb& b : padded) ctx.centres.push_back(b.centre());
   bvh.nodes.reserve(2 * bounds.size());
   build_node(ctx, 0, static_cast<int>(bounds.size()), 0);
+  build_wide(bvh);
   return bvh;
 }
 

@@ -1,11 +1,15 @@
 // A bounding-volume hierarchy over primitive boxes, built with the surface
 // area heuristic (binned). This is the "modern baseline" hierarchy used by
 // --boxes eye+shadow in the ray tracer; the paper's own hierarchy of boxes
-// (METHOD.md §7) builds on the same nodes.
+// (METHOD.md §7) builds on the same nodes. Two walks: walk_bvh over the
+// binary nodes for region queries, traverse_bvh over their 4-wide float
+// form for rays (docs/renderer.md, "The ray kernel against Embree").
 #pragma once
 
+#include <bit>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -24,12 +28,32 @@ struct BvhNode {
   int count = 0;  // > 0 for leaves; inner nodes have their left child at i + 1
 };
 
-struct Bvh {
-  std::vector<BvhNode> nodes;
-  std::vector<int> order;  // primitive indices, leaves refer to ranges
+// The ray walk's form of the same hierarchy (traverse_bvh): the binary tree
+// collapsed into nodes of up to 4 children, each child's box in float,
+// rounded outward from the double box, and stored by plane so that one SSE
+// pass tests all four. Child slot k: `count[k]` > 0 is a leaf (`ref[k]` its
+// first index into Bvh::order, as BvhNode), 0 an inner node (`ref[k]` its
+// index in Bvh::wide), -1 an empty slot, whose box (lo = +inf, hi = -inf)
+// no ray meets.
+struct BvhWideNode {
+  alignas(16) float planes[3][2][4];  // [axis][0: lo, 1: hi][child]
+  int ref[4];
+  int count[4];
 };
 
+struct Bvh {
+  std::vector<BvhNode> nodes;  // the binary tree: the hierarchy of boxes of §4.1
+  std::vector<int> order;      // primitive indices, leaves refer to ranges
+  std::vector<BvhWideNode> wide;  // the same leaves, 4-wide, for rays; wide[0] the root
+};
+
+// Builds the binary tree and its 4-wide form.
 Bvh build_bvh(const std::vector<Aabb>& bounds);
+
+// Fills bvh.wide from bvh.nodes: each inner node takes the children of its
+// largest inner children until it has 4 (build_bvh calls it; tests that
+// build a tree by hand call it themselves).
+void build_wide(Bvh& bvh);
 
 // Precomputed reciprocal direction for slab tests.
 struct RayInv {
@@ -100,10 +124,11 @@ inline double box_entry(const Aabb& b, const RayInv& r, double tmin) {
 // LOCUS_CHECK in walk_bvh instead of writing past the array.
 inline constexpr int kBvhWalkStack = 128;
 
-// The one walk over the hierarchy, depth first from the root; the ray
-// tracer's (traverse_bvh), the shadow search's, the front/back relations'
-// and the span shadows' walks (a box's shadow volume against a span, with
-// candidate narrowing) are this one with their own callables, inlined.
+// The region walk over the binary hierarchy, depth first from the root:
+// the front/back relations' and the span shadows' walks (a box's shadow
+// volume against a hull, a span or a group of lines, paper §4.1, with
+// per-node data indexed by node) are this one with their own callables,
+// inlined. Rays and segments take the 4-wide walk, traverse_bvh, instead.
 // `enter(ni)` says whether node ni's subtree is walked. At an entered leaf,
 // `visit(prim)` is called for its primitives in order, and ends the walk by
 // returning false. An entered inner node's children come next: the right one
@@ -144,29 +169,130 @@ bool walk_bvh(const Bvh& bvh, Enter&& enter, Visit&& visit) {
   return walk_bvh(bvh, enter, visit, [](int) { return false; });
 }
 
-// Visits the primitives whose leaf boxes the ray meets in (tmin, tmax), the
-// near child first. `visit(prim)` returns the possibly shortened tmax, or a
-// negative value to stop the traversal.
+// The ray in the form the 4-wide box test takes (wide_hits): origin and
+// reciprocal direction in float, which of each axis' planes the ray meets
+// first, and the slack that makes the float test conservative. The float
+// slab distance of a plane p, fl(fl(p - o_f) * inv_f), is within 3 units of
+// float rounding (relative, 2^-24 each) of the exact distance from the
+// float origin o_f; the exact origin o = o_f + r moves the distance on axis
+// a by r_a / d_a. So each entry is lowered by kWideRel of its size and by
+// twice the largest |r_a / d_a|, and a box the exact ray meets in
+// [tmin, tmax] is never missed; the exact tests of its primitives decide
+// (the hierarchy only ever adds candidates).
+struct WideRay {
+  static constexpr float kWideRel = 1.0f / (1 << 20);  // 16 units of float rounding
+  float origin[3], inv[3];
+  int near_plane[3];  // 0: lo, 1: hi
+  float slack;
+  explicit WideRay(const Ray& r);
+};
+
+// The largest float not above x, and the smallest not below.
+float float_down(double x);
+float float_up(double x);
+
+// Which of node n's four boxes the ray meets for some t in [tmin, tmax]
+// (bit k for child k), conservatively (WideRay); entry[k] is a lower bound
+// of where it enters box k. A NaN slab distance (origin on a slab's plane,
+// direction parallel to it) never moves the bounds, as in hit_box.
+inline int wide_hits(const BvhWideNode& n, const WideRay& r, float tmin, float tmax,
+                     float entry[4]) {
+#if defined(__SSE2__)
+  // _mm_max_ps(a, b) and _mm_min_ps(a, b) return b when either is NaN: the
+  // slab distance goes first.
+  __m128 lo = _mm_set1_ps(tmin), hi = _mm_set1_ps(tmax);
+  for (int a = 0; a < 3; ++a) {
+    const __m128 o = _mm_set1_ps(r.origin[a]), inv = _mm_set1_ps(r.inv[a]);
+    const __m128 tn = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[a][r.near_plane[a]]), o), inv);
+    const __m128 tf = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[a][1 - r.near_plane[a]]), o), inv);
+    lo = _mm_max_ps(tn, lo);
+    hi = _mm_min_ps(tf, hi);
+  }
+  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  const __m128 rel = _mm_set1_ps(WideRay::kWideRel);
+  lo = _mm_sub_ps(lo, _mm_add_ps(_mm_mul_ps(_mm_and_ps(lo, abs_mask), rel), _mm_set1_ps(r.slack)));
+  hi = _mm_add_ps(hi, _mm_mul_ps(_mm_and_ps(hi, abs_mask), rel));
+  _mm_storeu_ps(entry, lo);
+  return _mm_movemask_ps(_mm_cmple_ps(lo, hi));
+#else
+  int mask = 0;
+  for (int k = 0; k < 4; ++k) {
+    float lo = tmin, hi = tmax;
+    for (int a = 0; a < 3; ++a) {
+      const float tn = (n.planes[a][r.near_plane[a]][k] - r.origin[a]) * r.inv[a];
+      const float tf = (n.planes[a][1 - r.near_plane[a]][k] - r.origin[a]) * r.inv[a];
+      lo = tn > lo ? tn : lo;
+      hi = tf < hi ? tf : hi;
+    }
+    lo = lo - (std::abs(lo) * WideRay::kWideRel + r.slack);
+    hi = hi + std::abs(hi) * WideRay::kWideRel;
+    entry[k] = lo;
+    if (lo <= hi) mask |= 1 << k;
+  }
+  return mask;
+#endif
+}
+
+// The ray walk's stack: an entered node leaves at most 3 children pending,
+// and the 4-wide tree is no deeper than the binary one (bvh.cpp).
+inline constexpr int kBvhRayStack = 3 * kBvhWalkStack;
+
+// The one ray walk, over the 4-wide tree (the ray tracer's nearest hit and
+// shadow rays, the shadow search's segments): visits the primitives of the
+// leaves whose boxes the ray meets in [tmin, tmax] (conservatively: a leaf
+// met only within the float test's slack may be visited too), the nearest
+// box entered first. `visit(prim)` returns the possibly shortened tmax, or
+// a negative value to stop the traversal; a pending box the ray enters
+// beyond tmax is dropped.
 template <typename F>
 void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& visit) {
-  const RayInv ri(ray);
-  const bool neg[3] = {ray.dir.x < 0, ray.dir.y < 0, ray.dir.z < 0};
-  walk_bvh(
-      bvh, [&](int ni) { return hit_box(bvh.nodes[ni].box, ri, tmin, tmax); },
-      [&](int prim) {
-        const double t = visit(prim);
-        if (t < 0) return false;
-        tmax = t;
-        return true;
-      },
-      [&](int ni) {
-        // The child whose centre lies first along the ray's direction, on
-        // the axis that separates the two centres most.
-        const Vec3 d = bvh.nodes[bvh.nodes[ni].first].box.centre() - bvh.nodes[ni + 1].box.centre();
-        const int major = std::abs(d.x) > std::abs(d.y) ? (std::abs(d.x) > std::abs(d.z) ? 0 : 2)
-                                                        : (std::abs(d.y) > std::abs(d.z) ? 1 : 2);
-        return (d[major] < 0) != neg[major];
-      });
+  if (bvh.wide.empty()) return;
+  struct Entry {
+    int ref, count;
+    float t;
+  };
+  const WideRay wr(ray);
+  const float tmin_f = float_down(tmin);
+  float tmax_f = float_up(tmax);
+  Entry stack[kBvhRayStack];
+  int sp = 0;
+  Entry cur{0, 0, -std::numeric_limits<float>::infinity()};
+  for (;;) {
+    if (cur.count == 0) {
+      const BvhWideNode& n = bvh.wide[cur.ref];
+      float entry[4];
+      int mask = wide_hits(n, wr, tmin_f, tmax_f, entry);
+      if (mask != 0) {
+        // The boxes met, nearest entry first (insertion: at most 4).
+        Entry hit[4];
+        int nh = 0;
+        for (; mask != 0; mask &= mask - 1) {
+          const int k = std::countr_zero(static_cast<unsigned>(mask));
+          const Entry e{n.ref[k], n.count[k], entry[k]};
+          int j = nh++;
+          for (; j > 0 && e.t < hit[j - 1].t; --j) hit[j] = hit[j - 1];
+          hit[j] = e;
+        }
+        LOCUS_CHECK(sp + 3 <= kBvhRayStack);
+        for (int j = nh - 1; j > 0; --j) stack[sp++] = hit[j];
+        cur = hit[0];
+        continue;
+      }
+    } else {
+      for (int i = cur.ref; i < cur.ref + cur.count; ++i) {
+        const double t = visit(bvh.order[i]);
+        if (t < 0) return;
+        if (t != tmax) {
+          tmax = t;
+          tmax_f = float_up(tmax);
+        }
+      }
+    }
+    do {
+      if (sp == 0) return;
+      cur = stack[--sp];
+    } while (static_cast<double>(cur.t) > tmax);
+  }
 }
 
 }  // namespace locus

@@ -1,12 +1,16 @@
-// The one hierarchy walk (walk_bvh, traverse_bvh): on seeded random boxes
-// and rays it visits exactly the leaves a brute-force box test gives, and a
-// hierarchy deeper than its stack trips the LOCUS_CHECK instead of writing
-// past the array.
+// The hierarchy's walks: the ray walk (traverse_bvh, over the 4-wide float
+// tree) visits every leaf a brute-force double box test gives and only
+// leaves within the float test's slack besides; the 4-wide box test never
+// misses a box the double slab test meets (slab planes, parallel rays, far
+// origins); the region walk (walk_bvh) visits exactly the leaves its node
+// test accepts; a hierarchy deeper than a walk's stack trips the
+// LOCUS_CHECK instead of writing past the array.
 #include "common/geometry/bvh.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -57,11 +61,19 @@ std::vector<int> brute_force_leaves(const Bvh& bvh, Meets&& leaf_meets) {
   return out;
 }
 
-TEST(BvhWalk, TraversalVisitsExactlyTheLeavesTheRayMeets) {
+// Box b grown by `rel` of its size and coordinates.
+Aabb grown(const Aabb& b, double rel) {
+  const double m = std::max(max_component(glm::abs(b.lo)), max_component(glm::abs(b.hi)));
+  const Vec3 pad((b.hi - b.lo) * rel + Vec3(m * rel));
+  return Aabb{b.lo - pad, b.hi + pad};
+}
+
+TEST(BvhWalk, TraversalVisitsTheLeavesTheRayMeets) {
   const uint64_t seed = 22;
   std::mt19937_64 rng(seed);
   const std::vector<Aabb> boxes = random_boxes(rng);
   const Bvh bvh = build_bvh(boxes);
+  int extra = 0, total = 0;
   for (int k = 0; k < kRays; ++k) {
     const TestRay r = random_ray(rng);
     const RayInv ri(r.ray);
@@ -71,9 +83,22 @@ TEST(BvhWalk, TraversalVisitsExactlyTheLeavesTheRayMeets) {
       return r.tmax;
     });
     std::sort(visited.begin(), visited.end());
-    const std::vector<int> expected =
-        brute_force_leaves(bvh, [&](const Aabb& b) { return hit_box(b, ri, 0.0, r.tmax); });
-    ASSERT_EQ(visited, expected) << "seed " << seed << ", ray " << k;
+    ASSERT_TRUE(std::adjacent_find(visited.begin(), visited.end()) == visited.end())
+        << "a primitive visited twice, seed " << seed << ", ray " << k;
+    // Every leaf the double test meets is visited ...
+    const std::vector<int> met =
+        brute_force_leaves(bvh, [&](const Aabb& b) { return hit_box_scalar(b, ri, 0.0, r.tmax); });
+    ASSERT_TRUE(std::includes(visited.begin(), visited.end(), met.begin(), met.end()))
+        << "seed " << seed << ", ray " << k;
+    // ... and besides them only leaves the ray passes within the float
+    // test's slack of.
+    const std::vector<int> near = brute_force_leaves(bvh, [&](const Aabb& b) {
+      return hit_box_scalar(grown(b, 1e-5), ri, -1e-5 * r.tmax, r.tmax * (1 + 1e-5));
+    });
+    ASSERT_TRUE(std::includes(near.begin(), near.end(), visited.begin(), visited.end()))
+        << "seed " << seed << ", ray " << k;
+    extra += static_cast<int>(visited.size() - met.size());
+    total += static_cast<int>(visited.size());
     // Conservative: every primitive whose own box the ray meets is visited.
     for (int p = 0; p < kBoxes; ++p) {
       if (hit_box_scalar(boxes[p], ri, 0.0, r.tmax)) {
@@ -82,6 +107,75 @@ TEST(BvhWalk, TraversalVisitsExactlyTheLeavesTheRayMeets) {
       }
     }
   }
+  EXPECT_GT(total, kRays);
+  EXPECT_LT(extra, total / 1000 + 1);
+}
+
+// The 4-wide float box test against the double slab loop: a box the double
+// test meets is met, and entered no later than it says, on random boxes and
+// rays and on rays whose origin lies on a slab's plane with a direction
+// component of +0 or -0 (NaN slab distances), on a box's face or edge, far
+// from the origin (the float origin's rounding), with tmax at the entry.
+TEST(BvhWalk, WideBoxTestNeverMissesWhatTheDoubleTestMeets) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-2.0, 2.0), unit(0.0, 1.0);
+  std::uniform_int_distribution<int> pick(0, 5);
+  const double grid[] = {-1.0, -0.5, 0.0, 0.5, 1.0};
+  const double offsets[] = {0.0, 0.1, 1e3 / 3, -7e5 / 3};
+  int hits = 0, misses = 0;
+  for (int k = 0; k < 100000; ++k) {
+    const Vec3 shift(offsets[k % 4], offsets[(k / 4) % 4], offsets[(k / 16) % 4]);
+    BvhWideNode n;
+    Aabb box[4];
+    for (int c = 0; c < 4; ++c) {
+      box[c].extend(shift + Vec3(grid[pick(rng) % 5], grid[pick(rng) % 5], grid[pick(rng) % 5]));
+      box[c].extend(shift + Vec3(grid[pick(rng) % 5], grid[pick(rng) % 5], grid[pick(rng) % 5]));
+      for (int a = 0; a < 3; ++a) {
+        n.planes[a][0][c] = float_down(box[c].lo[a]);
+        n.planes[a][1][c] = float_up(box[c].hi[a]);
+      }
+    }
+    Vec3 o(u(rng), u(rng), u(rng)), d(u(rng), u(rng), u(rng));
+    for (int a = 0; a < 3; ++a) {
+      switch (pick(rng)) {
+        case 0: d[a] = 0.0; break;
+        case 1: d[a] = -0.0; break;
+        case 2: o[a] = grid[pick(rng) % 5] + unit(rng) * 1e-12; break;  // on or near a plane
+        case 3: o[a] = grid[pick(rng) % 5]; d[a] = pick(rng) % 2 ? 0.0 : -0.0; break;
+        default: break;
+      }
+    }
+    o += shift;
+    const Ray ray{o, d};
+    const RayInv ri(ray);
+    const WideRay wr(ray);
+    const double tmin = pick(rng) % 2 ? 0.0 : unit(rng);
+    const double tmax = pick(rng) % 3 == 0 ? box_entry(box[k % 4], ri, tmin) : 1e300;
+    float entry[4];
+    const int mask = wide_hits(n, wr, float_down(tmin), float_up(tmax), entry);
+    for (int c = 0; c < 4; ++c) {
+      // (An entry at infinity, from a zero direction, is no point of the ray.)
+      const bool want =
+          hit_box_scalar(box[c], ri, tmin, tmax) && std::isfinite(box_entry(box[c], ri, tmin));
+      const bool got = (mask >> c) & 1;
+      ASSERT_TRUE(got || !want) << "ray " << k << ", box " << c << ": (" << box[c].lo.x << ", "
+                                << box[c].lo.y << ", " << box[c].lo.z << ")-(" << box[c].hi.x
+                                << ", " << box[c].hi.y << ", " << box[c].hi.z << ") origin ("
+                                << o.x << ", " << o.y << ", " << o.z << ") direction (" << d.x
+                                << ", " << d.y << ", " << d.z << ")";
+      if (want) {
+        ASSERT_LE(entry[c], box_entry(box[c], ri, tmin)) << "ray " << k << ", box " << c;
+        ++hits;
+      } else if (!got) {
+        ++misses;
+      }
+    }
+  }
+  // Both outcomes are well represented; the rays near slab planes make
+  // the float test take many near misses (how tight it is on ordinary rays:
+  // TraversalVisitsTheLeavesTheRayMeets).
+  EXPECT_GT(hits, 10000);
+  EXPECT_GT(misses, 100000);
 }
 
 // The span shadows' use: another node test (here a query box against the
@@ -175,6 +269,7 @@ Bvh degenerate_chain(int depth) {
   bvh.nodes.push_back(BvhNode{box, 0, 1});  // the chain's last left child
   bvh.nodes.push_back(BvhNode{box, 0, 1});  // every right child
   bvh.order = {0};
+  build_wide(bvh);
   return bvh;
 }
 
@@ -184,11 +279,12 @@ TEST(BvhWalkDeathTest, DeeperThanTheStackTripsTheCheck) {
   EXPECT_DEATH(walk_bvh(
                    bvh, [](int) { return true; }, [](int) { return true; }),
                "CHECK failed: sp \\+ 2 <= kBvhWalkStack");
-  // traverse_bvh walks it left first too (the children's centres coincide
-  // and the ray points along +z).
-  EXPECT_DEATH(traverse_bvh(bvh, Ray{Vec3(0.1, 0.2, -5), Vec3(0, 0, 1)}, 0.0, 10.0,
-                            [](int) { return 10.0; }),
-               "CHECK failed: sp \\+ 2 <= kBvhWalkStack");
+  // The 4-wide form of a chain 3 levels deeper than kBvhRayStack: each wide
+  // node holds 3 leaves and the rest of the chain, all at the same entry
+  // distance, and the chain goes first.
+  EXPECT_DEATH(traverse_bvh(degenerate_chain(kBvhRayStack + 3), Ray{Vec3(0.1, 0.2, -5), Vec3(0, 0, 1)},
+                            0.0, 10.0, [](int) { return 10.0; }),
+               "CHECK failed: sp \\+ 3 <= kBvhRayStack");
   // One level less is the longest chain the stack holds: walked to the end,
   // each right child and the last left one visited.
   int visits = 0;
