@@ -119,7 +119,9 @@ def main():
                               ncpu, stale)
             # Saved after every scene: a run cut short keeps what it measured
             # (--report-only reports it; info has no end yet).
-            H.save_raw(raw_path, {"rows": rows, "info": dict(info, partial=True)})
+            H.save_raw(raw_path, {"rows": rows, "info": dict(
+                info, partial=True, load_end=H.loadavg(),
+                minutes=(time.time() - started) / 60.0)})
         info["locus_changed"] = (os.path.exists(args.locus) and
                                  H.sha256_file(args.locus) != locus.sha)
     finally:
@@ -142,8 +144,11 @@ def merge_raws(paths):
         scenes = {r["scene"] for r in raw["rows"]} - seen
         rows += [r for r in raw["rows"] if r["scene"] in scenes]
         seen |= scenes
-    info = dict(raws[0]["info"], runs=[dict(r["info"], scenes=sorted(
-        {x["scene"] for x in r["rows"]})) for r in raws])
+    taken = []
+    for raw in raws:
+        taken.append(sorted({r["scene"] for r in raw["rows"]} - {t for x in taken for t in x}))
+    info = dict(raws[0]["info"], runs=[dict(r["info"], scenes=t) for r, t in zip(raws, taken)
+                                       if t])
     return {"rows": rows, "info": info}
 
 
@@ -291,8 +296,8 @@ def write_md(path, rows, lines, edge_lines, info):
          "",
          f"`bench/peers/curve.py{q}`, {info['date']}: locus `{info['locus']}` (HEAD "
          f"`{info['commit']}`), {info['pov']}, {info['ncpu']} cores, load average "
-         f"{info['load_start']} at the start and {info.get('load_end', '?')} at the end, "
-         f"{info.get('minutes', float('nan')):.0f} min"
+         f"{info['load_start']} at the start and {info.get('load_end', '?')} at the end"
+         + (f", {info['minutes']:.0f} min" if "minutes" in info else "")
          + (" (a partial run: the scenes measured before it stopped)" if info.get("partial")
             else "") +
          f". {size}x{size}, ray depth 5 (both), one thread. Time: "
@@ -306,8 +311,9 @@ def write_md(path, rows, lines, edge_lines, info):
     for run in info.get("runs", []):
         L += [f"- run of {run['date']} ({', '.join(run['scenes'])}): locus `{run['locus']}`, "
               f"load average {run['load_start']} at the start and "
-              f"{run.get('load_end', '?')} at the end, {run.get('minutes', float('nan')):.0f} "
-              "min" + (", cut short" if run.get("partial") else "")]
+              f"{run.get('load_end', '?')} at the end"
+              + (f", {run['minutes']:.0f} min" if "minutes" in run else "")
+              + (", cut short" if run.get("partial") else "")]
     if info.get("runs"):
         L += ["", "The header's figures are the first run's; the runs above were made at the "
               "same time, each on its own scenes (every point of a scene in the same run).", ""]
