@@ -25,6 +25,7 @@
 #include <dirent.h>
 #include <grpcpp/grpcpp.h>
 #include <sqlite3.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -44,10 +45,12 @@
 #include <random>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "client/farm_client.h"
 #include "common/base/image.h"
+#include "common/farm/band_codec.h"
 #include "common/scene/scene_io.h"
 #include "proto/locus.grpc.pb.h"
 #include "proto/wire/rpc.h"
@@ -65,6 +68,14 @@ double seconds_since(Clock::time_point t) {
 }
 
 // ---------------------------------------------------------------- the process
+
+// This process's CPU (user + system), all threads.
+double own_cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e6;
+}
 
 struct ProcessSample {
   double cpu_seconds = 0;  // user + system
@@ -202,7 +213,7 @@ struct Shared {
   std::mutex mu;
   std::vector<double> dispatch_ms;    // GetTask sent to a band in hand
   std::vector<double> completion_ms;  // CompleteBand sent to its answer
-  std::map<std::pair<int, int>, std::shared_ptr<const std::string>> payloads;  // by rows
+  std::map<std::tuple<int, int, int>, std::shared_ptr<const std::string>> payloads;  // by rows, encoding
   int64_t accepted = 0, refused = 0, errors = 0, scene_fetches = 0, heartbeats = 0,
           registrations = 0;
   int64_t get_tasks = 0;      // GetTask calls
@@ -212,16 +223,29 @@ struct Shared {
   int64_t complete_calls = 0;  // CompleteBand calls (several results each with --batch)
   Clock::time_point first_accept{}, last_accept{};
 
-  // The CompleteBandRequest's pixels for rows [y0, y1), serialized once.
-  std::shared_ptr<const std::string> payload(int y0, int y1) {
+  // The CompleteBandRequest's pixels for rows [y0, y1), in the encoding
+  // the band was leased with (BandTask.encoding), as locus-worker sends
+  // them (worker/band_renderer.cpp); serialized once.
+  std::shared_ptr<const std::string> payload(const v1::BandTask& task) {
+    const int y0 = task.y0(), y1 = task.y1();
+    const auto encoding = static_cast<locus::farm::BandEncoding>(task.encoding());
     std::lock_guard lk(mu);
-    auto& p = payloads[{y0, y1}];
+    auto& p = payloads[{y0, y1, static_cast<int>(encoding)}];
     if (!p) {
       locus::farm::BandOutput out;
       const size_t begin = static_cast<size_t>(y0) * width * 3;
       const size_t end = static_cast<size_t>(y1) * width * 3;
       out.rgb.assign(frame.begin() + static_cast<std::ptrdiff_t>(begin),
                      frame.begin() + static_cast<std::ptrdiff_t>(end));
+      if (encoding != locus::farm::BandEncoding::kFloat32) {
+        auto encoded = locus::farm::encode_band(encoding, width, y1 - y0, out.rgb);
+        if (!encoded.ok()) {
+          std::fprintf(stderr, "encode: %s\n", encoded.status().message().c_str());
+          std::_Exit(2);
+        }
+        out.encoded = std::move(*encoded);
+        out.rgb.clear();
+      }
       p = std::make_shared<const std::string>(
           locus::rpc::ToProto(std::move(out)).SerializeAsString());
     }
@@ -491,7 +515,7 @@ class SimWorker {
         std::make_shared<Call<v1::CompleteBandRequest, v1::CompleteBandResponse>>(Ms(30000));
     for (size_t i = 0; i < tasks.size(); ++i) {
       v1::CompleteBandRequest* one = i == 0 ? &call->req : call->req.add_more();
-      one->ParseFromString(*s_.payload(tasks[i].y0(), tasks[i].y1()));
+      one->ParseFromString(*s_.payload(tasks[i]));
       one->set_lease_id(tasks[i].lease_id());
     }
     call->req.set_worker_id(id_);
@@ -731,6 +755,24 @@ int main(int argc, char** argv) {
   std::printf("coordinator_rss_idle_mib %.1f\ncoordinator_fds_idle %d\n", idle.rss_kib / 1024.0,
               idle.fds);
 
+  // The coordinator's CPU and the heartbeats count from before the first
+  // submission: with many jobs, the workers render the first ones while the
+  // last are still being submitted.
+  const ProcessSample before = sample(pid);
+  const double harness_before = own_cpu_seconds();
+  std::atomic<bool> done{false};
+  long peak_rss = 0;
+  int peak_fds = 0;
+  std::function<void()> beat = [&] {
+    if (done) return;
+    for (auto& w : sims) w->heartbeat();
+    const ProcessSample p = sample(pid);
+    peak_rss = std::max(peak_rss, p.rss_kib);
+    peak_fds = std::max(peak_fds, p.fds);
+    timers.at(Clock::now() + Ms(1000), beat);
+  };
+  if (measure_queued == 0) timers.at(Clock::now() + Ms(1000), beat);
+
   locus::client::FarmClient client(farm);
   std::vector<std::string> job_ids;
   const auto submit_start = Clock::now();
@@ -769,22 +811,7 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     std::_Exit(0);  // the simulated workers are not wound down
   }
-  const ProcessSample before = sample(pid);
   const auto start = Clock::now();
-
-  // Heartbeats every second while the jobs run; memory sampled meanwhile.
-  std::atomic<bool> done{false};
-  long peak_rss = 0;
-  int peak_fds = 0;
-  std::function<void()> beat = [&] {
-    if (done) return;
-    for (auto& w : sims) w->heartbeat();
-    const ProcessSample p = sample(pid);
-    peak_rss = std::max(peak_rss, p.rss_kib);
-    peak_fds = std::max(peak_fds, p.fds);
-    timers.at(Clock::now() + Ms(1000), beat);
-  };
-  timers.at(Clock::now() + Ms(1000), beat);
 
   bool all_done = false;
   std::vector<locus::farm::JobInfo> ended;
@@ -811,6 +838,7 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(Ms(100));
   }
   const ProcessSample after = sample(pid);
+  const double harness_cpu = own_cpu_seconds() - harness_before;
   done = true;
   shared.stopping = true;
   for (auto& w : sims) w->stop();
@@ -869,6 +897,9 @@ int main(int argc, char** argv) {
     std::printf("coordinator_rss_peak_mib %.1f\ncoordinator_fds_peak %d\n", peak_rss / 1024.0,
                 peak_fds);
   }
+  // The simulated workers share the machine with the coordinator: what they
+  // took of it bounds what the coordinator could have had.
+  std::printf("harness_cpu_seconds %.3f\n", harness_cpu);
   std::printf("store_bytes %ju\n", tree_bytes(data));
 
   // What must hold, whatever the speed.

@@ -28,6 +28,7 @@ Status write_image(const std::string& path, const Image& image, bool for_display
     for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint8_t>(quantize8(image.rgb[i]));
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", for_display ? "sRGB" : "Linear");
+    spec.attribute("png:compressionLevel", kPngLevel);
     ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
   } else {
     std::vector<uint16_t> px(image.rgb.size());
