@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/prepare/parallel.h"
 #include "common/prepare/prepared.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/prepare/tessellate.h"
@@ -42,11 +43,13 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   BandResult result;
   result.pixels = Image(ps.camera.width, y1 - y0);
   if (cost) cost->reset(ps.camera.width, y0, y1);
-  int threads = params.threads > 0
-                    ? params.threads
-                    : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  threads = std::max(1, std::min(threads, y1 - y0));
-  std::vector<Stats> stats(threads);
+  const int threads = std::max(1, std::min(render_threads(params), y1 - y0));
+  // Each thread counts into its own cache lines: a counter bumped per ray
+  // must not share a line with another thread's.
+  struct alignas(64) ThreadStats {
+    Stats s;
+  };
+  std::vector<ThreadStats> stats(threads);
   std::atomic<int> next{y0};
   std::vector<double> cpu(threads, 0.0);
   const std::function<void(int)>& hook = row_hook();
@@ -76,7 +79,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
       // boundary sub-scanline is computed once (common/scan/multiscan.h).
       for (int y = next.fetch_add(kMultiscanChunk); y < y1; y = next.fetch_add(kMultiscanChunk)) {
         multiscan_rows(ps, params, Band{y0, y1}, y, std::min(y1, y + kMultiscanChunk),
-                       result.pixels, stats[id], row_may_start, cost);
+                       result.pixels, stats[id].s, row_may_start, cost);
         if (stopped.load(std::memory_order_relaxed)) return;
       }
       return;
@@ -84,9 +87,9 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
     for (int y = next++; y < y1; y = next++) {
       if (!row_may_start(y)) return;
       if (ps.scan) {
-        local_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id], cost);
+        local_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id].s, cost);
       } else {
-        raytrace_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id], cost);
+        raytrace_rows(ps, params, Band{y0, y1}, y, result.pixels, stats[id].s, cost);
       }
     }
   };
@@ -102,7 +105,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   work(0);
   for (auto& t : pool) t.join();
   result.cancelled = stopped.load();
-  for (const Stats& s : stats) result.stats += s;
+  for (const ThreadStats& t : stats) result.stats += t.s;
   for (const double c : cpu) result.stats.seconds_render_cpu += c;
   result.stats.geometry_triangles = ps.prims.triangles.size();
   result.stats.shadow_method = !ps.volumes          ? "rays"

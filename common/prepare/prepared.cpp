@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "common/prepare/parallel.h"
 #include "common/prepare/scan_scene.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/prepare/tessellate.h"
@@ -57,11 +58,15 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
   if (params.method == Method::kLocal) {
-    scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0));
+    // Each stage on the render's threads, its pieces side by side
+    // (common/prepare/parallel.h); the result is the one of one thread.
+    const int threads = render_threads(params);
+    scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0, threads));
     // The scanline pass finds the shadows of its spans with shadow volumes
     // (paper §3.2 step 2) in configurations II-IV; IV also searches the
     // boxes' volumes for points reached by secondary rays (paper §4.1).
-    volumes = std::make_shared<const ShadowVolumes>(build_shadow_volumes(*this, bvh_for_shadows));
+    volumes = std::make_shared<const ShadowVolumes>(
+        build_shadow_volumes(*this, bvh_for_shadows, threads));
   }
 }
 

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 #include "common/prepare/bounding.h"
+#include "common/prepare/parallel.h"
 #include "common/prepare/prepared.h"
 
 namespace locus {
@@ -140,43 +142,58 @@ void bucket_rows(ScanScene& scan, int height, bool multiscan) {
 
 }  // namespace
 
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan) {
-  ScanScene scan;
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads) {
   const CameraFrame& cam = ps.camera;
   // Anything nearer than the near plane is clipped away; the near plane is
   // far in front of hither's sphere so nothing visible is lost (pixels whose
   // surface lies within hither are traced instead, see local_rows).
   const double z_near = std::max(1e-12, 1e-6 * std::max(cam.hither, ps.eps));
   const Projector pr{cam, z_near};
-  FaceAdder faces{cam, pr, scan, {}, {}};
   const PrimitiveSet& set = ps.prims;
-  // Bounding polyhedra are per object; a CSG or quadric object is one prim.
-  for (int i = 0; i < static_cast<int>(set.prims.size()); ++i) {
-    const PrimRef& ref = set.prims[i];
-    switch (ref.kind) {
-      case PrimKind::kPolygon: {
-        const PolygonPrim& p = set.polygons[ref.index];
-        faces.add(polygon_outline(p), p.normal, p.offset, i, false);
-        break;
-      }
-      case PrimKind::kTriangle: {
-        const TrianglePrim& t = set.triangles[ref.index];
-        faces.add({t.p0, t.p0 + t.e1, t.p0 + t.e2}, t.normal, glm::dot(t.normal, t.p0), i, false);
-        break;
-      }
-      case PrimKind::kConvex: {
-        const ConvexPrim& c = set.convexes[ref.index];
-        for (size_t k = 0; k < c.faces.size(); ++k) {
-          faces.add(c.faces[k], c.normals[k], c.offsets[k], i, false);
+  const int n = static_cast<int>(set.prims.size());
+  // The primitives' faces by chunks, each chunk's into its own part, the
+  // parts joined in order: the faces in primitive order, as one pass makes
+  // them, for any number of threads.
+  constexpr int kGrain = 256;
+  const int chunks = chunk_count(n, kGrain, 4 * std::max(1, threads));
+  std::vector<ScanScene> parts(chunks);
+  parallel_for(chunks, threads, [&](int c) {
+    FaceAdder faces{cam, pr, parts[c], {}, {}};
+    const int end = chunk_edge(n, c + 1, chunks);
+    // Bounding polyhedra are per object; a CSG or quadric object is one prim.
+    for (int i = chunk_edge(n, c, chunks); i < end; ++i) {
+      const PrimRef& ref = set.prims[i];
+      switch (ref.kind) {
+        case PrimKind::kPolygon: {
+          const PolygonPrim& p = set.polygons[ref.index];
+          faces.add(polygon_outline(p), p.normal, p.offset, i, false);
+          break;
         }
-        break;
+        case PrimKind::kTriangle: {
+          const TrianglePrim& t = set.triangles[ref.index];
+          faces.add({t.p0, t.p0 + t.e1, t.p0 + t.e2}, t.normal, glm::dot(t.normal, t.p0), i, false);
+          break;
+        }
+        case PrimKind::kConvex: {
+          const ConvexPrim& cv = set.convexes[ref.index];
+          for (size_t k = 0; k < cv.faces.size(); ++k) {
+            faces.add(cv.faces[k], cv.normals[k], cv.offsets[k], i, false);
+          }
+          break;
+        }
+        case PrimKind::kSphere:
+        case PrimKind::kCone:
+        case PrimKind::kCsg:
+          faces.add_bounding_faces(ps.scene, ref.object, i);
+          break;
       }
-      case PrimKind::kSphere:
-      case PrimKind::kCone:
-      case PrimKind::kCsg:
-        faces.add_bounding_faces(ps.scene, ref.object, i);
-        break;
     }
+  });
+  ScanScene scan = std::move(parts[0]);
+  for (int c = 1; c < chunks; ++c) {
+    scan.faces.insert(scan.faces.end(), std::make_move_iterator(parts[c].faces.begin()),
+                      std::make_move_iterator(parts[c].faces.end()));
+    scan.trace_everything = scan.trace_everything || parts[c].trace_everything;
   }
   scan.any_near_hither = std::any_of(scan.faces.begin(), scan.faces.end(),
                                      [](const ScanFace& f) { return f.near_hither; });

@@ -43,6 +43,9 @@ struct ScanScene {
   bool any_near_hither = false;
 };
 
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan);
+// On up to `threads` threads (parallel_for, common/prepare/parallel.h):
+// the primitives' faces by chunks, joined in primitive order, so the scan
+// scene is the same, bit for bit, for any count.
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1);
 
 }  // namespace locus

@@ -143,34 +143,6 @@ std::vector<std::vector<std::vector<Vec3>>> cut_receivers(const PreparedScene& p
   return part_hulls;
 }
 
-// The hierarchy's boxes (paper §4.1): a point outside a box's volume is
-// shadowed by nothing in the box. Each box is widened to hold its
-// occluders' own volumes' outlines (a curved body's bounding polyhedron
-// reaches beyond the body's box), so a box's volume holds every volume
-// below it and pruning by boxes never drops an interval.
-void add_box_volumes(const std::vector<Aabb>& boxes, LightVolumes& lv) {
-  // make_box's faces and vertices, refilled for each box (no allocation per
-  // box).
-  const Polyhedron unit = make_box(Vec3(0.0), Vec3(1.0));
-  std::vector<std::vector<Vec3>> faces(unit.faces.size());
-  std::vector<Vec3> corners(unit.vertices.size());
-  std::vector<HalfSpace> planes(6);
-  for (const Aabb& vb : boxes) {
-    const Vec3 lo = glm::min(vb.lo, vb.hi), hi = glm::max(vb.lo, vb.hi);
-    for (size_t i = 0; i < corners.size(); ++i) {
-      corners[i] = Vec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
-    }
-    for (size_t k = 0; k < faces.size(); ++k) {
-      faces[k].resize(unit.faces[k].size());
-      for (size_t i = 0; i < faces[k].size(); ++i) faces[k][i] = corners[unit.faces[k][i]];
-    }
-    planes = {{Vec3(-1, 0, 0), -vb.lo.x}, {Vec3(1, 0, 0), vb.hi.x},   {Vec3(0, -1, 0), -vb.lo.y},
-              {Vec3(0, 1, 0), vb.hi.y},   {Vec3(0, 0, -1), -vb.lo.z}, {Vec3(0, 0, 1), vb.hi.z}};
-    lv.node_volume.push_back(
-        add_polyhedron_volume(lv.set, faces, planes, lv.position, false, &corners));
-  }
-}
-
 // Front/back relations (paper §4.1): the occluders that can shadow
 // receiver r. An occluder is dropped when its volume misses the receiver's
 // hull, or when it lies wholly behind the plane of a flat receiver as seen
@@ -284,9 +256,33 @@ SearchShapes search_shapes(const PreparedScene& ps, std::vector<ReceiverHull> hu
   return s;
 }
 
-void add_search(const PreparedScene& ps, const SearchShapes& shapes, LightVolumes& lv) {
-  add_box_volumes(shapes.boxes, lv);
-  lv.candidates = CandidateTable(ps.prims.prims.size());
+// The hierarchy's boxes (paper §4.1): a point outside a box's volume is
+// shadowed by nothing in the box. Each box is widened to hold its
+// occluders' own volumes' outlines (a curved body's bounding polyhedron
+// reaches beyond the body's box), so a box's volume holds every volume
+// below it and pruning by boxes never drops an interval.
+void add_box_volumes(const SearchShapes& shapes, int begin, int end, LightVolumes& lv) {
+  // make_box's faces and vertices, refilled for each box (no allocation per
+  // box).
+  const Polyhedron unit = make_box(Vec3(0.0), Vec3(1.0));
+  std::vector<std::vector<Vec3>> faces(unit.faces.size());
+  std::vector<Vec3> corners(unit.vertices.size());
+  std::vector<HalfSpace> planes(6);
+  for (int b = begin; b < end; ++b) {
+    const Aabb& vb = shapes.boxes[b];
+    const Vec3 lo = glm::min(vb.lo, vb.hi), hi = glm::max(vb.lo, vb.hi);
+    for (size_t i = 0; i < corners.size(); ++i) {
+      corners[i] = Vec3(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
+    }
+    for (size_t k = 0; k < faces.size(); ++k) {
+      faces[k].resize(unit.faces[k].size());
+      for (size_t i = 0; i < faces[k].size(); ++i) faces[k][i] = corners[unit.faces[k][i]];
+    }
+    planes = {{Vec3(-1, 0, 0), -vb.lo.x}, {Vec3(1, 0, 0), vb.hi.x},   {Vec3(0, -1, 0), -vb.lo.y},
+              {Vec3(0, 1, 0), vb.hi.y},   {Vec3(0, 0, -1), -vb.lo.z}, {Vec3(0, 0, 1), vb.hi.z}};
+    lv.node_volume.push_back(
+        add_polyhedron_volume(lv.set, faces, planes, lv.position, false, &corners));
+  }
 }
 
 const CandidateList& receiver_candidates(const PreparedScene& ps, int light, int receiver) {

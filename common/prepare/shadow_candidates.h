@@ -48,9 +48,11 @@ struct SearchShapes {
 SearchShapes search_shapes(const PreparedScene& ps, std::vector<ReceiverHull> hulls,
                            std::vector<ReceiverParts>& parts);
 
-// Adds to lv (whose occluders' volumes are built) the boxes' volumes
-// (node_volume) and an empty table of candidate lists.
-void add_search(const PreparedScene& ps, const SearchShapes& shapes, LightVolumes& lv);
+// Appends to lv the volumes of the search boxes [begin, end) (shapes.boxes,
+// one per node of ps.bvh), and their indices to lv.node_volume. Boxes cut
+// into ranges and appended range after range (build_shadow_volumes) give
+// what all at once gives.
+void add_box_volumes(const SearchShapes& shapes, int begin, int end, LightVolumes& lv);
 
 // Receiver `receiver`'s front/back relations from light `light` (paper
 // §4.1; configuration IV, ps.volumes->search): made from ps.volumes->shapes

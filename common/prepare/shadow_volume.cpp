@@ -15,6 +15,7 @@
 #include <optional>
 
 #include "common/prepare/bounding.h"
+#include "common/prepare/parallel.h"
 #include "common/prepare/prepared.h"
 #include "common/prepare/shadow_candidates.h"
 #include "common/scene/polyhedron.h"
@@ -590,13 +591,11 @@ struct OccluderShapes {
   std::vector<std::optional<ConvexPieces>> pieces;
 };
 
-OccluderShapes occluder_shapes(const PreparedScene& ps) {
+// Primitives [begin, end) of s, sized for every primitive beforehand: each
+// primitive's shapes depend on it alone, so chunks may run on any threads.
+void occluder_shapes(const PreparedScene& ps, int begin, int end, OccluderShapes& s) {
   const PrimitiveSet& set = ps.prims;
-  const int n = static_cast<int>(set.prims.size());
-  OccluderShapes s;
-  s.leaves.resize(n);
-  s.pieces.resize(n);
-  for (int i = 0; i < n; ++i) {
+  for (int i = begin; i < end; ++i) {
     const PrimRef& ref = set.prims[i];
     if (ref.kind == PrimKind::kSphere || ref.kind == PrimKind::kCone ||
         ref.kind == PrimKind::kCsg) {
@@ -609,18 +608,16 @@ OccluderShapes occluder_shapes(const PreparedScene& ps) {
       s.pieces[i] = ConvexPieces{{0, 1, 2}};
     }
   }
-  return s;
 }
 
-// Per primitive, what the front/back relations use of it (ReceiverHull).
-std::vector<ReceiverHull> receiver_hulls(const PreparedScene& ps, const OccluderShapes& shapes) {
-  const int n = static_cast<int>(ps.prims.prims.size());
-  std::vector<ReceiverHull> hulls(n);
-  for (int i = 0; i < n; ++i) {
+// Per primitive in [begin, end), what the front/back relations use of it
+// (ReceiverHull); `hulls` holds every primitive's slot.
+void receiver_hulls(const PreparedScene& ps, const OccluderShapes& shapes, int begin, int end,
+                    std::vector<ReceiverHull>& hulls) {
+  for (int i = begin; i < end; ++i) {
     hulls[i].points = hull_points(ps, i, shapes.leaves[i]);
     hulls[i].flat = flat_plane(ps, i, &hulls[i].plane);
   }
-  return hulls;
 }
 
 // The planes' products with the camera frame (VolumeSet::cam), for the
@@ -636,30 +633,104 @@ void add_camera_dots(const CameraFrame& cam, VolumeSet& set) {
 
 }  // namespace
 
-ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search) {
+namespace {
+
+// A light's volumes built in pieces (build_shadow_volumes): `part`, made by
+// itself from an empty LightVolumes, appended to `lv`, which then holds
+// what one pass over both ranges would have made. Planes, volumes and
+// occluders go to the end; the indices `part` holds into its own arrays
+// move by the sizes `lv`'s already had (a kEverywhere volume refers to no
+// plane and keeps its {0, 0}).
+void append_part(LightVolumes& lv, LightVolumes&& part) {
+  if (lv.set.volumes.empty() && lv.set.planes.empty() && lv.occluders.empty() &&
+      lv.node_volume.empty()) {
+    lv.set = std::move(part.set);
+    lv.occluders = std::move(part.occluders);
+    lv.node_volume = std::move(part.node_volume);
+    return;
+  }
+  const int planes = static_cast<int>(lv.set.planes.size());
+  const int volumes = static_cast<int>(lv.set.volumes.size());
+  lv.set.planes.insert(lv.set.planes.end(), part.set.planes.begin(), part.set.planes.end());
+  for (ShadowVolume v : part.set.volumes) {
+    if (v.kind != VolumeKind::kEverywhere) v.first += planes;
+    lv.set.volumes.push_back(v);
+  }
+  for (LightVolumes::Occluder oc : part.occluders) {
+    oc.first += volumes;
+    if (oc.bound >= 0) oc.bound += volumes;
+    lv.occluders.push_back(oc);
+  }
+  for (const int v : part.node_volume) lv.node_volume.push_back(v + volumes);
+}
+
+}  // namespace
+
+ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search, int threads) {
+  // Primitives (or boxes) per chunk: a chunk costs some tens of
+  // microseconds or more, far above what handing it to a thread costs.
+  constexpr int kGrain = 256;
+  threads = std::max(1, threads);
   ShadowVolumes sv;
   sv.search = search;
-  const OccluderShapes shapes = occluder_shapes(ps);
+  const int n = static_cast<int>(ps.prims.prims.size());
   const double scale = ps.world_scale;
+  // The stages below depend on the ones above; inside a stage, every
+  // chunk's result goes to its own slot, and slots are joined in their
+  // order, so the volumes are the same, bit for bit, for any number of
+  // threads (tests/prepare/parallel_prepare_test.cpp).
+  OccluderShapes shapes;
+  shapes.leaves.resize(n);
+  shapes.pieces.resize(n);
+  parallel_chunks(n, threads, kGrain,
+                  [&](int begin, int end) { occluder_shapes(ps, begin, end, shapes); });
   std::shared_ptr<SearchShapes> search_with;
   if (search) {
-    search_with =
-        std::make_shared<SearchShapes>(search_shapes(ps, receiver_hulls(ps, shapes), sv.parts));
+    std::vector<ReceiverHull> hulls(n);
+    parallel_chunks(n, threads, kGrain,
+                    [&](int begin, int end) { receiver_hulls(ps, shapes, begin, end, hulls); });
+    search_with = std::make_shared<SearchShapes>(search_shapes(ps, std::move(hulls), sv.parts));
     sv.shapes = search_with;
   }
-  for (const Light& light : ps.scene.lights) {
-    LightVolumes lv;
-    lv.position = light.position;
+  // Each light's volumes (paper §4.1): its occluders' and, for the search,
+  // its boxes', in chunks of primitives and of boxes, every light's chunks
+  // side by side; then each light's chunks joined in order.
+  const int lights = static_cast<int>(ps.scene.lights.size());
+  const int boxes = search ? static_cast<int>(search_with->boxes.size()) : 0;
+  // Enough chunks over all lights for about four per thread.
+  const int per_light = std::max(1, 4 * threads / std::max(1, lights));
+  const int occ_chunks = chunk_count(n, kGrain, per_light);
+  const int box_chunks = search ? chunk_count(boxes, kGrain, per_light) : 0;
+  const int tasks = occ_chunks + box_chunks;
+  std::vector<LightVolumes> parts(static_cast<size_t>(lights) * tasks);
+  sv.lights.resize(lights);
+  for (int j = 0; j < lights; ++j) {
+    LightVolumes& lv = sv.lights[j];
+    lv.position = ps.scene.lights[j].position;
     // Shadow-ray origins lie ps.eps off the surface: conservative tests must
     // reach that far, and beyond rounding.
-    lv.slack = 4.0 * ps.eps + 1e-12 * (scale + glm::length(light.position));
-    for (int i = 0; i < static_cast<int>(ps.prims.prims.size()); ++i) {
-      add_occluder(ps, i, shapes.leaves[i], shapes.pieces[i], lv);
-    }
-    if (search) add_search(ps, *search_with, lv);
-    sv.lights.push_back(std::move(lv));
+    lv.slack = 4.0 * ps.eps + 1e-12 * (scale + glm::length(lv.position));
   }
-  for (LightVolumes& lv : sv.lights) add_camera_dots(ps.camera, lv.set);
+  parallel_for(lights * tasks, threads, [&](int t) {
+    const int j = t / tasks, c = t % tasks;
+    LightVolumes& part = parts[t];
+    part.position = sv.lights[j].position;
+    if (c < occ_chunks) {
+      for (int i = chunk_edge(n, c, occ_chunks); i < chunk_edge(n, c + 1, occ_chunks); ++i) {
+        add_occluder(ps, i, shapes.leaves[i], shapes.pieces[i], part);
+      }
+    } else {
+      const int b = c - occ_chunks;
+      add_box_volumes(*search_with, chunk_edge(boxes, b, box_chunks),
+                      chunk_edge(boxes, b + 1, box_chunks), part);
+    }
+  });
+  parallel_for(lights, threads, [&](int j) {
+    LightVolumes& lv = sv.lights[j];
+    for (int c = 0; c < tasks; ++c) append_part(lv, std::move(parts[j * tasks + c]));
+    if (search) lv.candidates = CandidateTable(n);
+    add_camera_dots(ps.camera, lv.set);
+  });
   return sv;
 }
 

@@ -210,8 +210,12 @@ struct ShadowVolumes {
 
 // Built at prepare time for --method local: with `search` (configuration
 // IV, --boxes eye+shadow) the hierarchy's volumes and the candidate lists
-// too. Needs ps.prims, and ps.bvh if `search`.
-ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search);
+// too. Needs ps.prims, and ps.bvh if `search`. Runs on up to `threads`
+// threads (parallel_for, common/prepare/parallel.h): the occluders' shapes
+// and the receivers' hulls by chunks of primitives, then every light's
+// volumes by chunks of primitives and of boxes, joined in order; the
+// result is the same, bit for bit, for any count.
+ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search, int threads = 1);
 
 // Whether prims[prim]'s material lets no light through.
 bool is_opaque(const PreparedScene& ps, int prim);
