@@ -68,7 +68,7 @@ std::string pack_band(const BandPixels& rows, const EncodedBand& band) {
   return record;
 }
 
-Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels& rows) {
+Result<EncodedBand> unpack_record(std::string_view record, const BandPixels& rows) {
   const auto refuse = [] {
     return Status(Code::kInternal, "not a complete band record for these rows");
   };
@@ -88,7 +88,13 @@ Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels
   band.width = rows.width;
   band.rows = rows.y1 - rows.y0;
   band.bytes.assign(record.data() + sizeof h, payload);
-  auto rgb = decode_band(band);
+  return band;
+}
+
+Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels& rows) {
+  auto band = unpack_record(record, rows);
+  if (!band.ok()) return band.status();
+  auto rgb = decode_band(*band);
   if (!rgb.ok()) return Status(Code::kInternal, rgb.status().message());
   return rgb;
 }
@@ -136,15 +142,19 @@ Result<Image> stitch_frame(const FrameReady& f,
   return image;
 }
 
-Status write_frame_file(const std::string& job_dir, const std::string& file_name,
-                        const Image& image, bool sync) {
+namespace {
+
+// Writes job_dir/file_name through a temporary name, `write` making the
+// temporary file; fsyncs file and directory when `sync`.
+Status write_atomically(const std::string& job_dir, const std::string& file_name,
+                        const std::function<Status(const std::string& path)>& write, bool sync) {
   const fs::path dir(job_dir);
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) return Internal(dir.string() + ": cannot create: " + ec.message());
   const fs::path final_path = dir / file_name;
   const fs::path temp = dir / (".partial-" + file_name);
-  Status st = write_image(temp.string(), image);
+  Status st = write(temp.string());
   if (st.ok() && sync) st = fsync_path(temp.string(), false);
   if (st.ok() && ::rename(temp.c_str(), final_path.c_str()) != 0)
     st = Internal(final_path.string() + ": cannot rename into place: " + errno_text());
@@ -155,6 +165,54 @@ Status write_frame_file(const std::string& job_dir, const std::string& file_name
   // The rename itself reaches the disk before the store says "written".
   if (sync) return fsync_path(dir.string(), true);
   return Status::Ok();
+}
+
+Status write_bytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  out.close();
+  if (!out) return Internal(path + ": cannot write: " + errno_text());
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status write_frame_file(const std::string& job_dir, const std::string& file_name,
+                        const Image& image, bool sync) {
+  return write_atomically(
+      job_dir, file_name, [&](const std::string& path) { return write_image(path, image); },
+      sync);
+}
+
+Status write_frame(const std::string& job_dir, const FrameReady& f,
+                   const std::function<Result<std::string>(int band)>& record, bool sync) {
+  // A PNG whose bands all came as png8+deflate: joined as they are
+  // (png_from_bands), nothing decoded or compressed here.
+  std::vector<EncodedBand> deflated;
+  if (output_sample_format(f.file_name) == SampleFormat::kUint8) {
+    for (int b = 0; b < f.bands; ++b) {
+      const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
+      auto bytes = record(b);
+      if (!bytes.ok()) return bytes.status();
+      auto band = unpack_record(*bytes, {f.width, rows.y0, rows.y1});
+      if (!band.ok() || band->encoding != BandEncoding::kPng8Deflate) break;
+      deflated.push_back(std::move(*band));
+    }
+  }
+  if (static_cast<int>(deflated.size()) == f.bands) {
+    auto png = png_from_bands(f.width, f.height, deflated);
+    if (!png.ok()) return png.status();
+    deflated.clear();
+    return write_atomically(
+        job_dir, f.file_name, [&](const std::string& path) { return write_bytes(path, *png); },
+        sync);
+  }
+  // Otherwise (other outputs, older workers' bands, a damaged record named
+  // by stitch_frame): the frame's pixels, written by OpenImageIO.
+  deflated.clear();
+  auto image = stitch_frame(f, record);
+  if (!image.ok()) return image.status();
+  return write_frame_file(job_dir, f.file_name, *image, sync);
 }
 
 }  // namespace locus::farm

@@ -33,9 +33,11 @@ struct BandPixels {
 // A band's record for the store: a header with its rows and encoding, the
 // encoded bytes, the FNV-1a hash of both.
 std::string pack_band(const BandPixels& rows, const EncodedBand& band);
-// The floats of a record, checked against the expected rows and its
-// checksum and decoded (decode_band): a torn, foreign or corrupted record
-// is an error, never pixels. Also reads the band files of 0.13.
+// The encoded band of a record, checked against the expected rows and its
+// checksum: a torn, foreign or corrupted record is an error, never pixels.
+// Also reads the band files of 0.13.
+Result<EncodedBand> unpack_record(std::string_view record, const BandPixels& rows);
+// The floats of a record (unpack_record, then decode_band).
 Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels& rows);
 // What the store keeps of a result: its bytes as they came, or (a worker of
 // 0.13, or a lease that asked for floats) its floats as float32.
@@ -53,4 +55,10 @@ Result<Image> stitch_frame(const FrameReady& frame,
 // directory when `sync`.
 Status write_frame_file(const std::string& job_dir, const std::string& file_name,
                         const Image& image, bool sync);
+// The frame's file from its bands' records, as write_frame_file writes it:
+// a PNG whose bands are all png8+deflate is joined from their bytes
+// (png_from_bands: no pixel is decoded or compressed by the coordinator);
+// any other frame is stitched (stitch_frame) and encoded.
+Status write_frame(const std::string& job_dir, const FrameReady& f,
+                   const std::function<Result<std::string>(int band)>& record, bool sync);
 }  // namespace locus::farm

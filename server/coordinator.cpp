@@ -364,12 +364,9 @@ void Coordinator::write_loop() {
     // Its bands' records are read through the writer's own connection:
     // committed (the group commit queued the frame after its transaction).
     const std::string dir = job_dir(f.job_id);
-    Status st;
-    {
-      auto image =
-          stitch_frame(f, [&](int band) { return read_band_record(f.job_id, f.frame, band); });
-      st = image.ok() ? write_frame_file(dir, f.file_name, *image, options_.fsync) : image.status();
-    }
+    const Status st = write_frame(
+        dir, f, [&](int band) { return read_band_record(f.job_id, f.frame, band); },
+        options_.fsync);
     lk.lock();
     // Once the store says "written" it deletes the frame's band records, in
     // the same transaction (JobStore, event::FrameWritten). A frame that
@@ -789,12 +786,13 @@ Status Coordinator::fetch(const std::string& job_id, const Caller& caller,
 // ---------------------------------------------------------------- workers
 
 Result<Registration> Coordinator::register_worker(const std::string& name, int threads,
-                                                  const std::vector<std::string>& tags) {
+                                                  const std::vector<std::string>& tags,
+                                                  bool png_deflate) {
   if (Status s = check_tags(tags, "tag"); !s.ok()) return s;
   std::lock_guard lk(mu_);
   Registration r;
   r.worker_id = scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200),
-                                      std::max(1, threads), tags);
+                                      std::max(1, threads), tags, png_deflate);
   r.heartbeat = options_.heartbeat;
   r.lease = options_.lease;
   persist();

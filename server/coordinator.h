@@ -207,8 +207,10 @@ class Coordinator {
 
   // ---- WorkerService ----
   // InvalidArgument for bad tags (check_tags).
+  // `png_deflate`: the worker offers png8+deflate (WorkerInfo::png_deflate).
   Result<Registration> register_worker(const std::string& name, int threads,
-                                       const std::vector<std::string>& tags = {});
+                                       const std::vector<std::string>& tags = {},
+                                       bool png_deflate = false);
   // GetTask, the long poll, without holding a thread (the gRPC callback
   // service): `done` gets the band leased to the worker as soon as there is
   // one, nothing once `wait` (capped by max_poll) has passed, or the error;

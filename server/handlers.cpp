@@ -251,7 +251,11 @@ Status Handlers::Register(const v1::RegisterRequest& req, const std::string& pee
   if (req.tags_size() > static_cast<int>(farm::kMaxTags))
     return InvalidArgument("tags: at most " + std::to_string(farm::kMaxTags));
   const std::vector<std::string> tags(req.tags().begin(), req.tags().end());
-  auto r = c_.register_worker(name, std::clamp(req.threads(), 1, 1024), tags);
+  // Encodings this coordinator does not know are ignored (a newer worker).
+  const bool png_deflate =
+      std::find(req.encodings().begin(), req.encodings().end(), v1::BAND_PNG8_DEFLATE) !=
+      req.encodings().end();
+  auto r = c_.register_worker(name, std::clamp(req.threads(), 1, 1024), tags, png_deflate);
   if (!r.ok()) return r.status();
   resp->set_worker_id(r->worker_id);
   resp->set_heartbeat_ms(static_cast<int32_t>(r->heartbeat.count()));

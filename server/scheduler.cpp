@@ -341,13 +341,14 @@ bool Scheduler::frame_written(const std::string& job_id, int frame, const Status
 // ---------------------------------------------------------------- workers
 
 std::string Scheduler::add_worker(const std::string& name, int threads,
-                                  const std::vector<std::string>& tags) {
+                                  const std::vector<std::string>& tags, bool png_deflate) {
   const std::string id = numbered("w", next_worker_++);
   Worker w;
   w.info.worker_id = id;
   w.info.name = name;
   w.info.threads = threads;
   w.info.tags = tags;
+  w.info.png_deflate = png_deflate;
   w.info.disabled = disabled_.count(name) > 0;
   w.last_seen = now_();
   workers_.emplace(id, std::move(w));
@@ -682,7 +683,9 @@ BandLease Scheduler::make_lease(const Job& job, int job_band, const Lease& lease
   out.orbit_degrees = s.orbit_degrees;
   out.frame_first = s.frame_first;
   out.frame_last = s.frame_last;
-  out.encoding = band_encoding_for(s.output);
+  const auto worker = workers_.find(lease.worker_id);
+  out.encoding = band_encoding_for(s.output,
+                                   worker != workers_.end() && worker->second.info.png_deflate);
   return out;
 }
 

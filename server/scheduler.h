@@ -141,7 +141,7 @@ class Scheduler {
   // ---- workers ----
   // `tags` (the worker's pools) are checked by the caller.
   std::string add_worker(const std::string& name, int threads,
-                         const std::vector<std::string>& tags = {});
+                         const std::vector<std::string>& tags = {}, bool png_deflate = false);
   // Dependencies of a new job: OK when every id names a job that has not
   // failed or been cancelled; InvalidArgument naming the id otherwise.
   Status check_after(const std::vector<std::string>& after) const;

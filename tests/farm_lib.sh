@@ -1,6 +1,15 @@
-# Helpers the farm's process tests share (sourced by tests/faults/run.sh
-# and tests/farm_operations.sh). The caller defines holding_band PID: whether
-# that worker (named host:PID) holds a lease now.
+# Helpers the farm's process tests share (sourced by tests/faults/run.sh,
+# tests/farm_operations.sh, tests/farm_processes.sh, tests/backup/run.sh and
+# tests/slurm/run.sh). For signal_busy, the caller defines holding_band PID:
+# whether that worker (named host:PID) holds a lease now.
+
+# same_pixels A B: both images exist and hold the same pixels, exactly
+# (idiff, max error 0). Not the same bytes: a PNG frame the coordinator
+# joins from its bands' deflate streams (docs/farm.md "Frames") is
+# compressed otherwise than a single-process render's.
+same_pixels() {
+  idiff -fail 0 -warn 0 "$1" "$2" >/dev/null 2>&1
+}
 
 # signal_busy SIG PID...: freezes each worker in turn and sends SIG to the
 # first one seen holding a band (frozen, it cannot finish it meanwhile);

@@ -12,7 +12,8 @@
 # (--speculate-factor 0) so that a hung band is taken back by its timeout
 # and nothing else. Jobs: scenes/simple/spheres.json at 48x36, 2 bands per
 # frame, --orbit 20 (every frame differs); their frames, fetched with
-# `locus fetch`, must be byte for byte those of `locus render --workers 0`.
+# `locus fetch`, must hold exactly the pixels of `locus render --workers 0`
+# (same_pixels).
 #
 # Scenarios (each with a kill -9 of the coordinator and a restart):
 #   1 priorities and owners: ann's job (priority 50), paused by admin root;
@@ -178,7 +179,7 @@ workers_up() { [ "$(cli root workers 2>/dev/null | tail -n +2 | wc -l)" -ge "$1"
 wait_workers() { poll 20 workers_up "$1" || bad "fewer than $1 workers registered after 20 s"; }
 worker_up() { cli root workers 2>/dev/null | awk -v pid="$1" '$2 ~ (":" pid "$") {f = 1} END {exit !f}'; }
 
-. "$(dirname "${BASH_SOURCE[0]}")/farm_lib.sh"  # signal_busy
+. "$(dirname "${BASH_SOURCE[0]}")/farm_lib.sh"  # signal_busy, same_pixels
 
 # freeze / thaw: the two ordinary workers stopped (SIGSTOP) around a CLI
 # action that must land mid-job however slow the CLI is on a loaded
@@ -212,7 +213,7 @@ same_frames() {
   cli ann fetch "$job" "$tmp/fetch/$job" >/dev/null 2>>"$tmp/cli.log" || { echo "  fetch $job failed"; return 1; }
   for f in $(seq "$2" "$3"); do
     n=$(printf %04d "$f")
-    cmp -s "$tmp/ref/$2-$3/f_$n.png" "$tmp/fetch/$job/f_$n.png" ||
+    same_pixels "$tmp/ref/$2-$3/f_$n.png" "$tmp/fetch/$job/f_$n.png" ||
       { echo "  job $job: frame $f differs from the single-process render or is missing"; return 1; }
   done
 }
@@ -506,7 +507,7 @@ scenario7() {
       ok "[7] frame 2 of $A deleted and requeued; coordinator killed while it rendered again" ||
       bad "[7] frame 2 of $A was written again before the kill (the kill came too late)"
     poll 30 job_is "$A" succeeded && [ -f "$file" ] &&
-      cmp -s "$file" "$tmp/ref/1-6/f_0002.png" && ok "[7] $file is back, identical to the reference" ||
+      same_pixels "$file" "$tmp/ref/1-6/f_0002.png" && ok "[7] $file is back, identical to the reference" ||
       bad "[7] $A: $(state_of "$A"); $file: $(ls "$file" 2>&1)"
     cli ann events "$A" 2>/dev/null | grep -q "frames 2-2 requeued by ann" && ok "[7] $A's history: frames 2-2 requeued by ann" ||
       bad "[7] $A's history lacks the requeue"

@@ -5,11 +5,12 @@
 # tokens, certificates made here with tests/tls/make_certs.sh) with `locus
 # submit --wait`, a worker killed with SIGKILL mid-job, cancel, refused
 # credentials, and the CLI's errors. Frames are
-# compared byte for byte with `--workers 0` renders (identical files imply
-# identical decoded pixels). Prints one line per check and
+# compared pixel for pixel with `--workers 0` renders (same_pixels: a PNG
+# frame joined from its bands' streams is compressed otherwise). Prints one line per check and
 # "N passed, M failed".
 set -uo pipefail
 bin=$1 shared=$2 src=$3
+. "$(dirname "${BASH_SOURCE[0]}")/farm_lib.sh"  # same_pixels
 tmp=$(mktemp -d)
 pids=()
 cleanup() {
@@ -25,7 +26,7 @@ same_frames() {  # same_frames DIR_A PREFIX_A DIR_B PREFIX_B FIRST LAST
   local f
   for f in $(seq "$5" "$6"); do
     local n; n=$(printf %04d "$f")
-    cmp -s "$1/$2_$n.png" "$3/$4_$n.png" || { echo "  frame $f differs or is missing"; return 1; }
+    same_pixels "$1/$2_$n.png" "$3/$4_$n.png" || { echo "  frame $f differs or is missing"; return 1; }
   done
 }
 

@@ -158,6 +158,8 @@ bool WorkerClient::Impl::register_worker() {
   req.set_name(o_.name);
   req.set_threads(o_.threads);
   for (const std::string& t : o_.tags) req.add_tags(t);
+  // PNG jobs' bands as PNG image data (common/farm/band_codec.h).
+  req.add_encodings(v1::BAND_PNG8_DEFLATE);
   v1::RegisterResponse resp;
   grpc::ClientContext ctx;
   rpc::prepare(ctx, conn_, rpc::kShortCall);

@@ -205,6 +205,7 @@ struct Shared {
   double delay_ms = 0;
   double delay_sigma = 0;  // log-normal spread of the delay; 0: fixed
   bool want_next = true;   // CompleteBandRequest.want_next (--no-next: GetTask for each band)
+  bool png_deflate = true;  // RegisterRequest.encodings (--no-png-deflate: rgb8+zstd)
   int batch = 1;           // bands per call (GetTaskRequest.max_bands, CompleteBandRequest.more)
   int revive_ms = 0;       // a dying worker comes back after this long (0: never)
   bool outage_ok = false;  // the coordinator restarts during the run (a soak)
@@ -277,6 +278,7 @@ class SimWorker {
     v1::RegisterRequest req;
     req.set_name("sim-" + std::to_string(index_));
     req.set_threads(1);
+    if (s_.png_deflate) req.add_encodings(v1::BAND_PNG8_DEFLATE);
     v1::RegisterResponse resp;
     const grpc::Status st = stub_->Register(&ctx, req, &resp);
     if (!st.ok()) {
@@ -648,6 +650,7 @@ int main(int argc, char** argv) {
   app.add_option("--delay-ms", delay_ms, "Time a worker takes per band (median); 0: none");
   app.add_option("--delay-sigma", delay_sigma, "Log-normal spread of that time; 0: fixed");
   bool no_next = false;
+  bool no_png_deflate = false;
   int batch = 1;
   int revive_ms = 0;
   bool outage_ok = false;
@@ -664,6 +667,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 64));
   app.add_flag("--no-next", no_next,
                "Lease each band with a GetTask (not with the last result's answer)");
+  app.add_flag("--no-png-deflate", no_png_deflate,
+               "Do not offer png8+deflate: PNG jobs' bands travel as rgb8+zstd, the frames "
+               "are encoded by the coordinator");
   app.add_option("--die", die, "Workers that drop their connection after their first lease");
   app.add_option("--stall", stall, "Workers that go silent after their first lease");
   app.add_option("--late", late, "Workers that return each band after its lease lapsed");
@@ -687,6 +693,7 @@ int main(int argc, char** argv) {
   shared.delay_ms = delay_ms;
   shared.delay_sigma = delay_sigma;
   shared.want_next = !no_next;
+  shared.png_deflate = !no_png_deflate;
   shared.batch = batch;
   shared.revive_ms = revive_ms;
   shared.outage_ok = outage_ok;

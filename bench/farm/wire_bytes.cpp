@@ -4,7 +4,9 @@
 // worker renders (BandRenderer, the job's default split), and each band's
 // CompleteBandRequest is serialized as the worker sends it: ByteSizeLong of
 // the message, ids, stats and all, over the frame's pixels. Prints a
-// Markdown table (bench/results/farm-wire.md).
+// Markdown table (bench/results/farm-wire.md), and what writing a PNG frame
+// costs the coordinator: encoded by OpenImageIO from the stitched floats, or
+// joined from the bands' png8+deflate streams (png_from_bands).
 //   locus-wire-bytes [--size 256x256] [--workers 2] [SCENE|DIR ...]
 // Without scenes: scenes/paper/*.json and ../shared/spd/def/*.nff.
 #include <spdlog/spdlog.h>
@@ -14,8 +16,10 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <map>
 
+#include "common/base/image.h"
 #include "common/farm/band_codec.h"
 #include "common/scene/scene_io.h"
 #include "proto/wire/rpc.h"
@@ -38,7 +42,8 @@ struct Column {
 constexpr Column kColumns[] = {{"float32 (today)", BandEncoding::kFloat32},
                                {"PNG: rgb8+zstd", BandEncoding::kRgb8Zstd},
                                {"TIFF: rgb16+zstd", BandEncoding::kRgb16Zstd},
-                               {"EXR: float32+zstd", BandEncoding::kFloat32Zstd}};
+                               {"EXR: float32+zstd", BandEncoding::kFloat32Zstd},
+                               {"PNG: png8+deflate", BandEncoding::kPng8Deflate}};
 constexpr size_t kN = std::size(kColumns);
 
 struct Row {
@@ -49,6 +54,8 @@ struct Row {
   double bytes_per_pixel[kN] = {};
   double encode_ms[kN] = {};  // per frame: all its bands
   double decode_ms[kN] = {};
+  double png_encode_ms = 0;  // the frame's PNG, written by write_image
+  double png_join_ms = 0;    // the frame's PNG, joined from png8+deflate bands and written
 };
 
 // ids as long as the coordinator's (a worker id, "<job>-<counter>" leases).
@@ -67,6 +74,8 @@ Result<Row> measure(const std::string& path, const std::string& group, int width
   row.group = group;
   row.bands = default_bands(width, height, 1, workers);
   const double pixels = static_cast<double>(width) * height;
+  Image frame(width, height);
+  std::vector<EncodedBand> deflated;
   for (int b = 0; b < row.bands; ++b) {
     BandLease lease;
     lease.lease_id = kLeaseId;
@@ -82,6 +91,7 @@ Result<Row> measure(const std::string& path, const std::string& group, int width
     auto out = renderer.render(lease);  // floats, as for a float32 lease
     if (!out.ok()) return out.status();
     row.render_s += now_s() - t0;
+    std::copy(out->rgb.begin(), out->rgb.end(), frame.pixel(0, rows.y0));
     out->worker_id = kWorkerId;
     out->lease_id = kLeaseId;
     for (size_t c = 0; c < kN; ++c) {
@@ -97,6 +107,7 @@ Result<Row> measure(const std::string& path, const std::string& group, int width
         auto dec = decode_band(*enc);
         row.decode_ms[c] += (now_s() - d0) * 1e3;
         if (!dec.ok()) return dec.status();
+        if (e == BandEncoding::kPng8Deflate) deflated.push_back(*enc);
         o.encoded = std::move(*enc);
         o.rgb = {};
       }
@@ -104,6 +115,20 @@ Result<Row> measure(const std::string& path, const std::string& group, int width
           static_cast<double>(rpc::ToProto(std::move(o)).ByteSizeLong()) / pixels;
     }
   }
+  // The frame's file on the coordinator, both ways (the file's bytes
+  // written, not synced).
+  const fs::path dir = fs::temp_directory_path() / "locus-wire-bytes";
+  fs::create_directories(dir);
+  const double w0 = now_s();
+  if (Status s = write_image((dir / "encoded.png").string(), frame); !s.ok()) return s;
+  const double w1 = now_s();
+  auto png = png_from_bands(width, height, deflated);
+  if (!png.ok()) return png.status();
+  std::ofstream(dir / "joined.png", std::ios::binary) << *png;
+  const double w2 = now_s();
+  row.png_encode_ms = (w1 - w0) * 1e3;
+  row.png_join_ms = (w2 - w1) * 1e3;
+  fs::remove_all(dir);
   return row;
 }
 
@@ -205,5 +230,18 @@ int main(int argc, char** argv) {
                 std::string(label_name(kBandEncodingLabels, kColumns[c].encoding)).c_str(), enc / n,
                 dec / n);
   }
+  double encoded = 0, joined = 0;
+  for (const Row& r : rows) {
+    encoded += r.png_encode_ms;
+    joined += r.png_join_ms;
+  }
+  const double n = std::max<size_t>(rows.size(), 1);
+  std::printf(
+      "\nA PNG frame written by the coordinator, milliseconds, averaged over the scenes "
+      "(ns a pixel):\n\n| how | ms a frame | ns a pixel |\n|---|---:|---:|\n"
+      "| encoded from the stitched floats (write_image, zlib level %d) | %.2f | %.1f |\n"
+      "| joined from the bands' png8+deflate streams (png_from_bands) | %.2f | %.1f |\n",
+      kPngLevel, encoded / n, encoded / n * 1e6 / (static_cast<double>(width) * height), joined / n,
+      joined / n * 1e6 / (static_cast<double>(width) * height));
   return 0;
 }

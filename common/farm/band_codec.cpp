@@ -1,10 +1,13 @@
 #include "common/farm/band_codec.h"
 
+#include <zlib.h>
 #include <zstd.h>
 
 #include <bit>
+#include <cstdlib>
 #include <cstring>
 #include <optional>
+#include <string_view>
 
 #include "common/base/image.h"
 
@@ -32,6 +35,8 @@ std::optional<Layout> layout_of(BandEncoding e) {
       return Layout{2, true};
     case BandEncoding::kFloat32Zstd:
       return Layout{4, true};
+    case BandEncoding::kPng8Deflate:
+      break;  // not samples in a layout: png8_codes
   }
   return std::nullopt;
 }
@@ -126,12 +131,152 @@ std::string band_size_text(int width, int rows) {
   return s;
 }
 
+// ---- png8+deflate (band_codec.h)
+
+// zlib's fastest level: the worker pays it per pixel, next to about a
+// microsecond of rendering per pixel (docs/farm.md "Frames" has the sizes).
+constexpr int kDeflateLevel = 1;
+// PNG's filter types (PNG specification, 9.2).
+constexpr unsigned char kFilterNone = 0, kFilterSub = 1, kFilterUp = 2, kFilterAverage = 3,
+                        kFilterPaeth = 4;
+
+size_t png_row_bytes(int width) { return 1 + static_cast<size_t>(width) * 3; }
+
+void put_be32(std::string& out, uint32_t v) {
+  for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<char>((v >> s) & 0xff));
+}
+uint32_t get_be32(const char* p) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(p[i]);
+  return v;
+}
+
+// The rows as a PNG's image data holds them before compression: a filter
+// byte, then the row filtered (the first Sub, the others Up).
+std::string png_filtered(int width, int rows, const std::vector<float>& rgb) {
+  const size_t stride = static_cast<size_t>(width) * 3;
+  std::string out(png_row_bytes(width) * rows, '\0');
+  std::vector<unsigned char> prev(stride), cur(stride);
+  for (int y = 0; y < rows; ++y) {
+    for (size_t i = 0; i < stride; ++i)
+      cur[i] = static_cast<unsigned char>(quantize8(rgb[y * stride + i]));
+    char* o = out.data() + y * png_row_bytes(width);
+    o[0] = static_cast<char>(y == 0 ? kFilterSub : kFilterUp);
+    for (size_t i = 0; i < stride; ++i) {
+      const unsigned char ref = y == 0 ? (i >= 3 ? cur[i - 3] : 0) : prev[i];
+      o[1 + i] = static_cast<char>(static_cast<unsigned char>(cur[i] - ref));
+    }
+    prev.swap(cur);
+  }
+  return out;
+}
+
+Result<std::string> deflate_rows(const std::string& raw) {
+  z_stream z{};
+  if (deflateInit2(&z, kDeflateLevel, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY) != Z_OK)
+    return Internal("zlib: cannot start deflate");
+  std::string out;
+  put_be32(out, static_cast<uint32_t>(
+                    adler32(1, reinterpret_cast<const Bytef*>(raw.data()), static_cast<uInt>(raw.size()))));
+  // deflateBound is for a finished stream; a sync flush adds a few bytes.
+  out.resize(4 + deflateBound(&z, raw.size()) + 64);
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(raw.data()));
+  z.avail_in = static_cast<uInt>(raw.size());
+  z.next_out = reinterpret_cast<Bytef*>(out.data() + 4);
+  z.avail_out = static_cast<uInt>(out.size() - 4);
+  const int r = deflate(&z, Z_SYNC_FLUSH);
+  const bool whole = r == Z_OK && z.avail_in == 0 && z.avail_out > 0;
+  out.resize(4 + z.total_out);
+  deflateEnd(&z);
+  if (!whole) return Internal("zlib: deflate did not take the whole band");
+  return out;
+}
+
+// The codes of a png8+deflate band; `what` names it in errors.
+Result<std::vector<unsigned char>> png8_codes(const EncodedBand& band, const std::string& what) {
+  const size_t row_bytes = png_row_bytes(band.width);
+  const size_t expected = row_bytes * band.rows;
+  if (band.bytes.size() < 4) return InvalidArgument(what + ": no adler-32 before the rows");
+  std::string raw(expected, '\0');
+  z_stream z{};
+  if (inflateInit2(&z, -15) != Z_OK) return Internal("zlib: cannot start inflate");
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(band.bytes.data() + 4));
+  z.avail_in = static_cast<uInt>(band.bytes.size() - 4);
+  z.next_out = reinterpret_cast<Bytef*>(raw.data());
+  z.avail_out = static_cast<uInt>(expected);
+  const int r = inflate(&z, Z_SYNC_FLUSH);
+  const uLong got = z.total_out;
+  const uInt left = z.avail_in;
+  // Where the stream stopped: waiting for a block header (128), on a byte
+  // boundary (no bits left, & 63), not after a last block (64): so the next
+  // band's stream can follow it in the frame's.
+  const int state = z.data_type;
+  inflateEnd(&z);
+  if (r == Z_STREAM_END)
+    return InvalidArgument(what + ": the deflate stream ends with the last block (a band's must not: "
+                                  "the frame's continues)");
+  if (r != Z_OK && r != Z_BUF_ERROR) return InvalidArgument(what + ": corrupt deflate stream");
+  if (got != expected || left != 0) {
+    std::string m = what;
+    m.append(": the deflate stream holds ").append(left != 0 ? "more than " : "");
+    m.append(std::to_string(got)).append(" bytes, expected ").append(std::to_string(expected));
+    return InvalidArgument(m);
+  }
+  if ((state & (64 | 128 | 63)) != 128)
+    return InvalidArgument(what + ": the deflate stream does not end on a sync flush");
+  if (adler32(1, reinterpret_cast<const Bytef*>(raw.data()), static_cast<uInt>(raw.size())) !=
+      get_be32(band.bytes.data()))
+    return InvalidArgument(what + ": the rows do not match their adler-32");
+  // Unfiltered (PNG specification, 9.2), bytes per pixel 3.
+  const size_t stride = static_cast<size_t>(band.width) * 3;
+  std::vector<unsigned char> codes(stride * band.rows);
+  for (int y = 0; y < band.rows; ++y) {
+    const auto* in = reinterpret_cast<const unsigned char*>(raw.data()) + y * row_bytes;
+    const unsigned char filter = in[0];
+    if (filter > kFilterPaeth || (y == 0 && filter > kFilterSub)) {
+      std::string m = what;
+      m.append(": row ").append(std::to_string(y)).append(" has filter ");
+      m.append(std::to_string(filter)).append(y == 0 ? " (the first row: 0 or 1)" : " (0 to 4)");
+      return InvalidArgument(m);
+    }
+    unsigned char* out = codes.data() + y * stride;
+    const unsigned char* up = y > 0 ? out - stride : nullptr;
+    for (size_t i = 0; i < stride; ++i) {
+      const int a = i >= 3 ? out[i - 3] : 0;
+      const int b = up ? up[i] : 0;
+      const int c = up && i >= 3 ? up[i - 3] : 0;
+      int pred = 0;
+      switch (filter) {
+        case kFilterNone: pred = 0; break;
+        case kFilterSub: pred = a; break;
+        case kFilterUp: pred = b; break;
+        case kFilterAverage: pred = (a + b) / 2; break;
+        default: {
+          const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+          pred = (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
+        }
+      }
+      out[i] = static_cast<unsigned char>(in[1 + i] + pred);
+    }
+  }
+  return codes;
+}
+
+void put_chunk(std::string& png, const char* type, std::string_view data) {
+  put_be32(png, static_cast<uint32_t>(data.size()));
+  png.append(type, 4);
+  png.append(data);
+  uLong crc = crc32(0, reinterpret_cast<const Bytef*>(type), 4);
+  crc = crc32(crc, reinterpret_cast<const Bytef*>(data.data()), static_cast<uInt>(data.size()));
+  put_be32(png, static_cast<uint32_t>(crc));
+}
+
 }  // namespace
 
-BandEncoding band_encoding_for(const std::string& output) {
+BandEncoding band_encoding_for(const std::string& output, bool png_deflate) {
   switch (output_sample_format(output)) {
     case SampleFormat::kUint8:
-      return BandEncoding::kRgb8Zstd;
+      return png_deflate ? BandEncoding::kPng8Deflate : BandEncoding::kRgb8Zstd;
     case SampleFormat::kUint16:
       return BandEncoding::kRgb16Zstd;
     case SampleFormat::kFloat32:
@@ -145,12 +290,18 @@ BandEncoding band_encoding_for(const std::string& output) {
 Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
                                 const std::vector<float>& rgb) {
   const std::optional<Layout> l = layout_of(encoding);
-  if (!l) return InvalidArgument("cannot encode a band in " + encoding_name(encoding));
+  if (!l && encoding != BandEncoding::kPng8Deflate)
+    return InvalidArgument("cannot encode a band in " + encoding_name(encoding));
   if (width < 1 || rows < 1 || rgb.size() != static_cast<size_t>(width) * rows * 3) {
     std::string m = "cannot encode a band of ";
     m.append(band_size_text(width, rows)).append(" pixels from ");
     m.append(std::to_string(rgb.size())).append(" floats");
     return InvalidArgument(m);
+  }
+  if (!l) {
+    auto bytes = deflate_rows(png_filtered(width, rows, rgb));
+    if (!bytes.ok()) return bytes.status();
+    return EncodedBand{encoding, width, rows, std::move(*bytes)};
   }
   std::vector<uint32_t> samples(rgb.size());
   for (size_t i = 0; i < rgb.size(); ++i) samples[i] = sample_of(encoding, rgb[i]);
@@ -168,7 +319,8 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
 
 Result<std::vector<float>> decode_band(const EncodedBand& band) {
   const std::optional<Layout> l = layout_of(band.encoding);
-  if (!l) return InvalidArgument("band pixels in " + encoding_name(band.encoding));
+  if (!l && band.encoding != BandEncoding::kPng8Deflate)
+    return InvalidArgument("band pixels in " + encoding_name(band.encoding));
   const std::string what = encoding_name(band.encoding) + " band of " +
                            band_size_text(band.width, band.rows) + " pixels";
   if (band.width < 1 || band.rows < 1 ||
@@ -179,6 +331,13 @@ Result<std::vector<float>> decode_band(const EncodedBand& band) {
     return InvalidArgument(m);
   }
   const size_t n = static_cast<size_t>(band.width) * band.rows * 3;
+  if (!l) {
+    auto codes = png8_codes(band, what);
+    if (!codes.ok()) return codes.status();
+    std::vector<float> rgb(n);
+    for (size_t i = 0; i < n; ++i) rgb[i] = float_of(BandEncoding::kRgb8Zstd, (*codes)[i]);
+    return rgb;
+  }
   const size_t expected = n * l->sample_bytes;
   const std::string* raw = &band.bytes;
   std::string inflated;
@@ -222,6 +381,55 @@ Result<std::vector<float>> decode_band(const EncodedBand& band) {
   std::vector<float> rgb(n);
   for (size_t i = 0; i < n; ++i) rgb[i] = float_of(band.encoding, samples[i]);
   return rgb;
+}
+
+Result<std::string> png_from_bands(int width, int height, const std::vector<EncodedBand>& bands) {
+  if (width < 1 || height < 1) return InvalidArgument("a PNG frame of no pixels");
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  std::string header;
+  put_be32(header, static_cast<uint32_t>(width));
+  put_be32(header, static_cast<uint32_t>(height));
+  header.append("\x08\x02\x00\x00\x00", 5);  // 8 bits, RGB, deflate, filters, no interlace
+  put_chunk(png, "IHDR", header);
+  std::string gamma;
+  put_be32(gamma, 100000);  // linear, as write_image tags its PNGs
+  put_chunk(png, "gAMA", gamma);
+  put_chunk(png, "tEXt", std::string_view("oiio:ColorSpace\0Linear", 22));
+  // The zlib stream: its header, each band's deflate bytes, an empty last
+  // block, the adler-32 of all rows (RFC 1950, 1951).
+  uLong adler = 1;
+  int rows = 0;
+  for (size_t b = 0; b < bands.size(); ++b) {
+    const EncodedBand& band = bands[b];
+    if (band.encoding != BandEncoding::kPng8Deflate || band.width != width || band.rows < 1 ||
+        band.bytes.size() < 4) {
+      std::string m = "band ";
+      m.append(std::to_string(b)).append(" is not a png8+deflate band ");
+      m.append(std::to_string(width)).append(" pixels wide");
+      return InvalidArgument(m);
+    }
+    rows += band.rows;
+    adler = adler32_combine(adler, get_be32(band.bytes.data()),
+                            static_cast<z_off_t>(png_row_bytes(width) * band.rows));
+    const std::string_view stream = std::string_view(band.bytes).substr(4);
+    if (b == 0) {
+      std::string first("\x78\x01", 2);
+      first.append(stream);
+      put_chunk(png, "IDAT", first);
+    } else {
+      put_chunk(png, "IDAT", stream);
+    }
+  }
+  if (rows != height) {
+    std::string m = "the bands hold ";
+    m.append(std::to_string(rows)).append(" rows of a frame of ").append(std::to_string(height));
+    return InvalidArgument(m);
+  }
+  std::string last("\x03\x00", 2);
+  put_be32(last, static_cast<uint32_t>(adler));
+  put_chunk(png, "IDAT", last);
+  put_chunk(png, "IEND", "");
+  return png;
 }
 
 }  // namespace locus::farm

@@ -4,7 +4,8 @@
 // written from the renderer's floats, in fewer bytes.
 //
 //   output      written as (common/base/image.h)   encoding       bytes/pixel
-//   .png        8-bit, quantize8                   rgb8+zstd      3 before zstd
+//   .png        8-bit, quantize8                   png8+deflate   3 before deflate
+//               (a worker that does not offer it)  rgb8+zstd      3 before zstd
 //   .tif .tiff  16-bit, quantize16                 rgb16+zstd     6 before zstd
 //   .exr        float32, unclamped                 float32+zstd   12 before zstd
 //   other       (none: a movie job has no bands)   float32        12
@@ -20,6 +21,18 @@
 // encodings" has the measurements). Plain float32 is today's `repeated
 // float rgb` of the wire, kept for workers and coordinators of older
 // releases.
+//
+// png8+deflate is the 8-bit codes as a PNG file's image data holds them, so
+// that the coordinator writes the frame's PNG from its bands' bytes without
+// decoding or compressing anything (png_from_bands; docs/farm.md "Frames"):
+// each row a PNG filter byte and the row's filtered bytes (the band's first
+// row Sub, which looks only left, the others Up), raw-deflated at level 1
+// (zlib) as one stream that ends with a sync flush (byte-aligned, not the
+// last block), after the adler-32 of the filtered bytes (4 bytes, most
+// significant first). Concatenated in row order, the bands' streams are the
+// frame's: a PNG decoder reads each band's first row against the previous
+// band's last row only through filters that do not look up, which is why
+// decode_band refuses any other filter there.
 #pragma once
 
 #include <cstdint>
@@ -32,12 +45,19 @@
 namespace locus::farm {
 
 // The values are those of v1::BandEncoding (proto/locus.proto).
-enum class BandEncoding : int32_t { kFloat32 = 0, kRgb8Zstd = 1, kRgb16Zstd = 2, kFloat32Zstd = 3 };
-inline constexpr Labels<BandEncoding, 4> kBandEncodingLabels = {
+enum class BandEncoding : int32_t {
+  kFloat32 = 0,
+  kRgb8Zstd = 1,
+  kRgb16Zstd = 2,
+  kFloat32Zstd = 3,
+  kPng8Deflate = 4
+};
+inline constexpr Labels<BandEncoding, 5> kBandEncodingLabels = {
     {{BandEncoding::kFloat32, "float32"},
      {BandEncoding::kRgb8Zstd, "rgb8+zstd"},
      {BandEncoding::kRgb16Zstd, "rgb16+zstd"},
-     {BandEncoding::kFloat32Zstd, "float32+zstd"}}};
+     {BandEncoding::kFloat32Zstd, "float32+zstd"},
+     {BandEncoding::kPng8Deflate, "png8+deflate"}}};
 
 // A band's pixels in an encoding: `width` x `rows` pixels, 3 channels,
 // row-major from the band's first row.
@@ -54,8 +74,10 @@ struct EncodedBand {
 inline constexpr int64_t kMaxDecodedBandBytes = 64 << 20;
 
 // The encoding for a job whose frames are written to `output` (a file name
-// or pattern, e.g. "out/shot_####.png"), by output_sample_format.
-BandEncoding band_encoding_for(const std::string& output);
+// or pattern, e.g. "out/shot_####.png"), by output_sample_format; for an
+// 8-bit output png8+deflate when the worker offers it (`png_deflate`,
+// RegisterRequest.encodings), rgb8+zstd otherwise.
+BandEncoding band_encoding_for(const std::string& output, bool png_deflate = false);
 
 // `rgb` (width * rows * 3 linear floats, as render_band gives them) in
 // `encoding`. InvalidArgument for a size that is not width x rows or an
@@ -70,5 +92,13 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
 // is corrupt, truncated or claims another size; decompression never writes
 // past the size width x rows needs.
 Result<std::vector<float>> decode_band(const EncodedBand& band);
+
+// The PNG file (8-bit RGB, tagged linear as write_image tags it) of a
+// `width` x `height` frame whose bands, top to bottom, are all png8+deflate
+// and were each accepted by decode_band: the file's image data is the
+// bands' deflate streams joined, so nothing is decompressed or compressed
+// again. InvalidArgument when a band is of another encoding or width, or
+// the bands' rows do not add up to the height.
+Result<std::string> png_from_bands(int width, int height, const std::vector<EncodedBand>& bands);
 
 }  // namespace locus::farm

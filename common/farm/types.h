@@ -260,6 +260,9 @@ struct WorkerInfo {
   std::string name;
   int threads = 1;
   std::vector<std::string> tags;  // `locus-worker --tag`
+  // Offers png8+deflate (RegisterRequest.encodings): PNG jobs' bands are
+  // leased to it in that encoding (band_encoding_for).
+  bool png_deflate = false;
   bool draining = false;          // `locus drain`: finishes its band, takes no more, exits
   bool disabled = false;          // `locus disable`: by name, until `locus enable`
   bool busy = false;

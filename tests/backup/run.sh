@@ -3,11 +3,12 @@
 # against a live coordinator process on 127.0.0.1 while a worker returns
 # bands, then a coordinator started on OUT (the restore) that has every
 # band accepted before the backup began and finishes the job with frames
-# byte for byte those of `locus render --workers 0`. Also: the subcommand
+# holding exactly the pixels of `locus render --workers 0`. Also: the subcommand
 # in --help, an existing OUT refused, the running coordinator unharmed.
 # Prints one line per check and "N passed, M failed".
 set -uo pipefail
 bin=$1 src=$2
+. "$(dirname "${BASH_SOURCE[0]}")/../farm_lib.sh"  # same_pixels
 tmp=$(mktemp -d)
 pids=()
 cleanup() {
@@ -37,7 +38,7 @@ start_coordinator() {
 }
 same_frames() {
   local f
-  for f in 1 2 3 4; do cmp -s "$tmp/got/f_000$f.png" "$tmp/ref/f_000$f.png" || return 1; done
+  for f in 1 2 3 4; do same_pixels "$tmp/got/f_000$f.png" "$tmp/ref/f_000$f.png" || return 1; done
 }
 # bands_done: of j0001, from `locus status`.
 bands_done() {

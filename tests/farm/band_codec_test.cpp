@@ -5,6 +5,7 @@
 #include "common/farm/band_codec.h"
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 #include <zstd.h>
 
 #include <bit>
@@ -25,7 +26,8 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr BandEncoding kAll[] = {BandEncoding::kFloat32, BandEncoding::kRgb8Zstd,
-                                 BandEncoding::kRgb16Zstd, BandEncoding::kFloat32Zstd};
+                                 BandEncoding::kRgb16Zstd, BandEncoding::kFloat32Zstd,
+                                 BandEncoding::kPng8Deflate};
 
 std::string name_of(BandEncoding e) { return std::string(label_name(kBandEncodingLabels, e)); }
 
@@ -62,6 +64,11 @@ TEST(BandCodec, EveryCodeDecodesToAFloatTheWriterMapsBackToIt) {
 TEST(BandCodec, ChoosesTheEncodingOfTheWrittenFile) {
   EXPECT_EQ(band_encoding_for("out/shot_####.png"), BandEncoding::kRgb8Zstd);
   EXPECT_EQ(band_encoding_for("SHOT_0001.PNG"), BandEncoding::kRgb8Zstd);
+  // A worker that offers png8+deflate gets it for PNG jobs, and only those.
+  EXPECT_EQ(band_encoding_for("out/shot_####.png", true), BandEncoding::kPng8Deflate);
+  EXPECT_EQ(band_encoding_for("a.tif", true), BandEncoding::kRgb16Zstd);
+  EXPECT_EQ(band_encoding_for("a.exr", true), BandEncoding::kFloat32Zstd);
+  EXPECT_EQ(band_encoding_for("shot.mp4", true), BandEncoding::kFloat32);
   EXPECT_EQ(band_encoding_for("out/shot_####.exr"), BandEncoding::kFloat32Zstd);
   EXPECT_EQ(band_encoding_for("a.tif"), BandEncoding::kRgb16Zstd);
   EXPECT_EQ(band_encoding_for("a.tiff"), BandEncoding::kRgb16Zstd);
@@ -87,7 +94,7 @@ TEST(BandCodec, EveryEncodingRoundTrips) {
       if (e == BandEncoding::kFloat32 || e == BandEncoding::kFloat32Zstd) {
         // The floats' bits, NaN payloads and -0 included.
         ASSERT_EQ(std::bit_cast<uint32_t>((*dec)[i]), std::bit_cast<uint32_t>(rgb[i])) << i;
-      } else if (e == BandEncoding::kRgb8Zstd) {
+      } else if (e == BandEncoding::kRgb8Zstd || e == BandEncoding::kPng8Deflate) {
         ASSERT_EQ(quantize8((*dec)[i]), quantize8(rgb[i])) << i;
       } else {
         ASSERT_EQ(quantize16((*dec)[i]), quantize16(rgb[i])) << i;
@@ -194,6 +201,135 @@ void expect_refused(const EncodedBand& band, const std::string& words) {
   ASSERT_FALSE(r.ok()) << "decoded " << r->size() << " floats";
   EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
   EXPECT_NE(r.status().message().find(words), std::string::npos) << r.status().message();
+}
+
+// png8+deflate (band_codec.h): a PNG joined from the bands' deflate streams
+// (png_from_bands, as the coordinator writes a PNG job's frames) holds the
+// pixels write_image writes from the renderer's floats, for any split: one
+// band, uneven bands, a band per row.
+TEST(BandCodec, PngFramesJoinedFromDeflatedBandsHoldTheRenderersPixels) {
+  auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  const int width = 96, height = 64;
+  scene->camera.width = width;
+  scene->camera.height = height;
+  RenderParams p;
+  p.method = Method::kLocal;
+  p.aa = 4;
+  p.threads = 2;
+  auto prepared = prepare_scene(*scene, p);
+  ASSERT_TRUE(prepared.ok()) << prepared.status().message();
+  const BandResult whole = render_band(**prepared, Band{0, height}, p);
+  const fs::path dir = fs::path(::testing::TempDir()) / "band_codec_png";
+  fs::create_directories(dir);
+  Image floats(width, height);
+  floats.rgb = whole.pixels.rgb;
+  ASSERT_TRUE(write_image((dir / "written.png").string(), floats).ok());
+  auto expected = read_image((dir / "written.png").string());
+  ASSERT_TRUE(expected.ok());
+  std::vector<int> per_row;
+  for (int y = 0; y <= height; ++y) per_row.push_back(y);
+  for (const std::vector<int>& edges :
+       {std::vector<int>{0, height}, std::vector<int>{0, 7, 20, 41, 64}, per_row}) {
+    SCOPED_TRACE(std::to_string(edges.size() - 1) + " bands");
+    std::vector<EncodedBand> bands;
+    size_t wire = 0;
+    for (size_t b = 0; b + 1 < edges.size(); ++b) {
+      const size_t from = static_cast<size_t>(edges[b]) * width * 3;
+      const size_t to = static_cast<size_t>(edges[b + 1]) * width * 3;
+      const std::vector<float> rgb(whole.pixels.rgb.begin() + from,
+                                   whole.pixels.rgb.begin() + to);
+      auto enc = encode_band(BandEncoding::kPng8Deflate, width, edges[b + 1] - edges[b], rgb);
+      ASSERT_TRUE(enc.ok()) << enc.status().message();
+      ASSERT_TRUE(decode_band(*enc).ok());  // what the coordinator checks on arrival
+      wire += enc->bytes.size();
+      bands.push_back(std::move(*enc));
+    }
+    auto png = png_from_bands(width, height, bands);
+    ASSERT_TRUE(png.ok()) << png.status().message();
+    const fs::path joined = dir / ("joined_" + std::to_string(bands.size()) + ".png");
+    std::ofstream(joined, std::ios::binary) << *png;
+    auto got = read_image(joined.string());
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    EXPECT_EQ(got->width, width);
+    EXPECT_EQ(got->height, height);
+    EXPECT_EQ(got->rgb, expected->rgb);
+    // At most the 3 bytes a pixel of the codes (and a filter byte a row).
+    EXPECT_LT(wire, static_cast<size_t>(width) * height * 3);
+  }
+}
+
+// The payload of a png8+deflate band from `raw` (each row's filter byte and
+// bytes), its stream ended by `flush`, its adler-32 plus `adler_delta`.
+std::string png8_payload(const std::string& raw, int flush, uint32_t adler_delta = 0) {
+  z_stream z{};
+  EXPECT_EQ(deflateInit2(&z, 1, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY), Z_OK);
+  std::string stream(raw.size() + 256, '\0');
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(raw.data()));
+  z.avail_in = static_cast<uInt>(raw.size());
+  z.next_out = reinterpret_cast<Bytef*>(stream.data());
+  z.avail_out = static_cast<uInt>(stream.size());
+  EXPECT_NE(deflate(&z, flush), Z_STREAM_ERROR);
+  stream.resize(z.total_out);
+  deflateEnd(&z);
+  const uint32_t a =
+      static_cast<uint32_t>(adler32(1, reinterpret_cast<const Bytef*>(raw.data()),
+                                    static_cast<uInt>(raw.size()))) + adler_delta;
+  std::string out;
+  for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<char>((a >> s) & 0xff));
+  return out + stream;
+}
+
+// 4 x 3 pixels: each row a filter byte and 12 bytes.
+std::string rows_with_filters(unsigned char f0, unsigned char f1, unsigned char f2) {
+  std::string raw;
+  for (unsigned char f : {f0, f1, f2}) {
+    raw.push_back(static_cast<char>(f));
+    for (int i = 0; i < 12; ++i) raw.push_back(static_cast<char>(f * 40 + i * 7));
+  }
+  return raw;
+}
+
+// What png_from_bands cannot join is refused on arrival, naming it: a first
+// row that looks up (into the previous band, another worker's), a stream
+// that ends the frame's, bytes after the rows, a wrong checksum, an unknown
+// filter.
+TEST(BandCodec, Png8DeflateRefusesBandsThatCannotBeJoined) {
+  const auto band = [](const std::string& payload) {
+    return EncodedBand{BandEncoding::kPng8Deflate, 4, 3, payload};
+  };
+  // Every filter inside the band is read (PNG specification, 9.2).
+  for (unsigned char f : {0, 1, 2, 3, 4}) {
+    auto ok = decode_band(band(png8_payload(rows_with_filters(f < 2 ? f : 1, f, f), Z_SYNC_FLUSH)));
+    ASSERT_TRUE(ok.ok()) << int{f} << ": " << ok.status().message();
+    EXPECT_EQ(ok->size(), 36u);
+  }
+  expect_refused(band(png8_payload(rows_with_filters(2, 2, 2), Z_SYNC_FLUSH)),
+                 "row 0 has filter 2 (the first row: 0 or 1)");
+  expect_refused(band(png8_payload(rows_with_filters(1, 2, 5), Z_SYNC_FLUSH)),
+                 "row 2 has filter 5 (0 to 4)");
+  expect_refused(band(png8_payload(rows_with_filters(1, 2, 2), Z_FINISH)),
+                 "ends with the last block");
+  expect_refused(band(png8_payload(rows_with_filters(1, 2, 2), Z_SYNC_FLUSH, 1)),
+                 "do not match their adler-32");
+  const std::string good = png8_payload(rows_with_filters(1, 2, 2), Z_SYNC_FLUSH);
+  const std::string again = png8_payload(rows_with_filters(1, 2, 2), Z_SYNC_FLUSH);
+  expect_refused(band(good + again.substr(4)), "holds more than 39 bytes, expected 39");
+  expect_refused(band(good.substr(0, 3)), "no adler-32");
+  // A band of another encoding, width or height is not joined.
+  const EncodedBand b = band(good);
+  EXPECT_TRUE(png_from_bands(4, 6, {b, b}).ok());
+  EncodedBand zstd = valid_band(BandEncoding::kRgb8Zstd, 4, 3);
+  for (const auto& [bands, words] :
+       {std::pair{std::vector<EncodedBand>{b, zstd}, "band 1 is not a png8+deflate band 4 pixels"},
+        std::pair{std::vector<EncodedBand>{b, valid_band(BandEncoding::kPng8Deflate, 5, 3)},
+                  "band 1 is not a png8+deflate band 4 pixels"},
+        std::pair{std::vector<EncodedBand>{b}, "the bands hold 3 rows of a frame of 6"}}) {
+    auto r = png_from_bands(4, 6, bands);
+    ASSERT_FALSE(r.ok()) << words;
+    EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
+    EXPECT_NE(r.status().message().find(words), std::string::npos) << r.status().message();
+  }
 }
 
 TEST(BandCodec, MalformedPayloadsAreErrorsNamingTheProblem) {

@@ -42,6 +42,7 @@ if [ -z "${LOCUS_PACKAGE_TEST_NS:-}" ]; then
   LOCUS_PACKAGE_TEST_NS=1 exec unshare --mount --propagation private bash "$0" "$@"
 fi
 bin=$(realpath "$1") src=$(realpath "$2") build=$(realpath "$3")
+. "$src/tests/farm_lib.sh"  # same_pixels
 start=$SECONDS
 fails=0
 ok() { echo "  ok: $*"; }
@@ -49,7 +50,7 @@ bad() { echo "  FAIL: $*"; fails=$((fails + 1)); }
 die() { echo "FAIL: $*"; exit 1; }
 step() { echo "[$((SECONDS - start)) s] $*"; }
 
-for tool in cpack debootstrap unshare chroot setpriv systemd-analyze man ip readelf python3; do
+for tool in cpack debootstrap unshare chroot setpriv systemd-analyze man ip readelf idiff; do
   command -v "$tool" >/dev/null || die "$tool is missing (bash deploy/local/install-deps.sh)"
 done
 
@@ -73,16 +74,11 @@ in_root() {
     chroot "$root" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root LANG=C.UTF-8 \
     DEBIAN_FRONTEND=noninteractive "$@"
 }
-# same_image A B: identical files, or (other library versions encode
-# differently) identical pixels.
+# same_image A B: identical files, or identical pixels (same_pixels, of
+# tests/farm_lib.sh: other library versions encode differently, and the
+# farm joins a PNG frame from its bands' streams).
 same_image() {
-  cmp -s "$1" "$2" && return 0
-  python3 - "$1" "$2" <<'EOF'
-import sys
-from PIL import Image
-a, b = (Image.open(p) for p in sys.argv[1:3])
-sys.exit(0 if (a.mode, a.size, a.tobytes()) == (b.mode, b.size, b.tobytes()) else 1)
-EOF
+  cmp -s "$1" "$2" || same_pixels "$1" "$2"
 }
 
 # ---- 1. the package

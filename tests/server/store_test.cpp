@@ -10,6 +10,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -332,6 +333,71 @@ TEST(BandFiles, StitchAFrameFromItsBandRecords) {
   EXPECT_EQ(stitch_frame(f, lookup).status().code(), Code::kNotFound);
   records[1] = records[0];  // another band's record: the rows do not match
   EXPECT_FALSE(stitch_frame(f, lookup).ok());
+}
+
+// write_frame: a PNG frame whose bands all came as png8+deflate is joined
+// from their bytes (one IDAT chunk a band, and the stream's end); a frame
+// with a band of another encoding (an older worker's) is stitched and
+// written by OpenImageIO. The pixels are the same either way.
+TEST(BandFiles, APngFrameIsJoinedFromDeflatedBandsOrElseStitched) {
+  TempDir dir;
+  const int width = 6, height = 9;
+  const std::vector<int> edges{0, 2, 7, 9};
+  const FrameReady f{"j0001", 3, "f_0003.png", width, height, 3, edges};
+  Image expected(width, height);
+  for (size_t i = 0; i < expected.rgb.size(); ++i)
+    expected.rgb[i] = static_cast<float>((i * 37) % 256) / 255.0f;
+  const auto records = [&](bool older_middle) {
+    std::map<int, std::string> r;
+    for (int b = 0; b < 3; ++b) {
+      const BandPixels px{width, edges[b], edges[b + 1]};
+      const std::vector<float> rgb(expected.rgb.begin() + edges[b] * width * 3,
+                                   expected.rgb.begin() + edges[b + 1] * width * 3);
+      const BandEncoding e =
+          older_middle && b == 1 ? BandEncoding::kRgb8Zstd : BandEncoding::kPng8Deflate;
+      auto enc = encode_band(e, width, edges[b + 1] - edges[b], rgb);
+      EXPECT_TRUE(enc.ok());
+      r[b] = pack_band(px, *enc);
+    }
+    return r;
+  };
+  const auto file_of = [](const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const auto count = [](const std::string& s, const std::string& word) {
+    size_t n = 0;
+    for (size_t at = s.find(word); at != std::string::npos; at = s.find(word, at + 1)) ++n;
+    return n;
+  };
+  // The pixels as write_image writes them (8-bit codes, read back).
+  ASSERT_TRUE(write_image((dir.path / "reference.png").string(), expected).ok());
+  auto reference = read_image((dir.path / "reference.png").string());
+  ASSERT_TRUE(reference.ok());
+  for (bool older_middle : {false, true}) {
+    SCOPED_TRACE(older_middle ? "one band rgb8+zstd" : "all png8+deflate");
+    const std::map<int, std::string> r = records(older_middle);
+    const auto lookup = [&](int band) -> Result<std::string> { return r.at(band); };
+    const fs::path out = dir.path / (older_middle ? "stitched" : "joined");
+    ASSERT_TRUE(write_frame(out.string(), f, lookup, true).ok());
+    auto read = read_image((out / f.file_name).string());
+    ASSERT_TRUE(read.ok()) << read.status().message();
+    EXPECT_EQ(read->rgb, reference->rgb);
+    EXPECT_FALSE(fs::exists(out / (".partial-" + f.file_name)));
+    const std::string bytes = file_of(out / f.file_name);
+    if (older_middle) {
+      EXPECT_EQ(count(bytes, "IDAT"), 1u);  // one stream, OpenImageIO's
+    } else {
+      EXPECT_EQ(count(bytes, "IDAT"), 4u);  // a chunk a band, then the stream's end
+    }
+  }
+  // A damaged record is an error naming it, and nothing is written.
+  std::map<int, std::string> r = records(false);
+  r[2][r[2].size() / 2] ^= 0x55;
+  const auto lookup = [&](int band) -> Result<std::string> { return r.at(band); };
+  const fs::path out = dir.path / "damaged";
+  EXPECT_FALSE(write_frame(out.string(), f, lookup, true).ok());
+  EXPECT_FALSE(fs::exists(out / f.file_name));
 }
 
 // ---------------------------------------------------------------- restarts

@@ -44,8 +44,8 @@
 #     the band returned by another worker (or, when the worker's wait ran
 #     out while the test held it frozen, the band returned within the
 #     grace: never a charged attempt);
-#   - the job succeeds and its 12 frames, fetched, are byte for byte those
-#     of `locus render --workers 0`;
+#   - the job succeeds and its 12 frames, fetched, hold exactly the pixels
+#     of `locus render --workers 0` (same_pixels);
 #   - the warning to an array task whose worker is in the middle of a
 #     render (a_glass ray traced at 400x400, seconds on one thread; a
 #     worker --tag heavy of its own): the second SIGTERM, a second after
@@ -57,6 +57,7 @@
 set -uo pipefail
 [ $# -eq 2 ] || { echo "usage: $0 BINDIR SOURCE_DIR" >&2; exit 2; }
 bin=$(cd "$1" && pwd) src=$(cd "$2" && pwd) || exit 2
+. "$src/tests/farm_lib.sh"  # same_pixels
 
 setup_failed() {
   echo "FAILED: $1"
@@ -66,7 +67,7 @@ setup_failed() {
 
 if [ "${LOCUS_SLURM_TEST_NS:-}" != inside ]; then
   [ "$(id -u)" -eq 0 ] || setup_failed "the Slurm test needs root (its namespaces, slurmd)"
-  for tool in unshare ip openssl cmp munged mungekey slurmctld slurmd sbatch srun scancel scontrol sinfo; do
+  for tool in unshare ip openssl idiff munged mungekey slurmctld slurmd sbatch srun scancel scontrol sinfo; do
     command -v $tool >/dev/null || setup_failed "$tool is missing (bash deploy/local/install-deps.sh)"
   done
   for b in locus locus-coordinator locus-worker; do
@@ -438,9 +439,9 @@ if cli fetch "$J" "$tmp/fetched" >/dev/null 2>>"$tmp/log/cli.log"; then
   differ=
   for f in $(seq 1 12); do
     n=$(printf %04d "$f")
-    cmp -s "$tmp/ref/f_$n.png" "$tmp/fetched/f_$n.png" || differ+=" $f"
+    same_pixels "$tmp/ref/f_$n.png" "$tmp/fetched/f_$n.png" || differ+=" $f"
   done
-  [ -z "$differ" ] && ok "job $J's 12 frames, fetched, are byte for byte those of locus render --workers 0" ||
+  [ -z "$differ" ] && ok "job $J's 12 frames, fetched, hold exactly the pixels of locus render --workers 0" ||
     bad "frames that differ from the single-process render or are missing:$differ"
 else
   bad "locus fetch $J: $(tail -1 "$tmp/log/cli.log")"

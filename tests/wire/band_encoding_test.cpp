@@ -1,6 +1,8 @@
 // Band pixels on the wire (common/farm/band_codec.h; issue #25 item 4),
 // over loopback: each job's bands travel in its output's encoding and the
-// written frames are the bytes of a single-process render's; a worker of an
+// written frames hold a single-process render's pixels (a PNG job's frames
+// joined from the workers' deflate streams; from a worker that does not
+// offer png8+deflate, the bytes of the single-process render's); a worker of an
 // older release that sends floats is still served; encoded pixels that do
 // not decode are refused with INVALID_ARGUMENT naming the lease and the
 // problem, and charged to the band like pixels of the wrong size.
@@ -26,8 +28,9 @@ std::string file_bytes(const fs::path& path) {
 class BandEncodingTest : public HandWorkerTest {
  protected:
   // The fetched frame file, byte for byte the single-process render's as
-  // written by the same writer (expect_identical compares the pixels). Only
-  // for PNG: TIFF and EXR files also carry the second they were written.
+  // written by the same writer (expect_identical compares the pixels): a PNG
+  // job's whose bands came as rgb8+zstd. Only for PNG: TIFF and EXR files
+  // also carry the second they were written.
   void expect_same_file(const JobInfo& job, const SubmitRequest& r, int frame) {
     ASSERT_EQ(fs::path(r.output).extension(), ".png");
     const std::string name = frame_path(fs::path(r.output).filename().string(), frame);
@@ -48,15 +51,24 @@ TEST_F(BandEncodingTest, EachOutputsBandsTravelInItsEncodingAndFramesAreBitIdent
     BandEncoding encoding;
   };
   for (const Case& c :
-       {Case{"e_####.png", BandEncoding::kRgb8Zstd}, Case{"e_####.tif", BandEncoding::kRgb16Zstd},
+       {Case{"e_####.png", BandEncoding::kPng8Deflate},
+        Case{"e_####.tif", BandEncoding::kRgb16Zstd},
         Case{"e_####.exr", BandEncoding::kFloat32Zstd}}) {
     SCOPED_TRACE(c.output);
-    EXPECT_EQ(band_encoding_for(c.output), c.encoding);
+    // locus-worker offers png8+deflate (RegisterRequest.encodings).
+    EXPECT_EQ(band_encoding_for(c.output, true), c.encoding);
     SubmitRequest r = request(kGlass, 64, 48, 1, 2, 5, c.output);
     const JobInfo job = run(r);
     expect_identical(job, r);  // the stored samples, read back exactly
-    if (c.encoding == BandEncoding::kRgb8Zstd) {
-      for (int f = 1; f <= 2; ++f) expect_same_file(job, r, f);
+    if (c.encoding == BandEncoding::kPng8Deflate) {
+      // Joined from the bands' streams: an IDAT chunk a band, then the end.
+      for (int f = 1; f <= 2; ++f) {
+        const std::string a = file_bytes(dir_ / ("got_" + job.job_id) / frame_path("e_####.png", f));
+        size_t chunks = 0;
+        for (size_t at = a.find("IDAT"); at != std::string::npos; at = a.find("IDAT", at + 1))
+          ++chunks;
+        EXPECT_EQ(chunks, static_cast<size_t>(job.spec.bands) + 1) << "frame " << f;
+      }
     }
   }
 }
