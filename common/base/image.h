@@ -49,7 +49,7 @@ std::string lower_extension(std::string_view path);
 // stored values as they are (the dashboard's copies; same pixel values).
 // PNGs are deflated at zlib level kPngLevel (docs/farm.md "Frames": 3, not libpng's
 // 6: a third less time per frame for 6-23% more bytes; the farm's
-// coordinator encodes every frame it writes).
+// coordinator encodes the frames it does not join from png8+deflate bands).
 inline constexpr int kPngLevel = 3;
 Status write_image(const std::string& path, const Image& image, bool for_display = false);
 Result<Image> read_image(const std::string& path);
