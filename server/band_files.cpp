@@ -145,9 +145,11 @@ Result<Image> stitch_frame(const FrameReady& f,
 namespace {
 
 // Writes job_dir/file_name through a temporary name, `write` making the
-// temporary file; fsyncs file and directory when `sync`.
+// temporary file; fsyncs the file when `sync`, and then the directory when
+// `sync_dir` too.
 Status write_atomically(const std::string& job_dir, const std::string& file_name,
-                        const std::function<Status(const std::string& path)>& write, bool sync) {
+                        const std::function<Status(const std::string& path)>& write, bool sync,
+                        bool sync_dir = true) {
   const fs::path dir(job_dir);
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -163,7 +165,7 @@ Status write_atomically(const std::string& job_dir, const std::string& file_name
     return st;
   }
   // The rename itself reaches the disk before the store says "written".
-  if (sync) return fsync_path(dir.string(), true);
+  if (sync && sync_dir) return fsync_path(dir.string(), true);
   return Status::Ok();
 }
 
@@ -180,12 +182,14 @@ Status write_bytes(const std::string& path, const std::string& bytes) {
 Status write_frame_file(const std::string& job_dir, const std::string& file_name,
                         const Image& image, bool sync) {
   return write_atomically(
-      job_dir, file_name, [&](const std::string& path) { return write_image(path, image); },
-      sync);
+      job_dir, file_name, [&](const std::string& path) { return write_image(path, image); }, sync);
 }
 
+Status sync_directory(const std::string& dir) { return fsync_path(dir, true); }
+
 Status write_frame(const std::string& job_dir, const FrameReady& f,
-                   const std::function<Result<std::string>(int band)>& record, bool sync) {
+                   const std::function<Result<std::string>(int band)>& record, bool sync,
+                   bool sync_dir) {
   // A PNG whose bands all came as png8+deflate: joined as they are
   // (png_from_bands), nothing decoded or compressed here.
   std::vector<EncodedBand> deflated;
@@ -205,14 +209,16 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
     deflated.clear();
     return write_atomically(
         job_dir, f.file_name, [&](const std::string& path) { return write_bytes(path, *png); },
-        sync);
+        sync, sync_dir);
   }
   // Otherwise (other outputs, older workers' bands, a damaged record named
   // by stitch_frame): the frame's pixels, written by OpenImageIO.
   deflated.clear();
   auto image = stitch_frame(f, record);
   if (!image.ok()) return image.status();
-  return write_frame_file(job_dir, f.file_name, *image, sync);
+  return write_atomically(
+      job_dir, f.file_name, [&](const std::string& path) { return write_image(path, *image); },
+      sync, sync_dir);
 }
 
 }  // namespace locus::farm

@@ -58,7 +58,12 @@ Status write_frame_file(const std::string& job_dir, const std::string& file_name
 // The frame's file from its bands' records, as write_frame_file writes it:
 // a PNG whose bands are all png8+deflate is joined from their bytes
 // (png_from_bands: no pixel is decoded or compressed by the coordinator);
-// any other frame is stitched (stitch_frame) and encoded.
+// any other frame is stitched (stitch_frame) and encoded. With `sync` the
+// file is fsynced before its rename, and the directory after it unless
+// `sync_dir` is false (the caller syncs it once for several frames:
+// sync_directory).
 Status write_frame(const std::string& job_dir, const FrameReady& f,
-                   const std::function<Result<std::string>(int band)>& record, bool sync);
+                   const std::function<Result<std::string>(int band)>& record, bool sync,
+                   bool sync_dir = true);
+Status sync_directory(const std::string& dir);
 }  // namespace locus::farm

@@ -297,6 +297,12 @@ void Coordinator::tick_loop() {
   while (!stopping_) {
     // Its own rhythm: woken by every change it would run once per band.
     changed_.wait_for(lk, options_.tick, [&] { return stopping_; });
+    std::set<std::string> arrived;
+    {
+      std::lock_guard a(arrivals_mu_);
+      arrived.swap(arrivals_);
+    }
+    for (const std::string& id : arrived) (void)scheduler_.touch(id);  // or dropped already
     scheduler_.expire();
     persist();
     check_storage();
@@ -310,6 +316,12 @@ void Coordinator::tick_loop() {
       changed_.notify_all();
     }
   }
+}
+
+void Coordinator::worker_call_arrived(const std::string& worker_id) {
+  if (worker_id.empty() || worker_id.size() > 256) return;  // checked by the handler
+  std::lock_guard lk(arrivals_mu_);
+  arrivals_.insert(worker_id);
 }
 
 void Coordinator::drop_unused_scenes() {
@@ -349,31 +361,60 @@ bool Coordinator::write_pending(const std::string& job_id, int frame) const {
 }
 
 void Coordinator::write_loop() {
+  // The frames waiting, up to kFrameBatch, are written one after the other,
+  // each file synced before its rename; then each of their directories is
+  // synced once, and only then does the store say "written" (which deletes
+  // their band records): a sync per frame, and one per directory per batch
+  // rather than per frame.
+  constexpr size_t kFrameBatch = 16;
   std::unique_lock lk(mu_);
   for (;;) {
     write_ready_.wait(lk, [&] { return stopping_ || !to_write_.empty(); });
     if (to_write_.empty()) return;  // stopping, and nothing left
-    // Several writer threads: each takes the oldest frame waiting.
-    writing_.push_back(std::move(to_write_.front()));
-    to_write_.pop_front();
-    const auto mine = std::prev(writing_.end());
-    const FrameReady f = *mine;
+    // Several writer threads: each takes the oldest frames waiting.
+    std::vector<std::list<FrameReady>::iterator> mine;
+    while (!to_write_.empty() && mine.size() < kFrameBatch) {
+      writing_.push_back(std::move(to_write_.front()));
+      to_write_.pop_front();
+      mine.push_back(std::prev(writing_.end()));
+    }
+    std::vector<FrameReady> frames;
+    for (const auto& it : mine) frames.push_back(*it);
     lk.unlock();
-    // Bounded memory: each writer thread holds one frame image, stitched
-    // from the band records and freed before it takes the next.
+    // Bounded memory: each writer thread holds one frame image at a time,
+    // stitched from the band records and freed before the next.
     // Its bands' records are read through the writer's own connection:
     // committed (the group commit queued the frame after its transaction).
-    const std::string dir = job_dir(f.job_id);
-    const Status st = write_frame(
-        dir, f, [&](int band) { return read_band_record(f.job_id, f.frame, band); },
-        options_.fsync);
+    std::vector<Status> written;
+    std::vector<std::string> dirs;
+    for (const FrameReady& f : frames) {
+      dirs.push_back(job_dir(f.job_id));
+      written.push_back(write_frame(
+          dirs.back(), f, [&](int band) { return read_band_record(f.job_id, f.frame, band); },
+          options_.fsync, /*sync_dir=*/false));
+    }
+    if (options_.fsync) {
+      std::set<std::string> synced;
+      for (size_t i = 0; i < frames.size(); ++i) {
+        if (!written[i].ok() || synced.count(dirs[i])) continue;
+        const Status s = sync_directory(dirs[i]);
+        synced.insert(dirs[i]);
+        for (size_t k = i; k < frames.size(); ++k) {
+          if (dirs[k] == dirs[i] && written[k].ok()) written[k] = s;
+        }
+      }
+    }
     lk.lock();
     // Once the store says "written" it deletes the frame's band records, in
     // the same transaction (JobStore, event::FrameWritten). A frame that
     // found no space waits for it.
-    if (!hold_frame(f, st)) scheduler_.frame_written(f.job_id, f.frame, st);
+    for (size_t i = 0; i < frames.size(); ++i) {
+      if (!hold_frame(frames[i], written[i])) {
+        scheduler_.frame_written(frames[i].job_id, frames[i].frame, written[i]);
+      }
+    }
     persist();
-    writing_.erase(mine);
+    for (const auto& it : mine) writing_.erase(it);
     changed_.notify_all();
   }
 }

@@ -67,6 +67,10 @@ struct CoordinatorOptions {
   // pixel: one thread writes fewer than 4 frames of 1080p a second);
   // 0: one per core, at most 8.
   int frame_writers = 0;
+  // Threads answering workers' calls (server/handler_pool.h): 0, one per
+  // core, at least 4, at most 32; -1, none: gRPC's own threads answer, as
+  // before (for comparison, bench/farm/scale.sh).
+  int handler_threads = 0;
   // A full disk (docs/farm.md "A full disk"): below this many free bytes
   // in the data directory new jobs are refused, and a coordinator whose
   // store or frames could not be written waits for at least this much
@@ -229,6 +233,11 @@ class Coordinator {
   // The caller went away: its poll ends now with nothing (a no-op once
   // it was answered).
   void cancel_poll(uint64_t ticket);
+  // A worker's call came in (any call naming it): it counts as seen at the
+  // next tick, before any worker is dropped for silence, however long the
+  // call then waits for a handler (docs/farm.md "Under load"). Does not
+  // take mu_.
+  void worker_call_arrived(const std::string& worker_id);
   // poll_band() for a caller with a thread to spare (tests, tools):
   // returns its answer; `cancelled` is asked every 200 ms.
   PollAnswer lease_band(const std::string& worker_id, Millis wait, const CancelledFn& cancelled);
@@ -257,6 +266,7 @@ class Coordinator {
   // The Prometheus series (server/metrics.h); refresh_metrics() sets the
   // gauges from the scheduler, as each scrape does first.
   CoordinatorMetrics& metrics() { return *metrics_; }
+  const CoordinatorOptions& options() const { return options_; }
   void refresh_metrics();
   // refresh_metrics(), then the text exposition format (GET /metrics).
   std::string metrics_text();
@@ -328,6 +338,9 @@ class Coordinator {
                       const std::function<Result<JobInfo>(const std::string& who)>& call);
 
   CoordinatorOptions options_;
+  // worker_call_arrived(): the workers heard from since the last tick.
+  std::mutex arrivals_mu_;
+  std::set<std::string> arrivals_;
   std::mutex mu_;
   std::condition_variable changed_;  // scheduler version moved, or stopping
   Scheduler scheduler_;

@@ -50,6 +50,7 @@ struct Flags {
   int group_commit_ms = 5;
   int min_free_mb = 64;
   int frame_writers = 0;
+  int handler_threads = 0;
   bool equal_bands = false;
   std::string health_address, metrics_address, http_address;
   double http_rate = 200;
@@ -83,6 +84,10 @@ void add_farm_flags(CLI::App& app, Flags& f) {
                  "Failures of one worker in a job after which it gets no more of that job's bands "
                  "while another worker can take them (0: never)")
       ->check(CLI::Range(0, 1000));
+  app.add_option("--handler-threads", f.handler_threads,
+                 "Threads answering workers' calls (0: one per core, at least 4, at most 32; "
+                 "-1: gRPC's own threads, as before)")
+      ->check(CLI::Range(-1, 256));
   app.add_option("--frame-writers", f.frame_writers,
                  "Threads stitching and writing finished frames (0: one per core, at most 8)")
       ->check(CLI::Range(0, 64));
@@ -232,6 +237,7 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
   options.fsync = !f.no_fsync;
   options.group_commit = farm::Millis(f.group_commit_ms);
   options.frame_writers = f.frame_writers;
+  options.handler_threads = f.handler_threads;
   options.min_free_bytes = static_cast<uint64_t>(f.min_free_mb) << 20;
   options.cost_bands = !f.equal_bands;
   return options;

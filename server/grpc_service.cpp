@@ -9,6 +9,7 @@
 #include <mutex>
 #include <sstream>
 
+#include "server/handler_pool.h"
 #include "server/metrics.h"
 
 namespace locus::rpc {
@@ -331,53 +332,63 @@ class PollReactor final : public grpc::ServerUnaryReactor {
 
 // The worker service on gRPC's callback API, so that a thousand connected
 // workers cost memory, not threads (the synchronous server holds a thread
-// per call in progress). The calls other than GetTask answer at once on
-// gRPC's thread.
+// per call in progress). gRPC's thread checks the credentials and hands
+// the call to the handler pool (handler_pool.h), which answers it, or
+// starts it to be answered later (GetTask, CompleteBand): gRPC's few
+// threads never wait for the coordinator's lock.
 class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackService {
  public:
   WorkerImpl(Handlers& h, farm::Coordinator& c, const farm::Authenticator& auth,
              farm::CoordinatorMetrics& m)
-      : h_(h), c_(c), auth_(auth), m_(m) {}
+      : h_(h), c_(c), auth_(auth), m_(m), pool_(c.options().handler_threads) {}
 
   grpc::ServerUnaryReactor* Register(grpc::CallbackServerContext* ctx,
                                      const v1::RegisterRequest* req,
                                      v1::RegisterResponse* resp) override {
-    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.Register", *req, resp,
-                          [&] { return h_.Register(*req, ctx->peer(), resp); }));
+    return on_pool(ctx, kUrgent, [this, ctx, req, resp] {
+      return serve(auth_, m_, *ctx, kWorker, "WorkerService.Register", *req, resp,
+                   [&] { return h_.Register(*req, ctx->peer(), resp); });
+    });
   }
 
   grpc::ServerUnaryReactor* GetTask(grpc::CallbackServerContext* ctx, const v1::GetTaskRequest* req,
                                     v1::GetTaskResponse* resp) override {
     static constexpr const char* kRpc = "WorkerService.GetTask";
-    const Result<farm::Caller> caller = admit(auth_, m_, *ctx, kWorker, kRpc, *req);
-    if (!caller.ok()) return now(ctx, ToGrpc(caller.status()));
+    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
     auto* reactor = new PollReactor(c_);
-    const uint64_t ticket =
-        answer_later(reactor, m_, kRpc, req, resp, [&](std::function<void(Status)> done) {
-          return h_.StartGetTask(*req, resp, std::move(done));
-        });
-    reactor->started(ticket);
+    pool_.post([this, reactor, req, resp] {
+      const uint64_t ticket =
+          answer_later(reactor, m_, kRpc, req, resp, [&](std::function<void(Status)> done) {
+            return h_.StartGetTask(*req, resp, std::move(done));
+          });
+      reactor->started(ticket);
+    });
     return reactor;
   }
 
   grpc::ServerUnaryReactor* GetScene(grpc::CallbackServerContext* ctx,
                                      const v1::GetSceneRequest* req,
                                      v1::GetSceneResponse* resp) override {
-    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.GetScene", *req, resp,
-                          [&] { return h_.GetScene(*req, resp); }));
+    static constexpr const char* kRpc = "WorkerService.GetScene";
+    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
+    return on_pool(ctx, kUrgent, [this, ctx, req, resp] {
+      return serve(auth_, m_, *ctx, kWorker, kRpc, *req, resp,
+                   [&] { return h_.GetScene(*req, resp); });
+    });
   }
 
   grpc::ServerUnaryReactor* CompleteBand(grpc::CallbackServerContext* ctx,
                                          const v1::CompleteBandRequest* req,
                                          v1::CompleteBandResponse* resp) override {
     // Answered once the band is durable (the coordinator's group commit),
-    // from the commit thread: no gRPC thread waits for the disk.
+    // from the commit thread: no thread waits for the disk.
     static constexpr const char* kRpc = "WorkerService.CompleteBand";
-    const Result<farm::Caller> caller = admit(auth_, m_, *ctx, kWorker, kRpc, *req);
-    if (!caller.ok()) return now(ctx, ToGrpc(caller.status()));
+    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
     grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-    answer_later(reactor, m_, kRpc, req, resp, [&](std::function<void(Status)> done) {
-      h_.StartCompleteBand(*req, resp, std::move(done));
+    pool_.post([this, reactor, req, resp] {
+      answer_later(reactor, m_, kRpc, req, resp, [&](std::function<void(Status)> done) {
+        h_.StartCompleteBand(*req, resp, std::move(done));
+      });
     });
     return reactor;
   }
@@ -385,11 +396,16 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
   grpc::ServerUnaryReactor* Heartbeat(grpc::CallbackServerContext* ctx,
                                       const v1::HeartbeatRequest* req,
                                       v1::HeartbeatResponse* resp) override {
-    return now(ctx, serve(auth_, m_, *ctx, kWorker, "WorkerService.Heartbeat", *req, resp,
-                          [&] { return h_.Heartbeat(*req, resp); }));
+    static constexpr const char* kRpc = "WorkerService.Heartbeat";
+    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
+    return on_pool(ctx, kUrgent, [this, ctx, req, resp] {
+      return serve(auth_, m_, *ctx, kWorker, kRpc, *req, resp,
+                   [&] { return h_.Heartbeat(*req, resp); });
+    });
   }
 
  private:
+  static constexpr bool kUrgent = true;
   // A call answered on the spot.
   static grpc::ServerUnaryReactor* now(grpc::CallbackServerContext* ctx,
                                        const grpc::Status& status) {
@@ -397,10 +413,29 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
     reactor->Finish(status);
     return reactor;
   }
+  // A worker's call, its credentials checked (a refusal is logged and
+  // counted): its worker counts as seen now (Coordinator::worker_call_arrived),
+  // whenever a handler gets to it.
+  Status arrived(const grpc::CallbackServerContext& ctx, const char* rpc,
+                 const google::protobuf::Message& req, const std::string& worker_id) {
+    const Result<farm::Caller> caller = admit(auth_, m_, ctx, kWorker, rpc, req);
+    if (!caller.ok()) return caller.status();
+    c_.worker_call_arrived(worker_id);
+    return Status::Ok();
+  }
+  // A call answered by `body` (credentials and all) on the handler pool.
+  template <typename F>
+  grpc::ServerUnaryReactor* on_pool(grpc::CallbackServerContext* ctx, bool urgent, F body) {
+    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+    pool_.post([reactor, body = std::move(body)] { reactor->Finish(body()); }, urgent);
+    return reactor;
+  }
   Handlers& h_;
   farm::Coordinator& c_;
   const farm::Authenticator& auth_;
   farm::CoordinatorMetrics& m_;
+  // Last: joined first, after the server has stopped (CoordinatorServer::shutdown).
+  HandlerPool pool_;
 };
 
 CoordinatorServer::CoordinatorServer(farm::Coordinator& coordinator)

@@ -203,24 +203,25 @@ struct Shared {
   int width = 0;
   Timers* timers = nullptr;
   double delay_ms = 0;
-  double delay_sigma = 0;  // log-normal spread of the delay; 0: fixed
-  bool want_next = true;   // CompleteBandRequest.want_next (--no-next: GetTask for each band)
+  double delay_sigma = 0;   // log-normal spread of the delay; 0: fixed
+  bool want_next = true;    // CompleteBandRequest.want_next (--no-next: GetTask for each band)
   bool png_deflate = true;  // RegisterRequest.encodings (--no-png-deflate: rgb8+zstd)
-  int batch = 1;           // bands per call (GetTaskRequest.max_bands, CompleteBandRequest.more)
-  int revive_ms = 0;       // a dying worker comes back after this long (0: never)
-  bool outage_ok = false;  // the coordinator restarts during the run (a soak)
+  int batch = 1;            // bands per call (GetTaskRequest.max_bands, CompleteBandRequest.more)
+  int revive_ms = 0;        // a dying worker comes back after this long (0: never)
+  bool outage_ok = false;   // the coordinator restarts during the run (a soak)
   std::atomic<bool> stopping{false};
 
   std::mutex mu;
   std::vector<double> dispatch_ms;    // GetTask sent to a band in hand
   std::vector<double> completion_ms;  // CompleteBand sent to its answer
-  std::map<std::tuple<int, int, int>, std::shared_ptr<const std::string>> payloads;  // by rows, encoding
+  std::map<std::tuple<int, int, int>, std::shared_ptr<const std::string>>
+      payloads;  // by rows, encoding
   int64_t accepted = 0, refused = 0, errors = 0, scene_fetches = 0, heartbeats = 0,
           registrations = 0;
-  int64_t get_tasks = 0;      // GetTask calls
-  int64_t outage_errors = 0;  // calls failed while the coordinator was away (--outage-ok)
-  int64_t revived = 0;        // dead workers come back (--revive-ms)
-  int64_t with_answer = 0;    // bands leased with a CompleteBand's answer
+  int64_t get_tasks = 0;       // GetTask calls
+  int64_t outage_errors = 0;   // calls failed while the coordinator was away (--outage-ok)
+  int64_t revived = 0;         // dead workers come back (--revive-ms)
+  int64_t with_answer = 0;     // bands leased with a CompleteBand's answer
   int64_t complete_calls = 0;  // CompleteBand calls (several results each with --batch)
   Clock::time_point first_accept{}, last_accept{};
 
@@ -275,19 +276,14 @@ class SimWorker {
   bool start() {
     grpc::ClientContext ctx;
     ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
-    v1::RegisterRequest req;
-    req.set_name("sim-" + std::to_string(index_));
-    req.set_threads(1);
-    if (s_.png_deflate) req.add_encodings(v1::BAND_PNG8_DEFLATE);
+    const v1::RegisterRequest req = registration();
     v1::RegisterResponse resp;
     const grpc::Status st = stub_->Register(&ctx, req, &resp);
     if (!st.ok()) {
       std::fprintf(stderr, "worker %d: Register: %s\n", index_, st.error_message().c_str());
       return false;
     }
-    std::lock_guard lk(mu_);
-    id_ = resp.worker_id();
-    lease_ms_ = resp.lease_ms();
+    registered(resp);
     return true;
   }
 
@@ -363,20 +359,49 @@ class SimWorker {
     s_.timers->at(Clock::now() + Ms(100), [this] { poll(); });
   }
 
+  v1::RegisterRequest registration() const {
+    v1::RegisterRequest req;
+    req.set_name("sim-" + std::to_string(index_));
+    req.set_threads(1);
+    if (s_.png_deflate) req.add_encodings(v1::BAND_PNG8_DEFLATE);
+    return req;
+  }
+  void registered(const v1::RegisterResponse& resp) {
+    std::lock_guard lk(mu_);
+    id_ = resp.worker_id();
+    lease_ms_ = resp.lease_ms();
+  }
+
   // Dropped by the coordinator (silent past its lease: a late worker):
-  // register again and go on, as locus-worker does.
+  // register again and go on, as locus-worker does. Asynchronous: the
+  // timer thread, which sends every worker's heartbeats, never waits for
+  // the coordinator.
   void register_again() {
-    s_.timers->at(Clock::now(), [this] {
-      {
-        std::lock_guard lk(s_.mu);
-        ++s_.registrations;
-      }
-      if (start()) {
-        poll();
-      } else if (s_.outage_ok && !s_.stopping) {
-        register_again_later();  // the coordinator is away: again shortly
-      }
-    });
+    if (s_.stopping) return;
+    {
+      std::lock_guard lk(s_.mu);
+      ++s_.registrations;
+    }
+    auto call = std::make_shared<Call<v1::RegisterRequest, v1::RegisterResponse>>(Ms(30000));
+    call->req = registration();
+    track(call->ctx.get());
+    stub_->async()->Register(
+        call->ctx.get(), &call->req, &call->resp, [this, call](grpc::Status st) {
+          untrack(call->ctx.get());
+          if (st.ok()) {
+            registered(call->resp);
+            poll();
+            return;
+          }
+          if (!outage(st)) {
+            std::lock_guard lk(s_.mu);
+            ++s_.errors;
+            if (s_.errors <= 5)
+              std::fprintf(stderr, "worker %d: Register: %s\n", index_, st.error_message().c_str());
+          } else if (!s_.stopping) {
+            register_again_later();  // the coordinator is away
+          }
+        });
   }
   void register_again_later() {
     s_.timers->at(Clock::now() + Ms(500), [this] { register_again(); });
@@ -471,6 +496,11 @@ class SimWorker {
     stub_->async()->GetScene(call->ctx.get(), &call->req, &call->resp,
                              [this, call, tasks](grpc::Status st) {
                                untrack(call->ctx.get());
+                               if (st.error_code() == grpc::StatusCode::NOT_FOUND &&
+                                   st.error_message().find("unknown") != std::string::npos) {
+                                 register_again();  // dropped meanwhile, as GetTask's answer
+                                 return;
+                               }
                                if (!st.ok()) {
                                  if (!outage(st)) {
                                    std::lock_guard lk(s_.mu);
@@ -822,11 +852,16 @@ int main(int argc, char** argv) {
 
   bool all_done = false;
   std::vector<locus::farm::JobInfo> ended;
+  // A client's view of the busy farm: each `locus status` of the polling
+  // below, timed (a new call on the client's connection).
+  std::vector<double> status_ms;
   while (seconds_since(start) < timeout_s) {
     ended.clear();
     bool unfinished = false;
     for (const std::string& id : job_ids) {
+      const auto asked = Clock::now();
       auto info = client.job(id);
+      status_ms.push_back(seconds_since(asked) * 1000);
       if (!info.ok()) {
         std::fprintf(stderr, "job %s: %s\n", id.c_str(), info.status().message().c_str());
         unfinished = true;
@@ -898,6 +933,8 @@ int main(int argc, char** argv) {
   std::printf("completion_ms_p50 %.3f\ncompletion_ms_p99 %.3f\ncompletion_ms_max %.3f\n",
               percentile(completion, 0.5), percentile(completion, 0.99),
               percentile(completion, 1.0));
+  std::printf("status_ms_p50 %.3f\nstatus_ms_max %.3f\n", percentile(status_ms, 0.5),
+              percentile(status_ms, 1.0));
   if (pid > 0) {
     std::printf("coordinator_cpu_seconds %.3f\ncoordinator_cpu_us_per_band %.1f\n", cpu,
                 accepted > 0 ? cpu * 1e6 / static_cast<double>(accepted) : 0.0);
