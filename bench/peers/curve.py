@@ -17,7 +17,6 @@ Usage: bench/peers/curve.py [--quick] [--scenes d,balls,balls5,...] [--repeat N]
        bench/peers/curve.py --report-only RAW
 Writes bench/results/curve.{md,csv,png} (--quick: a temporary directory).
 """
-import argparse
 import csv
 import os
 import shutil
@@ -72,12 +71,8 @@ def scene_list(want, quick, tmp):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true",
-                    help="smoke test: 64x64, scenes (d) and tetra, one run each, cheap "
+    ap = H.parser(__doc__, "smoke test: 64x64, scenes (d) and tetra, one run each, cheap "
                     "references; results in a temp dir")
-    ap.add_argument("--locus", default=os.path.join(H.ROOT, "build", "bin", "locus"))
     ap.add_argument("--scenes", help="comma-separated subset of " + ",".join(ORDER) +
                     " (a, b, d accepted)")
     ap.add_argument("--size", type=int, help="image size (default 512; quick 64)")

@@ -5,6 +5,7 @@ files, callgrind instruction counts and the log-log fit.
 Image reading, error metrics, the reference cache and the POV-Ray
 translation are bench/accuracy's (run.py, povscene.py), imported, not copied.
 """
+import argparse
 import datetime
 import importlib.util
 import json
@@ -388,3 +389,13 @@ def which(name):
 
 def finite(v):
     return isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def parser(doc, quick_help):
+    """The benches' command line: their docstring, --quick (a smoke test,
+    described by `quick_help`) and --locus (the binary measured)."""
+    ap = argparse.ArgumentParser(description=doc,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help=quick_help)
+    ap.add_argument("--locus", default=os.path.join(ROOT, "build", "bin", "locus"))
+    return ap

@@ -20,7 +20,6 @@ Usage: bench/peers/kernel.py [--quick] [--sets def,s1,s2] [--scenes balls,...]
 Writes bench/results/kernel.{md,csv} and the raw measurements kernel-raw.json
 (--quick: a temporary directory).
 """
-import argparse
 import csv
 import datetime
 import math
@@ -233,11 +232,7 @@ def report(out_dir, rows, excluded, info):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true",
-                    help="smoke test: 128x128, def balls and teapot, one round, temp dir")
-    ap.add_argument("--locus", default=os.path.join(H.ROOT, "build", "bin", "locus"))
+    ap = H.parser(__doc__, "smoke test: 128x128, def balls and teapot, one round, temp dir")
     ap.add_argument("--peer", default=os.path.join(H.ROOT, "build", "bin", "locus-embree-whitted"))
     ap.add_argument("--sets", default=",".join(SETS), help="SPD sizes (default def,s1,s2)")
     ap.add_argument("--scenes", help="comma-separated scene names (default: every .nff)")

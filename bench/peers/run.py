@@ -18,7 +18,6 @@ See README.md beside this file for the definitions.
 Usage: bench/peers/run.py [--quick] [--scenes d,balls,...] [--no-callgrind]
 Writes bench/results/peers.{md,csv,png} (--quick: a temporary directory).
 """
-import argparse
 import csv
 import os
 import shutil
@@ -64,12 +63,8 @@ QUICK = {"size": 128, "ref_spp": 4, "pov_ref": 3, "cg_size": 48}
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true",
-                    help="smoke test: 128x128, scenes d and teapot, one run each, cheap "
+    ap = H.parser(__doc__, "smoke test: 128x128, scenes d and teapot, one run each, cheap "
                     "references, callgrind at 48x48 on (d); results in a temp dir")
-    ap.add_argument("--locus", default=os.path.join(H.ROOT, "build", "bin", "locus"))
     ap.add_argument("--scenes", help="comma-separated subset of " +
                     ",".join(s[0] for s in SCENES) + " (a, b, d accepted)")
     ap.add_argument("--size", type=int, help="image size (default 512; quick 128)")

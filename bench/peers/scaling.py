@@ -11,7 +11,6 @@ See README.md beside this file.
 Usage: bench/peers/scaling.py [--quick] [--kinds balls,tetra] [--max-level balls=5,tetra=9]
 Writes bench/results/scaling.{md,csv,png} (--quick: a temporary directory).
 """
-import argparse
 import csv
 import os
 import shutil
@@ -46,11 +45,7 @@ def scene_file(kind, level, tmp):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true",
-                    help="smoke test: 128x128, small levels, one run each (temp dir)")
-    ap.add_argument("--locus", default=os.path.join(H.ROOT, "build", "bin", "locus"))
+    ap = H.parser(__doc__, "smoke test: 128x128, small levels, one run each (temp dir)")
     ap.add_argument("--kinds", default="balls,tetra")
     ap.add_argument("--max-level", default="",
                     help="e.g. balls=4,tetra=8: leave out the larger levels")

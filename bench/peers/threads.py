@@ -21,7 +21,6 @@ Usage: bench/peers/threads.py [--quick] [--repeat N] [--scenes d,balls,gears]
 Writes bench/results/threads.md and its raw measurements threads-raw.json
 (--quick: a temporary directory); --report-only RAW rewrites the report.
 """
-import argparse
 import json
 import os
 import resource
@@ -217,11 +216,7 @@ def wait_for_load(limit, max_wait):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true",
-                    help="smoke test: 128x128, one round (temporary directory)")
-    ap.add_argument("--locus", default=os.path.join(H.ROOT, "build", "bin", "locus"))
+    ap = H.parser(__doc__, "smoke test: 128x128, one round (temporary directory)")
     ap.add_argument("--scenes", help="comma-separated subset of d,balls,gears")
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--repeat", type=int, default=5, help="rounds, best of N (default 5)")

@@ -123,19 +123,30 @@ TEST(BandCodec, EncodeRefusesAWrongSizeOrAnUnknownEncoding) {
   EXPECT_NE(u.status().message().find("unknown encoding 42"), std::string::npos);
 }
 
-// A real scene rendered band by band, as workers do: the frames written from
-// the decoded bands store the samples of the frames written from the
-// floats (a PNG byte for byte), for each output format and its encoding.
-TEST(BandCodec, FramesWrittenFromDecodedBandsAreBitIdentical) {
-  auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
-  ASSERT_TRUE(scene.ok()) << scene.status().message();
-  scene->camera.width = 96;
-  scene->camera.height = 64;
+// Configuration IV, as the farm's jobs render by default, on 2 threads.
+RenderParams params_iv() {
   RenderParams p;
   p.method = Method::kLocal;
   p.aa = 4;
   p.threads = 2;
-  auto prepared = prepare_scene(*scene, p);
+  return p;
+}
+
+// The paper's scene (d) at width x height, prepared with params_iv().
+auto prepare_d(int width, int height) {
+  auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
+  EXPECT_TRUE(scene.ok()) << scene.status().message();
+  scene->camera.width = width;
+  scene->camera.height = height;
+  return prepare_scene(*scene, params_iv());
+}
+
+// A real scene rendered band by band, as workers do: the frames written from
+// the decoded bands store the samples of the frames written from the
+// floats (a PNG byte for byte), for each output format and its encoding.
+TEST(BandCodec, FramesWrittenFromDecodedBandsAreBitIdentical) {
+  const RenderParams p = params_iv();
+  auto prepared = prepare_d(96, 64);
   ASSERT_TRUE(prepared.ok()) << prepared.status().message();
   const std::vector<int> edges{0, 7, 20, 41, 64};  // uneven bands, as a cost-aware split gives
   std::vector<BandResult> bands;
@@ -208,16 +219,9 @@ void expect_refused(const EncodedBand& band, const std::string& words) {
 // pixels write_image writes from the renderer's floats, for any split: one
 // band, uneven bands, a band per row.
 TEST(BandCodec, PngFramesJoinedFromDeflatedBandsHoldTheRenderersPixels) {
-  auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
-  ASSERT_TRUE(scene.ok()) << scene.status().message();
   const int width = 96, height = 64;
-  scene->camera.width = width;
-  scene->camera.height = height;
-  RenderParams p;
-  p.method = Method::kLocal;
-  p.aa = 4;
-  p.threads = 2;
-  auto prepared = prepare_scene(*scene, p);
+  const RenderParams p = params_iv();
+  auto prepared = prepare_d(width, height);
   ASSERT_TRUE(prepared.ok()) << prepared.status().message();
   const BandResult whole = render_band(**prepared, Band{0, height}, p);
   const fs::path dir = fs::path(::testing::TempDir()) / "band_codec_png";
