@@ -388,6 +388,10 @@ void WorkerClient::Impl::hand_back() {
     std::lock_guard lk(mu_);
     if (lease_.empty() || sending_ || revoked_) return;
     revoked_ = true;  // whatever the render gives is not sent now
+    // From now the render has abandon_grace to return (check_wedged); left
+    // unset, the grace counted from the clock's epoch and a worker handing
+    // back a band mid-row exited 3 as wedged.
+    revoked_at_ = SteadyClock::now();
     req.set_worker_id(worker_id_);
     req.set_lease_id(lease_);
   }

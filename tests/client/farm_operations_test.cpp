@@ -76,6 +76,43 @@ TEST_F(FarmTest, AHungBandIsTakenBackAndTheWorkerThatCannotStopItExits) {
   EXPECT_GE(SteadyClock::now() - t0, Millis(2000));  // timeout 1 s + heartbeat + grace 1 s
 }
 
+TEST_F(FarmTest, AWorkerHandingBackABandMidRowIsNotTakenForWedged) {
+  // The second SIGTERM (Slurm's time limit) hands the band back while a
+  // row is still being rendered: the render has abandon_grace (60 s) from
+  // then to return. The grace once counted from the clock's epoch, and the
+  // worker exited 3 as wedged (seen as a Slurm array task FAILED 3:0).
+  start(Millis(400));  // heartbeats, which check for a wedged render, every 100 ms
+  std::atomic<bool> rendering{false};
+  std::atomic<int> rows{0};
+  std::atomic<int> wedged{0};
+  set_row_hook_for_test([&](int) {
+    if (rows.fetch_add(1) == 0) {
+      rendering = true;
+      std::this_thread::sleep_for(Millis(1000));  // one slow row, deaf to the cancellation
+    }
+  });
+  ClearRowHook clear;
+  add_workers(1, [&](WorkerOptions& o) { o.on_wedged = [&] { ++wedged; }; });
+  SubmitRequest r = request(kSpheres, 16, 24, 1, 1, 1, "handback.png");
+  r.render.method = "raytrace";  // no cost preview at submit, which would meet the hook
+  auto job = client_->submit(r);
+  ASSERT_TRUE(job.ok()) << job.status().message();
+  for (int i = 0; i < 1000 && !rendering.load(); ++i) std::this_thread::sleep_for(Millis(5));
+  ASSERT_TRUE(rendering.load());
+  workers_[0]->hand_back();
+  std::this_thread::sleep_for(Millis(1300));  // the slow row's end, and heartbeats meanwhile
+  EXPECT_EQ(wedged.load(), 0);
+  // The band, back in the queue, is leased again and rendered.
+  JobInfo now;
+  for (int i = 0; i < 400; ++i) {
+    now = *client_->job(job->job_id);
+    if (is_terminal(now.state)) break;
+    std::this_thread::sleep_for(Millis(25));
+  }
+  expect_identical(now, r);
+  EXPECT_EQ(count_events(*client_, job->job_id, "handed back"), 1);
+}
+
 TEST_F(FarmTest, AStoppingWorkerKeepsItsLeaseAliveUntilItsBandIsReturned) {
   // SIGTERM (or `locus drain`, or Slurm's warning before a time limit)
   // mid-band: the worker finishes the band, and its heartbeats go on
