@@ -30,6 +30,36 @@ struct ClearRowHook {
   ~ClearRowHook() { set_row_hook_for_test({}); }
 };
 
+// One worker's single band, slowed by a row hook: submitted, then waited
+// for until its render has begun (`rendering`), and then to its end.
+class OneBandTest : public FarmTest {
+ protected:
+  std::string submit_until_rendering(const SubmitRequest& r, const std::atomic<bool>& rendering) {
+    auto job = client_->submit(r);
+    EXPECT_TRUE(job.ok()) << job.status().message();
+    if (!job.ok()) return "";
+    for (int i = 0; i < 1000 && !rendering.load(); ++i) std::this_thread::sleep_for(Millis(5));
+    EXPECT_TRUE(rendering.load());
+    return job->job_id;
+  }
+  JobInfo until_ended(const std::string& job) {
+    JobInfo now;
+    for (int i = 0; i < 400; ++i) {
+      now = *client_->job(job);
+      if (is_terminal(now.state)) break;
+      std::this_thread::sleep_for(Millis(25));
+    }
+    return now;
+  }
+  // The slowed job: 16 x 24, one band, ray traced (no cost preview at
+  // submit, which would meet the row hook).
+  static SubmitRequest slowed(const char* output) {
+    SubmitRequest r = request(kSpheres, 16, 24, 1, 1, 1, output);
+    r.render.method = "raytrace";
+    return r;
+  }
+};
+
 TEST_F(FarmTest, AHungBandIsTakenBackAndTheWorkerThatCannotStopItExits) {
   options_.band_timeout = Millis(1000);
   start(Millis(2000));  // heartbeats every 500 ms keep the hung lease alive
@@ -76,7 +106,7 @@ TEST_F(FarmTest, AHungBandIsTakenBackAndTheWorkerThatCannotStopItExits) {
   EXPECT_GE(SteadyClock::now() - t0, Millis(2000));  // timeout 1 s + heartbeat + grace 1 s
 }
 
-TEST_F(FarmTest, AWorkerHandingBackABandMidRowIsNotTakenForWedged) {
+TEST_F(OneBandTest, AWorkerHandingBackABandMidRowIsNotTakenForWedged) {
   // The second SIGTERM (Slurm's time limit) hands the band back while a
   // row is still being rendered: the render has abandon_grace (60 s) from
   // then to return. The grace once counted from the clock's epoch, and the
@@ -93,27 +123,18 @@ TEST_F(FarmTest, AWorkerHandingBackABandMidRowIsNotTakenForWedged) {
   });
   ClearRowHook clear;
   add_workers(1, [&](WorkerOptions& o) { o.on_wedged = [&] { ++wedged; }; });
-  SubmitRequest r = request(kSpheres, 16, 24, 1, 1, 1, "handback.png");
-  r.render.method = "raytrace";  // no cost preview at submit, which would meet the hook
-  auto job = client_->submit(r);
-  ASSERT_TRUE(job.ok()) << job.status().message();
-  for (int i = 0; i < 1000 && !rendering.load(); ++i) std::this_thread::sleep_for(Millis(5));
-  ASSERT_TRUE(rendering.load());
+  const SubmitRequest r = slowed("handback.png");
+  const std::string job = submit_until_rendering(r, rendering);
+  ASSERT_FALSE(job.empty());
   workers_[0]->hand_back();
   std::this_thread::sleep_for(Millis(1300));  // the slow row's end, and heartbeats meanwhile
   EXPECT_EQ(wedged.load(), 0);
   // The band, back in the queue, is leased again and rendered.
-  JobInfo now;
-  for (int i = 0; i < 400; ++i) {
-    now = *client_->job(job->job_id);
-    if (is_terminal(now.state)) break;
-    std::this_thread::sleep_for(Millis(25));
-  }
-  expect_identical(now, r);
-  EXPECT_EQ(count_events(*client_, job->job_id, "handed back"), 1);
+  expect_identical(until_ended(job), r);
+  EXPECT_EQ(count_events(*client_, job, "handed back"), 1);
 }
 
-TEST_F(FarmTest, AStoppingWorkerKeepsItsLeaseAliveUntilItsBandIsReturned) {
+TEST_F(OneBandTest, AStoppingWorkerKeepsItsLeaseAliveUntilItsBandIsReturned) {
   // SIGTERM (or `locus drain`, or Slurm's warning before a time limit)
   // mid-band: the worker finishes the band, and its heartbeats go on
   // meanwhile, so the lease does not lapse and the result is accepted.
@@ -125,22 +146,14 @@ TEST_F(FarmTest, AStoppingWorkerKeepsItsLeaseAliveUntilItsBandIsReturned) {
   });
   ClearRowHook clear;
   add_workers(1);
-  SubmitRequest r = request(kSpheres, 16, 24, 1, 1, 1, "drain.png");
-  r.render.method = "raytrace";  // no cost preview at submit, which would meet the hook
-  auto job = client_->submit(r);
-  ASSERT_TRUE(job.ok()) << job.status().message();
-  for (int i = 0; i < 1000 && !rendering.load(); ++i) std::this_thread::sleep_for(Millis(5));
-  ASSERT_TRUE(rendering.load());
+  const SubmitRequest r = slowed("drain.png");
+  const std::string job = submit_until_rendering(r, rendering);
+  ASSERT_FALSE(job.empty());
   workers_[0]->stop();
-  JobInfo now;
-  for (int i = 0; i < 400; ++i) {  // the one worker is stopping: nobody else renders it
-    now = *client_->job(job->job_id);
-    if (is_terminal(now.state)) break;
-    std::this_thread::sleep_for(Millis(25));
-  }
-  expect_identical(now, r);
-  EXPECT_EQ(count_events(*client_, job->job_id, " lapsed"), 0);
-  EXPECT_EQ(count_events(*client_, job->job_id, "attempt 2"), 0);
+  // The one worker is stopping: nobody else renders it.
+  expect_identical(until_ended(job), r);
+  EXPECT_EQ(count_events(*client_, job, " lapsed"), 0);
+  EXPECT_EQ(count_events(*client_, job, "attempt 2"), 0);
 }
 
 TEST_F(FarmTest, APausedJobLeasesNothingUntilResumedAndItsFramesAreUnchanged) {
@@ -474,7 +487,6 @@ TEST_F(FarmTest, OneUserCannotActOnAnothersJobButAnAdminCan) {
   EXPECT_EQ(own->spec.owner, "token-2");
   EXPECT_TRUE(bob->cancel(own->job_id).ok());
 }
-
 
 TEST_F(FarmTest, RetryAndRequeueRenderAgainAndReplaceEachFrameOnlyWhenItIsComplete) {
   start();
