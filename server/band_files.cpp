@@ -180,9 +180,10 @@ Status write_bytes(const std::string& path, const std::string& bytes) {
 }  // namespace
 
 Status write_frame_file(const std::string& job_dir, const std::string& file_name,
-                        const Image& image, bool sync) {
+                        const Image& image, bool sync, bool sync_dir) {
   return write_atomically(
-      job_dir, file_name, [&](const std::string& path) { return write_image(path, image); }, sync);
+      job_dir, file_name, [&](const std::string& path) { return write_image(path, image); }, sync,
+      sync_dir);
 }
 
 Status sync_directory(const std::string& dir) { return fsync_path(dir, true); }
@@ -216,9 +217,7 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
   deflated.clear();
   auto image = stitch_frame(f, record);
   if (!image.ok()) return image.status();
-  return write_atomically(
-      job_dir, f.file_name, [&](const std::string& path) { return write_image(path, *image); },
-      sync, sync_dir);
+  return write_frame_file(job_dir, f.file_name, *image, sync, sync_dir);
 }
 
 }  // namespace locus::farm

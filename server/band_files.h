@@ -54,7 +54,7 @@ Result<Image> stitch_frame(const FrameReady& frame,
 // extension kept, by which OpenImageIO picks the format), fsyncing file and
 // directory when `sync`.
 Status write_frame_file(const std::string& job_dir, const std::string& file_name,
-                        const Image& image, bool sync);
+                        const Image& image, bool sync, bool sync_dir = true);
 // The frame's file from its bands' records, as write_frame_file writes it:
 // a PNG whose bands are all png8+deflate is joined from their bytes
 // (png_from_bands: no pixel is decoded or compressed by the coordinator);
