@@ -25,20 +25,18 @@ namespace locus::farm {
 namespace fs = std::filesystem;
 namespace {
 
-// A result's pixels as floats, decoded from the encoding they travelled in
-// (common/farm/band_codec.h); what does not decode is named in `malformed`,
-// with no pixels, for the scheduler to refuse. A failed or handed-back band
-// has no pixels to decode.
-void decode_pixels(BandOutput& o) {
+// A result's encoded pixels checked as decode_band would decode them
+// (common/farm/band_codec.h), without making the floats: the store and the
+// frame take the bytes as they came. What does not decode is named in
+// `malformed`, for the scheduler to refuse. A failed or handed-back band has
+// no pixels to check.
+void check_pixels(BandOutput& o) {
   if (o.handed_back || !o.error.empty()) return;
   if (o.encoded.encoding == BandEncoding::kFloat32 && o.encoded.bytes.empty()) return;
   if (!o.rgb.empty()) {
     o.malformed = "both float rgb and encoded pixels";
-  } else if (auto rgb = decode_band(o.encoded); rgb.ok()) {
-    o.rgb = std::move(*rgb);
-    return;
-  } else {
-    o.malformed = rgb.status().message();
+  } else if (Status s = check_band(o.encoded); !s.ok()) {
+    o.malformed = s.message();
   }
   o.rgb.clear();
 }
@@ -165,9 +163,9 @@ bool Coordinator::hold_frame(const FrameReady& f, const Status& written) {
 }
 
 void Coordinator::complete_band_async(BandOutput output, CompleteDone done) {
-  // Decoded for the checks (size, encoding) outside the lock; the store
-  // keeps the bytes as they came.
-  decode_pixels(output);
+  // Checked (encoding, size) outside the lock; the store keeps the bytes as
+  // they came.
+  check_pixels(output);
   const std::string malformed = output.malformed;
   if (!malformed.empty()) {
     // The scheduler charges it (as pixels of the wrong size) if the lease

@@ -29,6 +29,22 @@ std::string format_seconds(double s) {
   return buf;
 }
 
+// What is wrong with a result's pixels for a band of `width` x `rows`, or
+// nothing: encoded pixels that did not decode (the coordinator's check,
+// band_codec.h), of another size, or floats of another count.
+std::string pixels_problem(const BandOutput& out, int width, int rows) {
+  if (!out.malformed.empty()) return out.malformed;
+  if (!out.encoded.bytes.empty()) {
+    if (out.encoded.width == width && out.encoded.rows == rows) return "";
+    return "expected " + std::to_string(width) + " x " + std::to_string(rows) + " pixels, got " +
+           std::to_string(out.encoded.width) + " x " + std::to_string(out.encoded.rows);
+  }
+  const size_t expected = static_cast<size_t>(width) * rows * 3;
+  if (out.rgb.size() == expected) return "";
+  return "expected " + std::to_string(expected) + " floats (" + std::to_string(width) + " x " +
+         std::to_string(rows) + " x 3), got " + std::to_string(out.rgb.size());
+}
+
 }  // namespace
 
 bool is_charged(LeaseOutcome o) {
@@ -824,10 +840,7 @@ std::optional<BandTarget> Scheduler::result_target(const BandOutput& out) const 
   const JobSpec& s = job.info.spec;
   const int band = band_of(job, it->second.job_band);
   const Band rows = band_rows(s, band);
-  if (!out.malformed.empty() ||
-      out.rgb.size() != static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3) {
-    return std::nullopt;
-  }
+  if (!pixels_problem(out, s.width, rows.y1 - rows.y0).empty()) return std::nullopt;
   return BandTarget{job.info.job_id, frame_of(job, it->second.job_band), band, s.width, rows.y0,
                     rows.y1};
 }
@@ -873,15 +886,7 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   const int band = band_of(job, lease.job_band);
   const int frame = frame_of(job, lease.job_band);
   const Band rows = band_rows(s, band);
-  const size_t expected = static_cast<size_t>(s.width) * (rows.y1 - rows.y0) * 3;
-  std::string malformed;
-  if (!out.malformed.empty()) {  // encoded pixels that did not decode (band_codec.h)
-    malformed = out.malformed;
-  } else if (out.rgb.size() != expected) {
-    malformed = "expected " + std::to_string(expected) + " floats (" + std::to_string(s.width) +
-                " x " + std::to_string(rows.y1 - rows.y0) + " x 3), got " +
-                std::to_string(out.rgb.size());
-  }
+  const std::string malformed = pixels_problem(out, s.width, rows.y1 - rows.y0);
   if (!malformed.empty()) {
     const std::string why =
         "band " + std::to_string(band) + " of frame " + std::to_string(frame) + ": " + malformed;

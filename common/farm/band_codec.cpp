@@ -192,8 +192,9 @@ Result<std::string> deflate_rows(const std::string& raw) {
   return out;
 }
 
-// The codes of a png8+deflate band; `what` names it in errors.
-Result<std::vector<unsigned char>> png8_codes(const EncodedBand& band, const std::string& what) {
+// The filtered rows of a png8+deflate band (a filter byte, then the row),
+// after every check decode_band makes; `what` names the band in errors.
+Result<std::string> png8_rows(const EncodedBand& band, const std::string& what) {
   const size_t row_bytes = png_row_bytes(band.width);
   const size_t expected = row_bytes * band.rows;
   if (band.bytes.size() < 4) return InvalidArgument(what + ": no adler-32 before the rows");
@@ -227,18 +228,27 @@ Result<std::vector<unsigned char>> png8_codes(const EncodedBand& band, const std
   if (adler32(1, reinterpret_cast<const Bytef*>(raw.data()), static_cast<uInt>(raw.size())) !=
       get_be32(band.bytes.data()))
     return InvalidArgument(what + ": the rows do not match their adler-32");
-  // Unfiltered (PNG specification, 9.2), bytes per pixel 3.
-  const size_t stride = static_cast<size_t>(band.width) * 3;
-  std::vector<unsigned char> codes(stride * band.rows);
   for (int y = 0; y < band.rows; ++y) {
-    const auto* in = reinterpret_cast<const unsigned char*>(raw.data()) + y * row_bytes;
-    const unsigned char filter = in[0];
+    const auto filter = static_cast<unsigned char>(raw[y * row_bytes]);
     if (filter > kFilterPaeth || (y == 0 && filter > kFilterSub)) {
       std::string m = what;
       m.append(": row ").append(std::to_string(y)).append(" has filter ");
       m.append(std::to_string(filter)).append(y == 0 ? " (the first row: 0 or 1)" : " (0 to 4)");
       return InvalidArgument(m);
     }
+  }
+  return raw;
+}
+
+// The codes of filtered rows that png8_rows accepted: unfiltered (PNG
+// specification, 9.2), bytes per pixel 3.
+std::vector<unsigned char> png8_codes(const std::string& raw, int width, int rows) {
+  const size_t row_bytes = png_row_bytes(width);
+  const size_t stride = static_cast<size_t>(width) * 3;
+  std::vector<unsigned char> codes(stride * rows);
+  for (int y = 0; y < rows; ++y) {
+    const auto* in = reinterpret_cast<const unsigned char*>(raw.data()) + y * row_bytes;
+    const unsigned char filter = in[0];
     unsigned char* out = codes.data() + y * stride;
     const unsigned char* up = y > 0 ? out - stride : nullptr;
     for (size_t i = 0; i < stride; ++i) {
@@ -317,7 +327,13 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
   return out;
 }
 
-Result<std::vector<float>> decode_band(const EncodedBand& band) {
+namespace {
+
+// Every check decode_band makes, in one place. On success `inflated` holds
+// the band's bytes when they were compressed (the samples as pack() laid
+// them out, or png8+deflate's filtered rows); uncompressed float32 is
+// band.bytes itself, and `inflated` stays empty.
+Status check_bytes(const EncodedBand& band, std::string& inflated) {
   const std::optional<Layout> l = layout_of(band.encoding);
   if (!l && band.encoding != BandEncoding::kPng8Deflate)
     return InvalidArgument("band pixels in " + encoding_name(band.encoding));
@@ -332,53 +348,70 @@ Result<std::vector<float>> decode_band(const EncodedBand& band) {
   }
   const size_t n = static_cast<size_t>(band.width) * band.rows * 3;
   if (!l) {
-    auto codes = png8_codes(band, what);
-    if (!codes.ok()) return codes.status();
-    std::vector<float> rgb(n);
-    for (size_t i = 0; i < n; ++i) rgb[i] = float_of(BandEncoding::kRgb8Zstd, (*codes)[i]);
-    return rgb;
+    auto rows = png8_rows(band, what);
+    if (!rows.ok()) return rows.status();
+    inflated = std::move(*rows);
+    return Status::Ok();
   }
   const size_t expected = n * l->sample_bytes;
-  const std::string* raw = &band.bytes;
-  std::string inflated;
-  if (l->zstd) {
-    // The frame must say its size, and that size must be the band's: a
-    // payload claiming more is refused before anything is allocated.
-    const unsigned long long claimed =
-        ZSTD_getFrameContentSize(band.bytes.data(), band.bytes.size());
-    if (claimed == ZSTD_CONTENTSIZE_ERROR || claimed == ZSTD_CONTENTSIZE_UNKNOWN) {
-      return InvalidArgument(what + ": the payload is not a zstd frame with its size");
-    }
-    if (claimed != expected) {
-      std::string m = what;
-      m.append(": the zstd frame holds ").append(std::to_string(claimed));
-      m.append(" bytes, expected ").append(std::to_string(expected));
-      return InvalidArgument(m);
-    }
-    inflated.resize(expected);
-    // Bounded by the destination's size, whatever the frames say.
-    const size_t got =
-        ZSTD_decompress(inflated.data(), inflated.size(), band.bytes.data(), band.bytes.size());
-    if (ZSTD_isError(got)) {
-      return InvalidArgument(what + ": corrupt or truncated zstd payload (" +
-                             ZSTD_getErrorName(got) + ")");
-    }
-    if (got != expected) {
-      std::string m = what;
-      m.append(": the zstd payload holds ").append(std::to_string(got));
-      m.append(" bytes, expected ").append(std::to_string(expected));
-      return InvalidArgument(m);
-    }
-    raw = &inflated;
-  } else if (band.bytes.size() != expected) {
+  if (!l->zstd) {
+    if (band.bytes.size() == expected) return Status::Ok();
     std::string m = what;
     m.append(": ").append(std::to_string(band.bytes.size())).append(" bytes, expected ");
     m.append(std::to_string(expected));
     return InvalidArgument(m);
   }
-  const std::vector<uint32_t> samples = unpack(*raw, n, *l);
-  std::string().swap(inflated);  // the largest band holds one copy less at a time
+  // The frame must say its size, and that size must be the band's: a
+  // payload claiming more is refused before anything is allocated.
+  const unsigned long long claimed = ZSTD_getFrameContentSize(band.bytes.data(), band.bytes.size());
+  if (claimed == ZSTD_CONTENTSIZE_ERROR || claimed == ZSTD_CONTENTSIZE_UNKNOWN) {
+    return InvalidArgument(what + ": the payload is not a zstd frame with its size");
+  }
+  if (claimed != expected) {
+    std::string m = what;
+    m.append(": the zstd frame holds ").append(std::to_string(claimed));
+    m.append(" bytes, expected ").append(std::to_string(expected));
+    return InvalidArgument(m);
+  }
+  inflated.resize(expected);
+  // Bounded by the destination's size, whatever the frames say.
+  const size_t got =
+      ZSTD_decompress(inflated.data(), inflated.size(), band.bytes.data(), band.bytes.size());
+  if (ZSTD_isError(got)) {
+    inflated.clear();
+    return InvalidArgument(what + ": corrupt or truncated zstd payload (" +
+                           ZSTD_getErrorName(got) + ")");
+  }
+  if (got != expected) {
+    inflated.clear();
+    std::string m = what;
+    m.append(": the zstd payload holds ").append(std::to_string(got));
+    m.append(" bytes, expected ").append(std::to_string(expected));
+    return InvalidArgument(m);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status check_band(const EncodedBand& band) {
+  std::string inflated;
+  return check_bytes(band, inflated);
+}
+
+Result<std::vector<float>> decode_band(const EncodedBand& band) {
+  std::string inflated;
+  if (Status s = check_bytes(band, inflated); !s.ok()) return s;
+  const size_t n = static_cast<size_t>(band.width) * band.rows * 3;
   std::vector<float> rgb(n);
+  if (band.encoding == BandEncoding::kPng8Deflate) {
+    const std::vector<unsigned char> codes = png8_codes(inflated, band.width, band.rows);
+    for (size_t i = 0; i < n; ++i) rgb[i] = float_of(BandEncoding::kRgb8Zstd, codes[i]);
+    return rgb;
+  }
+  const std::vector<uint32_t> samples =
+      unpack(inflated.empty() ? band.bytes : inflated, n, *layout_of(band.encoding));
+  std::string().swap(inflated);  // the largest band holds one copy less at a time
   for (size_t i = 0; i < n; ++i) rgb[i] = float_of(band.encoding, samples[i]);
   return rgb;
 }

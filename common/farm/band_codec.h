@@ -93,6 +93,11 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
 // past the size width x rows needs.
 Result<std::vector<float>> decode_band(const EncodedBand& band);
 
+// What decode_band checks, without making the floats: Ok exactly when
+// decode_band would decode the band. The coordinator checks a result on
+// arrival with it, and keeps the bytes as they came.
+Status check_band(const EncodedBand& band);
+
 // The PNG file (8-bit RGB, tagged linear as write_image tags it) of a
 // `width` x `height` frame whose bands, top to bottom, are all png8+deflate
 // and were each accepted by decode_band: the file's image data is the

@@ -208,8 +208,8 @@ struct BandOutput {
   std::string lease_id;
   std::vector<float> rgb;
   // The pixels as they travel, in the lease's encoding (band_codec.h): the
-  // worker encodes rgb into it and sends it instead; the coordinator decodes
-  // it back into rgb and keeps it as it came. Empty bytes with kFloat32: the
+  // worker encodes rgb into it and sends it instead; the coordinator checks
+  // it (check_band) and keeps it as it came. Empty bytes with kFloat32: the
   // pixels are in rgb alone (the lease asked for floats, or the worker is of
   // an older release).
   EncodedBand encoded;

@@ -207,11 +207,16 @@ EncodedBand valid_band(BandEncoding e, int width = 16, int rows = 4) {
   return *enc;
 }
 
+// Refused by decode_band, and by check_band (the coordinator's check on
+// arrival) with the same words.
 void expect_refused(const EncodedBand& band, const std::string& words) {
   auto r = decode_band(band);
   ASSERT_FALSE(r.ok()) << "decoded " << r->size() << " floats";
   EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
   EXPECT_NE(r.status().message().find(words), std::string::npos) << r.status().message();
+  const Status checked = check_band(band);
+  EXPECT_EQ(checked.code(), r.status().code());
+  EXPECT_EQ(checked.message(), r.status().message());
 }
 
 // png8+deflate (band_codec.h): a PNG joined from the bands' deflate streams
@@ -245,7 +250,7 @@ TEST(BandCodec, PngFramesJoinedFromDeflatedBandsHoldTheRenderersPixels) {
                                    whole.pixels.rgb.begin() + to);
       auto enc = encode_band(BandEncoding::kPng8Deflate, width, edges[b + 1] - edges[b], rgb);
       ASSERT_TRUE(enc.ok()) << enc.status().message();
-      ASSERT_TRUE(decode_band(*enc).ok());  // what the coordinator checks on arrival
+      ASSERT_TRUE(check_band(*enc).ok());  // what the coordinator checks on arrival
       wire += enc->bytes.size();
       bands.push_back(std::move(*enc));
     }
@@ -443,10 +448,15 @@ TEST(BandCodec, DamagedPayloadsNeverCrash) {
       }
       if (rng() % 4 == 0) b.bytes.resize(rng() % (b.bytes.size() + 1));
       auto r = decode_band(b);
+      // The check on arrival says what decoding says, word for word.
+      const Status checked = check_band(b);
+      ASSERT_EQ(checked.message(), r.status().message());
       if (r.ok()) {
+        ASSERT_TRUE(checked.ok());
         ASSERT_EQ(r->size(), static_cast<size_t>(23) * 3 * 3);
       } else {
         ASSERT_EQ(r.status().code(), Code::kInvalidArgument);
+        ASSERT_EQ(checked.code(), Code::kInvalidArgument);
       }
     }
   }

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <set>
 
+#include "common/farm/band_codec.h"
 #include "server/coordinator.h"
 #include "server/store.h"
 #include "tests/farm_fixture.h"
@@ -117,6 +118,33 @@ TEST_F(BadResults, PixelsOfTheWrongSizeAreRefusedAndTheBandLeasedAgain) {
   EXPECT_EQ(again.band, t.band);
   accept(*a_, again);
   EXPECT_EQ(c_->job(a_job_)->state, JobState::kRunning);
+}
+
+// Encoded pixels that decode, and hold as many values as the band, but
+// for another shape (half as wide, twice as tall): refused by their size,
+// not counted as the band's (they would scramble its rows).
+TEST_F(BadResults, EncodedPixelsOfAnotherShapeAreRefused) {
+  const BandLease t = take(*a_, a_job_);
+  const int rows = t.y1 - t.y0;
+  ASSERT_EQ(t.width % 2, 0);
+  BandOutput out = a_->render(t);
+  ASSERT_FALSE(out.encoded.bytes.empty());
+  auto reshaped = encode_band(out.encoded.encoding, t.width / 2, rows * 2,
+                              std::vector<float>(static_cast<size_t>(t.width) * rows * 3, 0.25f));
+  ASSERT_TRUE(reshaped.ok()) << reshaped.status().message();
+  out.encoded = std::move(*reshaped);
+  auto r = c_->complete_band(out);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
+  const std::string want = "expected " + std::to_string(t.width) + " x " + std::to_string(rows) +
+                           " pixels, got " + std::to_string(t.width / 2) + " x " +
+                           std::to_string(rows * 2);
+  EXPECT_NE(r.status().message().find(want), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("lease '" + t.lease_id + "'"), std::string::npos);
+  expect_nothing_stored(t);
+  const BandLease again = take(*b_, a_job_);
+  EXPECT_EQ(again.band, t.band);
+  accept(*b_, again);
 }
 
 TEST_F(BadResults, AnotherWorkersLeaseIsRefusedAndStaysItsHolders) {
