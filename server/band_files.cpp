@@ -10,6 +10,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "server/syncs.h"
+
 namespace locus::farm {
 namespace fs = std::filesystem;
 namespace {
@@ -44,7 +46,7 @@ std::string errno_text() { return std::strerror(errno); }
 Status fsync_path(const std::string& path, bool directory) {
   const int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
   if (fd < 0) return Internal(path + ": cannot open to sync: " + errno_text());
-  const int r = ::fsync(fd);
+  const int r = counted_fsync(fd);
   ::close(fd);
   if (r != 0) return Internal(path + ": fsync failed: " + errno_text());
   return Status::Ok();

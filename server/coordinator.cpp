@@ -21,6 +21,7 @@
 #include "server/band_files.h"
 #include "server/metrics.h"
 #include "server/submission.h"
+#include "server/syncs.h"
 
 namespace locus::farm {
 namespace fs = std::filesystem;
@@ -173,6 +174,7 @@ LatencySummary Coordinator::dispatch_latency() {
 void Coordinator::refresh_metrics() {
   std::lock_guard lk(mu_);
   metrics_->set_counts(scheduler_.counts());
+  metrics_->set_syncs(sync_counts());
 }
 
 std::string Coordinator::metrics_text() {
@@ -241,6 +243,10 @@ void Coordinator::shutdown() {
     spdlog::info("dispatch latency: {} bands, p50 {:.0f} us, p99 {:.0f} us, max {:.0f} us", d.count,
                  d.p50_us, d.p99_us, d.max_us);
   }
+  // What bench/farm/scale.sh reads for "syncs per band" (server/syncs.h).
+  const SyncCounts syncs = sync_counts();
+  spdlog::info("syncs: {} (the store's {}, the coordinator's files' {})", syncs.total(),
+               syncs.store, syncs.files);
   persist();
   store_.reset();
   close_store_files();

@@ -20,6 +20,7 @@
 #include "server/band_files.h"
 #include "server/coordinator.h"
 #include "server/metrics.h"
+#include "server/syncs.h"
 
 namespace locus::farm {
 namespace fs = std::filesystem;
@@ -272,7 +273,7 @@ Status Coordinator::sync_log() {
     log_fd_ = ::open(wal.c_str(), O_RDONLY | O_CLOEXEC);
     if (log_fd_ < 0) return Internal(wal + ": cannot open to sync: " + std::strerror(errno));
   }
-  if (::fdatasync(log_fd_) != 0) {
+  if (counted_fdatasync(log_fd_) != 0) {
     return Internal(options_.data_dir + "/locus.db-wal: fdatasync failed: " + std::strerror(errno));
   }
   log_syncs_.fetch_add(1, std::memory_order_relaxed);

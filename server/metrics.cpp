@@ -49,7 +49,12 @@ CoordinatorMetrics::CoordinatorMetrics()
       received_(counters(*registry_, "locus_rpc_received_bytes_total",
                          "Bytes of request messages received, by call")),
       sent_(counters(*registry_, "locus_rpc_sent_bytes_total",
-                     "Bytes of response messages sent, by call")) {
+                     "Bytes of response messages sent, by call")),
+      syncs_(counters(*registry_, "locus_syncs_total",
+                      "Syncs asked of the disk since the coordinator started, by whose: store "
+                      "(SQLite's), files (the group commit's log sync, frames, directories)")),
+      store_syncs_(syncs_.Add({{"by", "store"}})),
+      file_syncs_(syncs_.Add({{"by", "files"}})) {
   // Every series exists from the start, at zero.
   for (const auto& [s, name] : kJobStateLabels) {
     jobs_by_state_[static_cast<size_t>(s)] = &jobs_.Add({{"state", std::string(name)}});
@@ -95,6 +100,12 @@ void CoordinatorMetrics::set_counts(const FarmCounts& c) {
   for (size_t i = 0; i < jobs_by_state_.size(); ++i)
     jobs_by_state_[i]->Set(static_cast<double>(c.jobs[i]));
   workers_.Set(static_cast<double>(c.workers));
+}
+
+void CoordinatorMetrics::set_syncs(const SyncCounts& s) {
+  // Counters only go up: each takes what was counted since the last scrape.
+  store_syncs_.Increment(static_cast<double>(s.store) - store_syncs_.Value());
+  file_syncs_.Increment(static_cast<double>(s.files) - file_syncs_.Value());
 }
 
 void CoordinatorMetrics::add_bytes(std::string_view call, uint64_t received, uint64_t sent) {

@@ -14,6 +14,7 @@
 
 #include "common/farm/metrics.h"
 #include "server/journal.h"
+#include "server/syncs.h"
 
 namespace locus::farm {
 
@@ -27,6 +28,8 @@ class CoordinatorMetrics {
   void observe(const std::vector<Event>& events);
   // The gauges.
   void set_counts(const FarmCounts& counts);
+  // The syncs counted so far (server/syncs.h), by whose they were.
+  void set_syncs(const SyncCounts& syncs);
   // The serialized size of one call's request and response messages (each
   // message of a stream), by call ("WorkerService.CompleteBand").
   void add_bytes(std::string_view call, uint64_t received, uint64_t sent);
@@ -53,6 +56,9 @@ class CoordinatorMetrics {
   prometheus::Family<prometheus::Counter>& user_cpu_seconds_;
   prometheus::Family<prometheus::Counter>& received_;
   prometheus::Family<prometheus::Counter>& sent_;
+  prometheus::Family<prometheus::Counter>& syncs_;
+  prometheus::Counter& store_syncs_;
+  prometheus::Counter& file_syncs_;
 };
 
 }  // namespace locus::farm

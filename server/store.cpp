@@ -10,6 +10,8 @@
 #include <string_view>
 #include <tuple>
 
+#include "server/syncs.h"
+
 namespace locus::farm {
 namespace {
 
@@ -238,6 +240,7 @@ Result<std::unique_ptr<JobStore>> JobStore::open_reader(const std::string& path)
 }
 
 Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
+  count_store_syncs();  // SQLite's syncs counted with the coordinator's (server/syncs.h)
   sqlite3* db = nullptr;
   const int rc = sqlite3_open_v2(
       path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);

@@ -190,4 +190,14 @@ class FarmTest : public ::testing::Test {
   std::vector<std::thread> threads_;
 };
 
+// The value of the sample `series` (name and labels, as written) in a text
+// exposition, or -1 when absent.
+inline double sample(const std::string& text, const std::string& series) {
+  const std::string head = series + " ";
+  for (size_t at = text.find(head); at != std::string::npos; at = text.find(head, at + 1)) {
+    if (at == 0 || text[at - 1] == '\n') return std::stod(text.substr(at + head.size()));
+  }
+  return -1;
+}
+
 }  // namespace locus::farm::testing_farm

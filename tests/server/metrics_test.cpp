@@ -23,16 +23,7 @@ namespace {
 
 using test_doubles::FakeClock;
 using test_doubles::pixels;
-
-// The value of the sample `series` (name and labels, as written) in a text
-// exposition, or -1 when absent.
-double sample(const std::string& text, const std::string& series) {
-  const std::string head = series + " ";
-  for (size_t at = text.find(head); at != std::string::npos; at = text.find(head, at + 1)) {
-    if (at == 0 || text[at - 1] == '\n') return std::stod(text.substr(at + head.size()));
-  }
-  return -1;
-}
+using testing_farm::sample;
 
 // GET http://127.0.0.1:PORT/metrics with a plain socket: status line and body.
 std::string http_get(int port, const std::string& path) {
