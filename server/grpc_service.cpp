@@ -59,11 +59,6 @@ void log_refusal(const std::string& peer, const Status& why) {
   spdlog::warn("refused {} (peer {})", why.message(), peer);
 }
 
-// Every call: credentials first, then the handler; whatever escapes it (a
-// bad_alloc from an absurd request) becomes an error for that call, never
-// the end of the coordinator. The request's bytes and the response's
-// (`response` null for a stream, whose writes count their own) go to the
-// metrics.
 // The caller's credentials, checked; a refusal is logged and counted.
 Result<farm::Caller> admit(const farm::Authenticator& auth, farm::CoordinatorMetrics& metrics,
                            const grpc::ServerContextBase& ctx, farm::Role role, const char* rpc,
@@ -77,17 +72,20 @@ Result<farm::Caller> admit(const farm::Authenticator& auth, farm::CoordinatorMet
   return caller;
 }
 
+// An admitted call's answer from its handler, `body`: whatever escapes it
+// (a bad_alloc from an absurd request) becomes an error for that call,
+// never the end of the coordinator. The request's bytes and the response's
+// (`response` null for a stream, whose writes count their own) go to the
+// metrics.
 template <typename F>
-grpc::Status serve(const farm::Authenticator& auth, farm::CoordinatorMetrics& metrics,
-                   const grpc::ServerContextBase& ctx, farm::Role role, const char* rpc,
-                   const google::protobuf::Message& request,
-                   const google::protobuf::Message* response, F&& body) {
-  const Result<farm::Caller> caller = admit(auth, metrics, ctx, role, rpc, request);
-  if (!caller.ok()) return ToGrpc(caller.status());
+grpc::Status answer(farm::CoordinatorMetrics& metrics, const grpc::ServerContextBase& ctx,
+                    const farm::Caller& caller, const char* rpc,
+                    const google::protobuf::Message& request,
+                    const google::protobuf::Message* response, F&& body) {
   grpc::Status status;
   try {
     if constexpr (std::is_invocable_v<F, const farm::Caller&>) {
-      const Status s = body(*caller);
+      const Status s = body(caller);
       // The wrong user's action: logged like a refused token (never the token).
       if (s.code() == Code::kPermissionDenied) log_refusal(ctx.peer(), s);
       status = ToGrpc(s);
@@ -101,6 +99,17 @@ grpc::Status serve(const farm::Authenticator& auth, farm::CoordinatorMetrics& me
   metrics.add_bytes(rpc, request.ByteSizeLong(),
                     status.ok() && response ? response->ByteSizeLong() : 0);
   return status;
+}
+
+// Every call: credentials first (admit), then the handler (answer).
+template <typename F>
+grpc::Status serve(const farm::Authenticator& auth, farm::CoordinatorMetrics& metrics,
+                   const grpc::ServerContextBase& ctx, farm::Role role, const char* rpc,
+                   const google::protobuf::Message& request,
+                   const google::protobuf::Message* response, F&& body) {
+  const Result<farm::Caller> caller = admit(auth, metrics, ctx, role, rpc, request);
+  if (!caller.ok()) return ToGrpc(caller.status());
+  return answer(metrics, ctx, *caller, rpc, request, response, std::forward<F>(body));
 }
 
 // A stream's writes, counted.
@@ -354,7 +363,8 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
   grpc::ServerUnaryReactor* GetTask(grpc::CallbackServerContext* ctx, const v1::GetTaskRequest* req,
                                     v1::GetTaskResponse* resp) override {
     static constexpr const char* kRpc = "WorkerService.GetTask";
-    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
+    if (auto caller = arrived(*ctx, kRpc, *req, req->worker_id()); !caller.ok())
+      return now(ctx, ToGrpc(caller.status()));
     auto* reactor = new PollReactor(c_);
     pool_.post([this, reactor, req, resp] {
       const uint64_t ticket =
@@ -370,10 +380,10 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
                                      const v1::GetSceneRequest* req,
                                      v1::GetSceneResponse* resp) override {
     static constexpr const char* kRpc = "WorkerService.GetScene";
-    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
-    return on_pool(ctx, kUrgent, [this, ctx, req, resp] {
-      return serve(auth_, m_, *ctx, kWorker, kRpc, *req, resp,
-                   [&] { return h_.GetScene(*req, resp); });
+    auto caller = arrived(*ctx, kRpc, *req, req->worker_id());
+    if (!caller.ok()) return now(ctx, ToGrpc(caller.status()));
+    return on_pool(ctx, kUrgent, [this, ctx, req, resp, caller = *caller] {
+      return answer(m_, *ctx, caller, kRpc, *req, resp, [&] { return h_.GetScene(*req, resp); });
     });
   }
 
@@ -383,7 +393,8 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
     // Answered once the band is durable (the coordinator's group commit),
     // from the commit thread: no thread waits for the disk.
     static constexpr const char* kRpc = "WorkerService.CompleteBand";
-    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
+    if (auto caller = arrived(*ctx, kRpc, *req, req->worker_id()); !caller.ok())
+      return now(ctx, ToGrpc(caller.status()));
     grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
     pool_.post([this, reactor, req, resp] {
       answer_later(reactor, m_, kRpc, req, resp, [&](std::function<void(Status)> done) {
@@ -397,10 +408,10 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
                                       const v1::HeartbeatRequest* req,
                                       v1::HeartbeatResponse* resp) override {
     static constexpr const char* kRpc = "WorkerService.Heartbeat";
-    if (Status s = arrived(*ctx, kRpc, *req, req->worker_id()); !s.ok()) return now(ctx, ToGrpc(s));
-    return on_pool(ctx, kUrgent, [this, ctx, req, resp] {
-      return serve(auth_, m_, *ctx, kWorker, kRpc, *req, resp,
-                   [&] { return h_.Heartbeat(*req, resp); });
+    auto caller = arrived(*ctx, kRpc, *req, req->worker_id());
+    if (!caller.ok()) return now(ctx, ToGrpc(caller.status()));
+    return on_pool(ctx, kUrgent, [this, ctx, req, resp, caller = *caller] {
+      return answer(m_, *ctx, caller, kRpc, *req, resp, [&] { return h_.Heartbeat(*req, resp); });
     });
   }
 
@@ -416,12 +427,11 @@ class CoordinatorServer::WorkerImpl final : public v1::WorkerService::CallbackSe
   // A worker's call, its credentials checked (a refusal is logged and
   // counted): its worker counts as seen now (Coordinator::worker_call_arrived),
   // whenever a handler gets to it.
-  Status arrived(const grpc::CallbackServerContext& ctx, const char* rpc,
-                 const google::protobuf::Message& req, const std::string& worker_id) {
-    const Result<farm::Caller> caller = admit(auth_, m_, ctx, kWorker, rpc, req);
-    if (!caller.ok()) return caller.status();
-    c_.worker_call_arrived(worker_id);
-    return Status::Ok();
+  Result<farm::Caller> arrived(const grpc::CallbackServerContext& ctx, const char* rpc,
+                               const google::protobuf::Message& req, const std::string& worker_id) {
+    Result<farm::Caller> caller = admit(auth_, m_, ctx, kWorker, rpc, req);
+    if (caller.ok()) c_.worker_call_arrived(worker_id);
+    return caller;
   }
   // A call answered by `body` (credentials and all) on the handler pool.
   template <typename F>
