@@ -11,11 +11,15 @@
 #   start it again on the same port and data (a soak; the harness counts
 #   calls failed meanwhile apart, --outage-ok; no CPU or sync figures).
 #   REVIVE_MS: DIE workers come back after this long, and die again.
+#   REPORT=FILE: writes the run as Markdown to FILE (the commit, the
+#   machine's load, the settings, every figure and the target lines), the
+#   report in bench/results/ is written this way (farm-scale-run.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build}
 bin=$build/bin
 tmp=$(mktemp -d)
+load_start=$(cut -d' ' -f1-3 /proc/loadavg)
 coord=
 cleanup() {
   [ -n "$coord" ] && kill -9 "$coord" 2>/dev/null || true
@@ -128,7 +132,37 @@ if [ "${WORKERS:-1000}" -ge 1000 ] && [ "${DELAY_MS:-0}" = 0 ] && [ -z "${RESTAR
              v["coordinator_rss_peak_mib"] <= 300)
       else
         print "target RSS <= 300 MiB: not sampled (a run under a second)"
-    }' "$tmp/figures.txt"
+    }' "$tmp/figures.txt" | tee "$tmp/targets.txt"
+fi
+if [ -n "${REPORT:-}" ]; then
+  {
+    echo "# bench/farm/scale.sh: one run"
+    echo
+    echo "Written by the script itself (REPORT=...) at the end of the run, $(date -u '+%Y-%m-%d %H:%M UTC'),"
+    echo "commit $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- server common proto bench || echo ' (with uncommitted changes)'),"
+    echo "on $(nproc) cores; load average (1, 5, 15 min) $load_start at the start, $(cut -d' ' -f1-3 /proc/loadavg) at the end."
+    echo
+    echo "Settings: WORKERS=${WORKERS:-1000} JOBS=${JOBS:-20} FRAMES=${FRAMES:-50} BANDS=${BANDS:-64}" \
+      "ROWS=${ROWS:-4} WIDTH=${WIDTH:-256} DELAY_MS=${DELAY_MS:-0} DIE=${DIE:-0} STALL=${STALL:-0}" \
+      "LATE=${LATE:-0} SCALE_FLAGS='${SCALE_FLAGS:-}' COORDINATOR_FLAGS='${COORDINATOR_FLAGS:-}'." \
+      "The harness's exit status: $status (0: every band accepted once, every frame identical to its reference)."
+    echo
+    if [ -s "$tmp/targets.txt" ]; then
+      echo "## Issue #25's target lines"
+      echo
+      echo "| Target | Measured | |"
+      echo "|---|---|---|"
+      sed -n 's/^target \(.*\): \(.*\) \(PASS\|FAIL\)$/| \1 | \2 | \3 |/p' "$tmp/targets.txt"
+      grep -v ' PASS$\| FAIL$' "$tmp/targets.txt" | sed 's/^target \(.*\): \(.*\)$/| \1 | \2 | |/'
+      echo
+    fi
+    echo "## Every figure"
+    echo
+    echo "| Figure | Value |"
+    echo "|---|---|"
+    awk 'NF == 2 && $1 ~ /^[a-z_0-9]+$/ { printf "| %s | %s |\n", $1, $2 }' "$tmp/figures.txt"
+  } >"$REPORT"
+  echo "report written: $REPORT"
 fi
 if [ "$status" != 0 ]; then
   echo "--- coordinator log (last 40 lines)"
