@@ -248,6 +248,10 @@ class Coordinator {
   // is durable (group commit, commit_loop()); a refusal's at once.
   using CompleteDone = std::function<void(Result<CompleteOutcome>)>;
   void complete_band_async(BandOutput output, CompleteDone done);
+  // Several results of one call (CompleteBandRequest.more), each judged
+  // alone and told through its own `dones[i]`, under the coordinator's lock
+  // twice in all rather than twice each.
+  void complete_bands_async(std::vector<BandOutput> outputs, std::vector<CompleteDone> dones);
   // The same, waiting here (tests, tools).
   Result<CompleteOutcome> complete_band(BandOutput output);
   // Syncs of the store's log made by the group commit (the benchmark's

@@ -164,14 +164,26 @@ bool Coordinator::hold_frame(const FrameReady& f, const Status& written) {
 }
 
 void Coordinator::complete_band_async(BandOutput output, CompleteDone done) {
-  // Checked (encoding, size) outside the lock; the store keeps the bytes as
-  // they came.
-  check_pixels(output);
-  const std::string malformed = output.malformed;
-  if (!malformed.empty()) {
+  std::vector<BandOutput> outputs;
+  outputs.push_back(std::move(output));
+  std::vector<CompleteDone> dones;
+  dones.push_back(std::move(done));
+  complete_bands_async(std::move(outputs), std::move(dones));
+}
+
+void Coordinator::complete_bands_async(std::vector<BandOutput> outputs,
+                                       std::vector<CompleteDone> dones) {
+  const size_t n = outputs.size();
+  for (size_t i = 0; i < n; ++i) {
+    // Checked (encoding, size) outside the lock; the store keeps the bytes
+    // as they came.
+    check_pixels(outputs[i]);
+    const std::string& malformed = outputs[i].malformed;
+    if (malformed.empty()) continue;
     // The scheduler charges it (as pixels of the wrong size) if the lease
     // stands; the worker hears what was wrong either way.
-    done = [done = std::move(done), malformed, lease = output.lease_id](Result<CompleteOutcome> r) {
+    dones[i] = [done = std::move(dones[i]), malformed,
+                lease = outputs[i].lease_id](Result<CompleteOutcome> r) {
       if (r.ok() || r.status().code() == Code::kInvalidArgument) {
         std::string m = "lease '";
         m.append(lease).append("': malformed pixels: ").append(malformed);
@@ -180,46 +192,55 @@ void Coordinator::complete_band_async(BandOutput output, CompleteDone done) {
       done(std::move(r));
     };
   }
+  // Answers given after the lock is let go: refusals, failures, hand-backs.
+  std::vector<std::pair<CompleteDone, Result<CompleteOutcome>>> now;
   std::unique_lock lk(mu_);
   if (!storage_trouble_.ok()) {
-    // Not taken: the lease stands (or lapses, and the band is rendered
+    // Not taken: the leases stand (or lapse, and the bands are rendered
     // again); nothing the worker sent is half kept.
     Status refused = storage_refusal("results are refused");
     lk.unlock();
-    done(std::move(refused));
+    for (CompleteDone& done : dones) done(refused);
     return;
   }
-  std::optional<BandTarget> target = scheduler_.result_target(output);
-  std::optional<BandLogScope> log_scope;
-  if (target) log_scope.emplace(target->job_id, target->frame, target->band);
-  std::string record;
-  if (target) {
-    // The record is made outside the lock (a copy and a checksum of the
-    // pixels); the lease may lapse meanwhile, or another copy win: then
-    // complete_band() below drops the result.
-    lk.unlock();
-    const BandPixels rows{target->width, target->y0, target->y1};
-    record = pack_band(rows, stored_band(output, rows));
-    lk.lock();
-    target = scheduler_.result_target(output);
+  // The records are made outside the lock (a copy and a checksum of the
+  // pixels); a lease may lapse meanwhile, or another copy win: then
+  // complete_band() below drops the result.
+  std::vector<std::optional<BandTarget>> targets(n);
+  for (size_t i = 0; i < n; ++i) targets[i] = scheduler_.result_target(outputs[i]);
+  lk.unlock();
+  std::vector<std::string> records(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!targets[i]) continue;
+    const BandPixels rows{targets[i]->width, targets[i]->y0, targets[i]->y1};
+    records[i] = pack_band(rows, stored_band(outputs[i], rows));
   }
-  auto r = scheduler_.complete_band(output);
+  lk.lock();
+  bool refusals = false;
+  for (size_t i = 0; i < n; ++i) {
+    std::optional<BandTarget> target = targets[i] ? scheduler_.result_target(outputs[i]) : std::nullopt;
+    std::optional<BandLogScope> log_scope;
+    if (target) log_scope.emplace(target->job_id, target->frame, target->band);
+    auto r = scheduler_.complete_band(outputs[i]);
+    if (!target || !r.ok() || !r->accepted) {
+      // Nothing to make durable: a refusal, a failure, a hand-back.
+      refusals = true;
+      now.emplace_back(std::move(dones[i]), std::move(r));
+      continue;
+    }
+    // Accepted: its record goes into the store with the band's "done" (the
+    // next persist()), and the worker hears "accepted" once that
+    // transaction is on disk with the rest of its batch (commit_loop()).
+    band_records_[{target->job_id, target->frame, target->band}] = std::move(records[i]);
+    std::optional<FrameReady> frame = std::move(r->frame);
+    r->frame.reset();
+    commits_.push_back({std::move(dones[i]), std::move(*r), std::move(frame), SteadyClock::now()});
+  }
   changed_.notify_all();
-  if (!target || !r.ok() || !r->accepted) {
-    // Nothing to make durable: a refusal, a failure, a hand-back.
-    persist();
-    lk.unlock();
-    done(std::move(r));
-    return;
-  }
-  // Accepted: its record goes into the store with the band's "done" (the
-  // next persist()), and the worker hears "accepted" once that transaction
-  // is on disk with the rest of its batch (commit_loop()).
-  band_records_[{target->job_id, target->frame, target->band}] = std::move(record);
-  std::optional<FrameReady> frame = std::move(r->frame);
-  r->frame.reset();
-  commits_.push_back({std::move(done), std::move(*r), std::move(frame), SteadyClock::now()});
-  commit_ready_.notify_one();
+  if (refusals) persist();
+  if (commits_.size() > 0) commit_ready_.notify_one();
+  lk.unlock();
+  for (auto& [done, r] : now) done(std::move(r));
 }
 
 Result<CompleteOutcome> Coordinator::complete_band(BandOutput output) {

@@ -401,11 +401,11 @@ void Handlers::StartCompleteBand(const v1::CompleteBandRequest& req, v1::Complet
     }
     pending->done(failed);
   };
+  std::vector<farm::Coordinator::CompleteDone> dones;
   for (size_t i = 0; i < outputs.size(); ++i) {
-    c_.complete_band_async(std::move(outputs[i]), [finish, i](Result<farm::CompleteOutcome> r) {
-      finish(i, std::move(r));
-    });
+    dones.push_back([finish, i](Result<farm::CompleteOutcome> r) { finish(i, std::move(r)); });
   }
+  c_.complete_bands_async(std::move(outputs), std::move(dones));
 }
 
 Status Handlers::CompleteBand(const v1::CompleteBandRequest& req, v1::CompleteBandResponse* resp) {
