@@ -13,7 +13,9 @@
 #   REVIVE_MS: DIE workers come back after this long, and die again.
 #   REPORT=FILE: writes the run as Markdown to FILE (the commit, the
 #   machine's load, the settings, every figure and the target lines), the
-#   report in bench/results/ is written this way (farm-scale-run.md).
+#   targets.sh writes bench/results/farm-scale.md from such reports.
+#   FIGURES=FILE: copies the run's "key value" lines to FILE
+#   (bench/farm/targets.sh).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$root/build}
@@ -134,6 +136,7 @@ if [ "${WORKERS:-1000}" -ge 1000 ] && [ "${DELAY_MS:-0}" = 0 ] && [ -z "${RESTAR
         print "target RSS <= 300 MiB: not sampled (a run under a second)"
     }' "$tmp/figures.txt" | tee "$tmp/targets.txt"
 fi
+[ -n "${FIGURES:-}" ] && cp "$tmp/figures.txt" "$FIGURES"
 if [ -n "${REPORT:-}" ]; then
   {
     echo "# bench/farm/scale.sh: one run"

@@ -7,7 +7,10 @@
 // Markdown table (bench/results/farm-wire.md), and what writing a PNG frame
 // costs the coordinator: encoded by OpenImageIO from the stitched floats, or
 // joined from the bands' png8+deflate streams (png_from_bands).
-//   locus-wire-bytes [--size 256x256] [--workers 2] [SCENE|DIR ...]
+// The check on arrival (check_band, what the coordinator does to a result)
+// is timed apart from a full decode.
+//   locus-wire-bytes [--size 256x256] [--workers 2] [--figures FILE] [SCENE|DIR ...]
+// --figures writes the averages as "key value" lines (bench/farm/targets.sh).
 // Without scenes: scenes/paper/*.json and ../shared/spd/def/*.nff.
 #include <spdlog/spdlog.h>
 
@@ -54,6 +57,7 @@ struct Row {
   double bytes_per_pixel[kN] = {};
   double encode_ms[kN] = {};  // per frame: all its bands
   double decode_ms[kN] = {};
+  double check_ms[kN] = {};  // check_band: the coordinator's check on arrival
   double png_encode_ms = 0;  // the frame's PNG, written by write_image
   double png_join_ms = 0;    // the frame's PNG, joined from png8+deflate bands and written
 };
@@ -107,6 +111,9 @@ Result<Row> measure(const std::string& path, const std::string& group, int width
         auto dec = decode_band(*enc);
         row.decode_ms[c] += (now_s() - d0) * 1e3;
         if (!dec.ok()) return dec.status();
+        const double k0 = now_s();
+        if (Status s = check_band(*enc); !s.ok()) return s;
+        row.check_ms[c] += (now_s() - k0) * 1e3;
         if (e == BandEncoding::kPng8Deflate) deflated.push_back(*enc);
         o.encoded = std::move(*enc);
         o.rgb = {};
@@ -171,9 +178,11 @@ int main(int argc, char** argv) {
   CLI::App app{"Bytes per pixel of band results on the wire, floats against encodings"};
   std::string size = "256x256";
   int workers = 2;
+  std::string figures;
   std::vector<std::string> scenes;
   app.add_option("--size", size, "WIDTHxHEIGHT of every scene");
   app.add_option("--workers", workers, "workers the default band split is made for");
+  app.add_option("--figures", figures, "write the averages here as \"key value\" lines");
   app.add_option("scenes", scenes, "scene files or directories of them");
   CLI11_PARSE(app, argc, argv);
   int width = 0, height = 0;
@@ -218,17 +227,21 @@ int main(int argc, char** argv) {
 
   std::printf(
       "\nEncoding and decoding time per frame (all its bands), milliseconds, averaged "
-      "over the scenes:\n\n| encoding | encode ms | decode ms |\n|---|---:|---:|\n");
+      "over the scenes:\n\n| encoding | encode ms | decode ms | check on arrival ms |\n"
+      "|---|---:|---:|---:|\n");
+  double check_ns[kN] = {};  // a pixel, averaged
   for (size_t c = 1; c < kN; ++c) {
-    double enc = 0, dec = 0;
+    double enc = 0, dec = 0, chk = 0;
     for (const Row& r : rows) {
       enc += r.encode_ms[c];
       dec += r.decode_ms[c];
+      chk += r.check_ms[c];
     }
     const double n = std::max<size_t>(rows.size(), 1);
-    std::printf("| %s | %.2f | %.2f |\n",
+    check_ns[c] = chk / n * 1e6 / (static_cast<double>(width) * height);
+    std::printf("| %s | %.2f | %.2f | %.2f |\n",
                 std::string(label_name(kBandEncodingLabels, kColumns[c].encoding)).c_str(), enc / n,
-                dec / n);
+                dec / n, chk / n);
   }
   double encoded = 0, joined = 0;
   for (const Row& r : rows) {
@@ -243,5 +256,28 @@ int main(int argc, char** argv) {
       "| joined from the bands' png8+deflate streams (png_from_bands) | %.2f | %.1f |\n",
       kPngLevel, encoded / n, encoded / n * 1e6 / (static_cast<double>(width) * height), joined / n,
       joined / n * 1e6 / (static_cast<double>(width) * height));
+  if (!figures.empty()) {
+    std::ofstream f(figures);
+    double sum[kN] = {};
+    for (const Row& r : rows) {
+      for (size_t c = 0; c < kN; ++c) sum[c] += r.bytes_per_pixel[c];
+    }
+    const char* keys[kN] = {"float32", "rgb8_zstd", "rgb16_zstd", "float32_zstd", "png8_deflate"};
+    f << "scenes " << rows.size() << "\n";
+    for (size_t c = 0; c < kN; ++c) {
+      f << "bytes_per_pixel_" << keys[c] << " " << sum[c] / n << "\n";
+      if (c > 0) f << "check_ns_per_pixel_" << keys[c] << " " << check_ns[c] << "\n";
+    }
+    double render = 0;
+    for (const Row& r : rows) render += r.render_s;
+    f << "render_ns_per_pixel " << render / n * 1e9 / (static_cast<double>(width) * height)
+      << "\n";
+    f << "png_join_ns_per_pixel " << joined / n * 1e6 / (static_cast<double>(width) * height)
+      << "\n";
+    if (!f) {
+      std::fprintf(stderr, "--figures %s: cannot write\n", figures.c_str());
+      return 1;
+    }
+  }
   return 0;
 }
