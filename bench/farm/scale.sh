@@ -142,7 +142,7 @@ if [ -n "${REPORT:-}" ]; then
     echo "# bench/farm/scale.sh: one run"
     echo
     echo "Written by the script itself (REPORT=...) at the end of the run, $(date -u '+%Y-%m-%d %H:%M UTC'),"
-    echo "commit $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- server common proto bench || echo ' (with uncommitted changes)'),"
+    echo "commit $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- server common proto worker bench/farm || echo ' (with uncommitted changes)'),"
     echo "on $(nproc) cores; load average (1, 5, 15 min) $load_start at the start, $(cut -d' ' -f1-3 /proc/loadavg) at the end."
     echo
     echo "Settings: WORKERS=${WORKERS:-1000} JOBS=${JOBS:-20} FRAMES=${FRAMES:-50} BANDS=${BANDS:-64}" \

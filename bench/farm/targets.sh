@@ -120,7 +120,7 @@ awk -v f1000="$tmp/w1000.txt" -v f10="$tmp/w10.txt" -v fbig="$tmp/big.txt" \
   echo "Written by \`bench/farm/targets.sh\` (this file is its output; the history"
   echo "of how the figures got here is \`bench/results/farm-scale-history.md\`)."
   echo "Started $started, finished $(date -u '+%Y-%m-%d %H:%M UTC'); commit"
-  echo "$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- server common proto bench worker || echo ' with uncommitted changes'),"
+  echo "$(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet HEAD -- server common proto worker bench/farm || echo ' with uncommitted changes'),"
   echo "$(nproc) cores ($(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -1)),"
   echo "load average (1, 5, 15 min) $load_start at the start and $(cut -d' ' -f1-3 /proc/loadavg) at the end."
   echo "The simulated workers share the machine with the coordinator: these are"
@@ -158,9 +158,14 @@ awk -v f1000="$tmp/w1000.txt" -v f10="$tmp/w10.txt" -v fbig="$tmp/big.txt" \
   echo
   echo "## 5. The model (locus-farm-model; docs/farm.md \"The model, from the measurements\")"
   echo
-  echo "Inputs: $(tr '\n' ' ' <"$tmp/model_in.txt")(runs 1 and 2), and scene (d) at"
-  echo "1920x1080 (the default split for 64 workers): $(tr '\n' ' ' <"$tmp/wire_d.txt")."
-  echo "A coordinator of 2 cores, a 10 Gb/s link, a disk of 1 GB/s; 240 frames,"
+  echo "Inputs, from runs 1 and 2 and from scene (d) at 1920x1080 (its default split"
+  echo "for 64 workers; \`locus-wire-bytes --figures\`):"
+  echo
+  echo "| Input | Value |"
+  echo "|---|---|"
+  cat "$tmp/model_in.txt" "$tmp/wire_d.txt" | awk 'NF == 2 { printf "| %s | %s |\n", $1, $2 }'
+  echo
+  echo "Assumed: a coordinator of 2 cores, a 10 Gb/s link, a disk of 1 GB/s; 240 frames,"
   echo "the default split."
   echo
   cat "$tmp/model.md"
