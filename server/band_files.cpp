@@ -196,12 +196,14 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
   // A PNG whose bands all came as png8+deflate: joined as they are
   // (png_from_bands), nothing decoded or compressed here.
   std::vector<EncodedBand> deflated;
+  std::vector<std::string> records;  // read for the join, so not read twice
   if (output_sample_format(f.file_name) == SampleFormat::kUint8) {
     for (int b = 0; b < f.bands; ++b) {
       const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
       auto bytes = record(b);
       if (!bytes.ok()) return bytes.status();
-      auto band = unpack_record(*bytes, {f.width, rows.y0, rows.y1});
+      records.push_back(std::move(*bytes));
+      auto band = unpack_record(records.back(), {f.width, rows.y0, rows.y1});
       if (!band.ok() || band->encoding != BandEncoding::kPng8Deflate) break;
       deflated.push_back(std::move(*band));
     }
@@ -217,7 +219,10 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
   // Otherwise (other outputs, older workers' bands, a damaged record named
   // by stitch_frame): the frame's pixels, written by OpenImageIO.
   deflated.clear();
-  auto image = stitch_frame(f, record);
+  auto image = stitch_frame(f, [&](int b) -> Result<std::string> {
+    if (b < static_cast<int>(records.size())) return std::move(records[b]);
+    return record(b);
+  });
   if (!image.ok()) return image.status();
   return write_frame_file(job_dir, f.file_name, *image, sync, sync_dir);
 }

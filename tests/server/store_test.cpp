@@ -377,9 +377,14 @@ TEST(BandFiles, APngFrameIsJoinedFromDeflatedBandsOrElseStitched) {
   for (bool older_middle : {false, true}) {
     SCOPED_TRACE(older_middle ? "one band rgb8+zstd" : "all png8+deflate");
     const std::map<int, std::string> r = records(older_middle);
-    const auto lookup = [&](int band) -> Result<std::string> { return r.at(band); };
+    std::map<int, int> reads;  // each band's record is read once, either way
+    const auto lookup = [&](int band) -> Result<std::string> {
+      ++reads[band];
+      return r.at(band);
+    };
     const fs::path out = dir.path / (older_middle ? "stitched" : "joined");
     ASSERT_TRUE(write_frame(out.string(), f, lookup, true).ok());
+    EXPECT_EQ(reads, (std::map<int, int>{{0, 1}, {1, 1}, {2, 1}}));
     auto read = read_image((out / f.file_name).string());
     ASSERT_TRUE(read.ok()) << read.status().message();
     EXPECT_EQ(read->rgb, reference->rgb);
