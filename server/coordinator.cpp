@@ -28,7 +28,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr size_t kChunkBytes = 1 << 20;
-constexpr Millis kWatchInterval{100};  // at most ~10 updates a second per watcher
 
 }  // namespace
 
@@ -766,11 +765,13 @@ Status Coordinator::watch(const std::string& job_id, const Caller& caller, Milli
       sent = now;
     }
     if (is_terminal(info->state)) return Status::Ok();
-    const auto next = SteadyClock::now() + kWatchInterval;
+    const auto next = SteadyClock::now() + options_.watch_interval;
     lk.lock();
     // Throttle, then wait for a change; wake regularly to notice a client
-    // that went away.
-    changed_.wait_until(lk, std::min(next, end), [&] { return stopping_ || closing_; });
+    // that went away. The job's end is sent at once, not after the
+    // throttle (a `locus render` waits for it).
+    changed_.wait_until(lk, std::min(next, end),
+                        [&] { return stopping_ || closing_ || scheduler_.job_ended(job_id); });
     while (!stopping_ && !closing_ && scheduler_.version() == seen && SteadyClock::now() < end) {
       if (cancelled && cancelled()) return Status::Ok();
       changed_.wait_for(lk, Millis(200));

@@ -43,6 +43,8 @@ struct CoordinatorOptions {
   Millis heartbeat{1000};   // asked of workers; well inside the lease
   Millis max_poll{10000};   // longest GetTask wait
   Millis max_watch{30000};  // longest single WatchJob stream
+  // A watcher gets at most one update per this long (the job's end at once).
+  Millis watch_interval{100};
   Millis tick{100};         // how often leases are checked
   int max_attempts = 3;
   int quarantine_after = 2;

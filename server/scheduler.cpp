@@ -165,6 +165,11 @@ Result<JobInfo> Scheduler::job(const std::string& job_id) const {
   return snapshot(*job);
 }
 
+bool Scheduler::job_ended(const std::string& job_id) const {
+  const Job* job = find_job(job_id);
+  return !job || is_terminal(job->info.state);
+}
+
 std::vector<JobInfo> Scheduler::jobs() const {
   std::vector<JobInfo> out;
   for (const std::string& id : order_) out.push_back(snapshot(jobs_.at(id)));

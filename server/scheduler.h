@@ -80,6 +80,9 @@ class Scheduler {
   // The job an earlier submission with this request id created, if any.
   std::optional<JobRecord> job_for_request(const std::string& request_id) const;
   Result<JobInfo> job(const std::string& job_id) const;
+  // Whether the job has ended (or is unknown), without a snapshot: cheap
+  // enough for a wait's predicate.
+  bool job_ended(const std::string& job_id) const;
   std::vector<JobInfo> jobs() const;
   // The operators' actions; `who` names the caller in the job's history.
   Result<JobInfo> cancel(const std::string& job_id, const std::string& who = "");
