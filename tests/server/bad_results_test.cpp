@@ -28,11 +28,7 @@ using testing_farm::request;
 class BadResults : public ::testing::Test {
  protected:
   void SetUp() override {
-    CoordinatorOptions o;
-    o.data_dir = (dir_.path / "data").string();
-    o.tick = Millis(10);
-    o.fsync = false;
-    c_ = std::make_unique<Coordinator>(o);
+    c_ = std::make_unique<Coordinator>(test_doubles::test_options(dir_.path));
     ASSERT_TRUE(c_->start().ok());
     a_job_ = c_->submit(request(kSpheres, 16, 12, 1, 1, 2, "a_####.exr"))->job_id;
     b_job_ = c_->submit(request(kSpheres, 20, 12, 1, 1, 2, "b_####.png"))->job_id;

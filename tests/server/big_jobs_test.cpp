@@ -58,10 +58,7 @@ int64_t rows(const fs::path& data, const std::string& table) {
 class BigJobs : public ::testing::Test {
  protected:
   BigJobs() {
-    CoordinatorOptions o;
-    o.data_dir = (dir.path / "data").string();
-    o.tick = Millis(10);
-    o.fsync = false;
+    CoordinatorOptions o = test_doubles::test_options(dir.path);
     o.cost_bands = false;  // equal heights: 100 bands of one row
     c = std::make_unique<Coordinator>(o);
     EXPECT_TRUE(c->start().ok());

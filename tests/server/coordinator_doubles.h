@@ -20,6 +20,16 @@
 
 namespace locus::farm::test_doubles {
 
+// A Coordinator's options for a test: its data under dir/data, a fast
+// tick, no syncs (a test of durability turns them on).
+inline CoordinatorOptions test_options(const std::filesystem::path& dir) {
+  CoordinatorOptions o;
+  o.data_dir = (dir / "data").string();
+  o.tick = Millis(10);
+  o.fsync = false;
+  return o;
+}
+
 // A data directory written by release 0.13 (its README says how).
 inline const std::filesystem::path kStoreV013 =
     std::filesystem::path(LOCUS_SOURCE_DIR) / "tests/data/store-v0.13/data";

@@ -424,13 +424,8 @@ SubmitRequest spheres(int first, int last, int bands, const std::string& request
   return r;
 }
 
-CoordinatorOptions options(const fs::path& dir) {
-  CoordinatorOptions o;
-  o.data_dir = (dir / "data").string();
-  o.tick = Millis(10);
-  o.fsync = false;  // what a kill -9 tests does not depend on it
-  return o;
-}
+// No syncs: what a kill -9 tests does not depend on them.
+CoordinatorOptions options(const fs::path& dir) { return test_doubles::test_options(dir); }
 
 // Every frame of the job equals a single-process render, to the bit.
 void expect_frames_identical(Coordinator& c, const JobInfo& job, const SubmitRequest& r) {

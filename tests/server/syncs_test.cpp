@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
-#include <filesystem>
 #include <string>
 
 #include "server/coordinator.h"
@@ -17,7 +16,6 @@
 
 namespace locus::farm {
 namespace {
-namespace fs = std::filesystem;
 using test_doubles::TempDir;
 using test_doubles::TestWorker;
 using testing_farm::kSpheres;
@@ -62,9 +60,7 @@ TEST(Syncs, SqlitesSyncsAreCountedAsItsSettingAsksForThem) {
 // under synchronous=NORMAL before a checkpoint. /metrics says the same.
 TEST(Syncs, ADurableBandAndItsFrameCostThreeSyncs) {
   TempDir dir;
-  CoordinatorOptions o;
-  o.data_dir = (dir.path / "data").string();
-  o.tick = Millis(10);
+  CoordinatorOptions o = test_doubles::test_options(dir.path);
   o.fsync = true;
   Coordinator c(o);
   ASSERT_TRUE(c.start().ok());

@@ -78,11 +78,7 @@ class StoreV013 : public ::testing::Test {
  protected:
   void SetUp() override {
     fs::copy(kStore, dir_.path / "data", fs::copy_options::recursive);
-    CoordinatorOptions o;
-    o.data_dir = (dir_.path / "data").string();
-    o.tick = Millis(10);
-    o.fsync = false;
-    c_ = std::make_unique<Coordinator>(o);
+    c_ = std::make_unique<Coordinator>(test_doubles::test_options(dir_.path));
     const Status started = c_->start();
     ASSERT_TRUE(started.ok()) << started.message();
   }

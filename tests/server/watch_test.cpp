@@ -23,10 +23,7 @@ using testing_farm::request;
 
 TEST(Watch, AJobsEndIsSentAtOnceNotAfterTheThrottle) {
   TempDir dir;
-  CoordinatorOptions o;
-  o.data_dir = (dir.path / "data").string();
-  o.tick = Millis(10);
-  o.fsync = false;
+  CoordinatorOptions o = test_doubles::test_options(dir.path);
   // A throttle no test outlives: without the end sent at once, the watch
   // below would not return before `max`, ten minutes.
   o.watch_interval = Millis(3600 * 1000);
