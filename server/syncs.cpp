@@ -44,7 +44,9 @@ int file_sync(sqlite3_file* f, int flags) {
   c->directory_pending = false;
   return methods_of(f)->xSync(real_of(f), flags);
 }
-int file_size(sqlite3_file* f, sqlite3_int64* size) { return methods_of(f)->xFileSize(real_of(f), size); }
+int file_size(sqlite3_file* f, sqlite3_int64* size) {
+  return methods_of(f)->xFileSize(real_of(f), size);
+}
 int file_lock(sqlite3_file* f, int level) { return methods_of(f)->xLock(real_of(f), level); }
 int file_unlock(sqlite3_file* f, int level) { return methods_of(f)->xUnlock(real_of(f), level); }
 int file_check_reserved(sqlite3_file* f, int* out) {
@@ -110,7 +112,11 @@ int vfs_open(sqlite3_vfs*, sqlite3_filename name, sqlite3_file* f, int flags, in
   const int rc = g_real->xOpen(g_real, name, c->real, flags, out_flags);
   // SQLite closes a file whose pMethods is set, even after a failed open.
   const sqlite3_io_methods* m = c->real->pMethods;
-  f->pMethods = m ? &kMethods[(m->iVersion < 1 ? 1 : m->iVersion > 3 ? 3 : m->iVersion) - 1] : nullptr;
+  f->pMethods = m ? &kMethods[(m->iVersion < 1   ? 1
+                               : m->iVersion > 3 ? 3
+                                                 : m->iVersion) -
+                              1]
+                  : nullptr;
   return rc;
 }
 int vfs_delete(sqlite3_vfs*, const char* name, int sync_dir) {
@@ -193,7 +199,8 @@ void count_store_syncs() {
 }
 
 SyncCounts sync_counts() {
-  return {g_file_syncs.load(std::memory_order_relaxed), g_store_syncs.load(std::memory_order_relaxed)};
+  return {g_file_syncs.load(std::memory_order_relaxed),
+          g_store_syncs.load(std::memory_order_relaxed)};
 }
 
 }  // namespace locus::farm

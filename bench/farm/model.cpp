@@ -51,10 +51,10 @@ std::map<std::string, double> read_figures(const std::vector<std::string>& files
 
 struct Point {
   int workers = 0;
-  double frames_per_s = 0;   // what the workers could render
-  double cpu_s_per_s = 0;    // the coordinator's CPU they ask for
-  double link_bytes_s = 0;   // results on the link
-  double disk_bytes_s = 0;   // records, then frames
+  double frames_per_s = 0;  // what the workers could render
+  double cpu_s_per_s = 0;   // the coordinator's CPU they ask for
+  double link_bytes_s = 0;  // results on the link
+  double disk_bytes_s = 0;  // records, then frames
   double efficiency = 0;
   std::string limit;
 };
@@ -74,9 +74,9 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   bool ok = true;
   const auto v = read_figures(files, ok);
-  for (const char* key : {"coordinator_cpu_us_per_band", "round_trip_ms",
-                          "bytes_per_pixel_png8_deflate", "check_ns_per_pixel_png8_deflate",
-                          "png_join_ns_per_pixel", "render_ns_per_pixel"}) {
+  for (const char* key :
+       {"coordinator_cpu_us_per_band", "round_trip_ms", "bytes_per_pixel_png8_deflate",
+        "check_ns_per_pixel_png8_deflate", "png_join_ns_per_pixel", "render_ns_per_pixel"}) {
     if (!v.count(key)) {
       std::fprintf(stderr, "missing figure: %s\n", key);
       ok = false;
@@ -89,9 +89,11 @@ int main(int argc, char** argv) {
       (v.at("check_ns_per_pixel_png8_deflate") + v.at("png_join_ns_per_pixel")) * 1e-9;
   const double bytes_px = v.at("bytes_per_pixel_png8_deflate");
   const double render_px_s = v.at("render_ns_per_pixel") * 1e-9;
-  std::printf("| size | workers | bands a frame | frames/s wanted | coordinator CPU wanted | "
-              "link | disk | efficiency | limit |\n|---|---:|---:|---:|---|---|---|---:|---|\n");
-  for (const auto& [w, h, label] : {std::tuple{1920, 1080, "1080p"}, std::tuple{3840, 2160, "4K"}}) {
+  std::printf(
+      "| size | workers | bands a frame | frames/s wanted | coordinator CPU wanted | "
+      "link | disk | efficiency | limit |\n|---|---:|---:|---:|---|---|---|---:|---|\n");
+  for (const auto& [w, h, label] :
+       {std::tuple{1920, 1080, "1080p"}, std::tuple{3840, 2160, "4K"}}) {
     for (int workers : {8, 64, 512, 4096}) {
       const double pixels = static_cast<double>(w) * h;
       const int bands = locus::farm::default_bands(w, h, frames, workers);
@@ -110,11 +112,11 @@ int main(int argc, char** argv) {
       const auto scarcest = std::min_element(shares.begin(), shares.end());
       p.efficiency = std::min(1.0, scarcest->first) * rendering;
       p.limit = scarcest->first < 1 ? scarcest->second : "none (the workers' round trips)";
-      std::printf("| %s | %d | %d | %.1f | %.2f s/s (%.0f%% of %g cores) | %.1f MB/s | %.1f MB/s | "
-                  "%.1f%% | %s |\n",
-                  label, workers, bands, p.frames_per_s, p.cpu_s_per_s,
-                  100 * p.cpu_s_per_s / cores, cores, p.link_bytes_s / 1e6, p.disk_bytes_s / 1e6,
-                  100 * p.efficiency, p.limit.c_str());
+      std::printf(
+          "| %s | %d | %d | %.1f | %.2f s/s (%.0f%% of %g cores) | %.1f MB/s | %.1f MB/s | "
+          "%.1f%% | %s |\n",
+          label, workers, bands, p.frames_per_s, p.cpu_s_per_s, 100 * p.cpu_s_per_s / cores, cores,
+          p.link_bytes_s / 1e6, p.disk_bytes_s / 1e6, 100 * p.efficiency, p.limit.c_str());
       std::fprintf(stderr, "model_efficiency_%s_%d %.4f\n", label, workers, p.efficiency);
     }
   }

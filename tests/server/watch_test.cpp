@@ -16,13 +16,9 @@
 
 namespace locus::farm {
 namespace {
-using test_doubles::TempDir;
-using test_doubles::TestWorker;
-using testing_farm::kSpheres;
-using testing_farm::request;
 
 TEST(Watch, AJobsEndIsSentAtOnceNotAfterTheThrottle) {
-  TempDir dir;
+  test_doubles::TempDir dir;
   CoordinatorOptions o = test_doubles::test_options(dir.path);
   // A throttle no test outlives: without the end sent at once, the watch
   // below would not return before `max`, ten minutes.
@@ -30,7 +26,7 @@ TEST(Watch, AJobsEndIsSentAtOnceNotAfterTheThrottle) {
   o.max_watch = Millis(600 * 1000);
   Coordinator c(o);
   ASSERT_TRUE(c.start().ok());
-  auto job = c.submit(request(kSpheres, 16, 8, 1, 1, 1, "w_####.png"));
+  auto job = c.submit(testing_farm::request(testing_farm::kSpheres, 16, 8, 1, 1, 1, "w_####.png"));
   ASSERT_TRUE(job.ok()) << job.status().message();
   std::mutex mu;
   std::condition_variable cv;
@@ -48,7 +44,7 @@ TEST(Watch, AJobsEndIsSentAtOnceNotAfterTheThrottle) {
     std::unique_lock lk(mu);
     ASSERT_TRUE(cv.wait_for(lk, std::chrono::seconds(60), [&] { return !seen.empty(); }));
   }
-  TestWorker w(c, "w:1");
+  test_doubles::TestWorker w(c, "w:1");
   auto lease = w.take();
   ASSERT_TRUE(lease.has_value());
   ASSERT_TRUE(w.complete(*lease));
