@@ -218,7 +218,8 @@ void Coordinator::complete_bands_async(std::vector<BandOutput> outputs,
   lk.lock();
   bool refusals = false;
   for (size_t i = 0; i < n; ++i) {
-    std::optional<BandTarget> target = targets[i] ? scheduler_.result_target(outputs[i]) : std::nullopt;
+    std::optional<BandTarget> target =
+        targets[i] ? scheduler_.result_target(outputs[i]) : std::nullopt;
     std::optional<BandLogScope> log_scope;
     if (target) log_scope.emplace(target->job_id, target->frame, target->band);
     auto r = scheduler_.complete_band(outputs[i]);

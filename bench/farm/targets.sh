@@ -48,6 +48,14 @@ echo "== 5. the model" >&2
 "$bin/locus-wire-bytes" --size 1920x1080 --workers 64 --figures "$tmp/wire_d.txt" \
   "$root/scenes/paper/d_spheres_2lights.json" >"$tmp/wire_d.md" || fail 5
 get() { awk -v k="$2" '$1 == k { print $2; exit }' "$1"; }
+# "key value" files as a Markdown table whose first column is titled $1.
+table() {
+  local title=$1
+  shift
+  echo "| $title | Value |"
+  echo "|---|---|"
+  awk 'NF == 2 && $1 ~ /^[a-z_0-9]+$/ { printf "| %s | %s |\n", $1, $2 }' "$@"
+}
 w10_bps=$(get "$tmp/w10.txt" bands_per_second)
 {
   echo "coordinator_cpu_us_per_band $(get "$tmp/w1000.txt" coordinator_cpu_us_per_band)"
@@ -138,15 +146,11 @@ awk -v f1000="$tmp/w1000.txt" -v f10="$tmp/w10.txt" -v fbig="$tmp/big.txt" \
   echo
   echo "## 2. 10 workers, the same bands"
   echo
-  echo "| Figure | Value |"
-  echo "|---|---|"
-  awk 'NF == 2 && $1 ~ /^[a-z_0-9]+$/ { printf "| %s | %s |\n", $1, $2 }' "$tmp/w10.txt"
+  table Figure "$tmp/w10.txt"
   echo
   echo "## 3. 1,000 workers connected, 1,000,000 bands queued (big_jobs.sh)"
   echo
-  echo "| Figure | Value |"
-  echo "|---|---|"
-  awk 'NF == 2 && $1 ~ /^[a-z_0-9]+$/ { printf "| %s | %s |\n", $1, $2 }' "$tmp/big.txt"
+  table Figure "$tmp/big.txt"
   echo
   echo "## 4. Bytes per pixel on the wire (locus-wire-bytes, 256x256, the paper's and SPD def)"
   echo
@@ -161,9 +165,7 @@ awk -v f1000="$tmp/w1000.txt" -v f10="$tmp/w10.txt" -v fbig="$tmp/big.txt" \
   echo "Inputs, from runs 1 and 2 and from scene (d) at 1920x1080 (its default split"
   echo "for 64 workers; \`locus-wire-bytes --figures\`):"
   echo
-  echo "| Input | Value |"
-  echo "|---|---|"
-  cat "$tmp/model_in.txt" "$tmp/wire_d.txt" | awk 'NF == 2 { printf "| %s | %s |\n", $1, $2 }'
+  table Input "$tmp/model_in.txt" "$tmp/wire_d.txt"
   echo
   echo "Assumed: a coordinator of 2 cores, a 10 Gb/s link, a disk of 1 GB/s; 240 frames,"
   echo "the default split."

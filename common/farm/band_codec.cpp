@@ -332,7 +332,8 @@ namespace {
 // Every check decode_band makes, in one place. On success `inflated` holds
 // the band's bytes when they were compressed (the samples as pack() laid
 // them out, or png8+deflate's filtered rows); uncompressed float32 is
-// band.bytes itself, and `inflated` stays empty.
+// band.bytes itself, and `inflated` stays empty. On failure `inflated`
+// means nothing.
 Status check_bytes(const EncodedBand& band, std::string& inflated) {
   const std::optional<Layout> l = layout_of(band.encoding);
   if (!l && band.encoding != BandEncoding::kPng8Deflate)
@@ -378,12 +379,10 @@ Status check_bytes(const EncodedBand& band, std::string& inflated) {
   const size_t got =
       ZSTD_decompress(inflated.data(), inflated.size(), band.bytes.data(), band.bytes.size());
   if (ZSTD_isError(got)) {
-    inflated.clear();
-    return InvalidArgument(what + ": corrupt or truncated zstd payload (" +
-                           ZSTD_getErrorName(got) + ")");
+    return InvalidArgument(what + ": corrupt or truncated zstd payload (" + ZSTD_getErrorName(got) +
+                           ")");
   }
   if (got != expected) {
-    inflated.clear();
     std::string m = what;
     m.append(": the zstd payload holds ").append(std::to_string(got));
     m.append(" bytes, expected ").append(std::to_string(expected));
