@@ -12,8 +12,9 @@
 #   calls failed meanwhile apart, --outage-ok; no CPU or sync figures).
 #   REVIVE_MS: DIE workers come back after this long, and die again.
 #   REPORT=FILE: writes the run as Markdown to FILE (the commit, the
-#   machine's load, the settings, every figure and the target lines), the
-#   targets.sh writes bench/results/farm-scale.md from such reports.
+#   machine's load, the settings, every figure); issue #25's target lines
+#   are judged once, by targets.sh, which writes
+#   bench/results/farm-scale.md around such a report.
 #   FIGURES=FILE: copies the run's "key value" lines to FILE
 #   (bench/farm/targets.sh).
 set -euo pipefail
@@ -108,34 +109,6 @@ fi
 [ -z "${RESTART_AFTER:-}" ] &&
   sed -n 's/.*syncs: \([0-9]*\) (the store.s \([0-9]*\), the coordinator.s files. \([0-9]*\)).*/coordinator_syncs \1\ncoordinator_syncs_store \2\ncoordinator_syncs_files \3/p' "$tmp/coord.log" | tee -a "$tmp/figures.txt"
 sed -n 's/.*dispatch latency: \([0-9]*\) bands, p50 \([0-9]*\) us, p99 \([0-9]*\) us, max \([0-9]*\) us.*/coordinator_dispatch_us_p50 \2\ncoordinator_dispatch_us_p99 \3\ncoordinator_dispatch_us_max \4/p' "$tmp/coord.log" | tee -a "$tmp/figures.txt"
-# Issue #25's target lines, for the run they are written for (1,000 or more
-# workers, zero render time, no faults, no restart): informational, the
-# exit status is the correctness checks' alone (never speed: CTest runs
-# this script small).
-if [ "${WORKERS:-1000}" -ge 1000 ] && [ "${DELAY_MS:-0}" = 0 ] && [ -z "${RESTART_AFTER:-}" ] &&
-  [ "${DIE:-0}${STALL:-0}${LATE:-0}" = 000 ] && [ "$status" = 0 ]; then
-  awk '
-    { v[$1] = $2 }
-    function line(what, got, ok) { printf "target %s: %s %s\n", what, got, ok ? "PASS" : "FAIL" }
-    END {
-      line(">= 5,000 bands/s", v["bands_per_second"], v["bands_per_second"] >= 5000)
-      line("dispatch p99 <= 50 ms (the coordinator'"'"'s)", v["coordinator_dispatch_us_p99"] / 1000 " ms",
-           v["coordinator_dispatch_us_p99"] != "" && v["coordinator_dispatch_us_p99"] <= 50000)
-      line("no call refused (RPC errors)", v["rpc_errors"], v["rpc_errors"] == 0)
-      if (v["coordinator_syncs"] != "")
-        line("<= 2 syncs per 50 bands", sprintf("%.2f", v["coordinator_syncs"] * 50 / v["bands"]),
-             v["coordinator_syncs"] * 50 <= 2 * v["bands"])
-      else
-        print "target <= 2 syncs per 50 bands: not counted (the coordinator did not log them)"
-      line("coordinator CPU <= 200 us a band", v["coordinator_cpu_us_per_band"] " us",
-           v["coordinator_cpu_us_per_band"] > 0 && v["coordinator_cpu_us_per_band"] <= 200)
-      if (v["coordinator_rss_peak_mib"] > 0)
-        line("RSS <= 300 MiB (peak, 1,000 workers)", v["coordinator_rss_peak_mib"] " MiB",
-             v["coordinator_rss_peak_mib"] <= 300)
-      else
-        print "target RSS <= 300 MiB: not sampled (a run under a second)"
-    }' "$tmp/figures.txt" | tee "$tmp/targets.txt"
-fi
 [ -n "${FIGURES:-}" ] && cp "$tmp/figures.txt" "$FIGURES"
 if [ -n "${REPORT:-}" ]; then
   {
@@ -150,17 +123,6 @@ if [ -n "${REPORT:-}" ]; then
       "LATE=${LATE:-0} SCALE_FLAGS='${SCALE_FLAGS:-}' COORDINATOR_FLAGS='${COORDINATOR_FLAGS:-}'." \
       "The harness's exit status: $status (0: every band accepted once, every frame identical to its reference)."
     echo
-    if [ -s "$tmp/targets.txt" ]; then
-      echo "## Issue #25's target lines"
-      echo
-      echo "| Target | Measured | |"
-      echo "|---|---|---|"
-      sed -n 's/^target \(.*\): \(.*\) \(PASS\|FAIL\)$/| \1 | \2 | \3 |/p' "$tmp/targets.txt"
-      # (grep finds nothing when every line was measured.)
-      { grep -v ' PASS$\| FAIL$' "$tmp/targets.txt" || true; } |
-        sed 's/^target \(.*\): \(.*\)$/| \1 | \2 | |/'
-      echo
-    fi
     echo "## Every figure"
     echo
     echo "| Figure | Value |"
