@@ -33,3 +33,14 @@ signal_busy() {
   done
   return 1
 }
+
+# prints PATTERN CMD...: CMD succeeds and its whole output matches PATTERN
+# (grep -E). Not `CMD | grep -q`: grep -q stops reading at the first match,
+# and when CMD writes again after that it dies of SIGPIPE, which pipefail
+# counts as the pipeline failing: a test that fails by chance.
+prints() {
+  local pattern=$1 out
+  shift
+  out=$("$@" 2>/dev/null) || return 1
+  grep -Eq -- "$pattern" <<<"$out"
+}

@@ -328,7 +328,7 @@ scenario2() {
     bad "[2] paused $P got $(($(leases_of "$P") - n)) leases after the restart"
   out=$(cli ann resume "$P" 2>&1) || bad "[2] resume $P: $out"
   poll 30 job_is "$P" succeeded && ok "[2] resumed $P succeeded" || { bad "[2] $P: $(state_of "$P")"; return; }
-  cli ann events "$P" 2>/dev/null | grep -q "paused by ann" && ok "[2] $P's history: paused by ann" ||
+  prints "paused by ann" cli ann events "$P" && ok "[2] $P's history: paused by ann" ||
     bad "[2] $P's history lacks 'paused by ann'"
   frames_check 2 "$P" 1 6
 }
@@ -440,7 +440,7 @@ scenario5() {
     ok "[5] the first hung worker's lease was voided by the restart" || bad "[5] the first hung worker's lease did not end as void"
   poll 5 grep -q "revoked" "$tmp/worker-hung2.log" && ok "[5] the hung worker heard its lease was revoked" ||
     bad "[5] the hung worker was not told of the revocation"
-  cli ann status "$T" 2>/dev/null | grep -q "hung .*taken back by the band timeout" && ok "[5] locus status $T counts the hung band" ||
+  prints "hung .*taken back by the band timeout" cli ann status "$T" && ok "[5] locus status $T counts the hung band" ||
     bad "[5] status $T does not count the hung band"
   frames_check 5 "$T" 1 24
   kill -9 "$h2"
@@ -509,7 +509,7 @@ scenario7() {
     poll 30 job_is "$A" succeeded && [ -f "$file" ] &&
       same_pixels "$file" "$tmp/ref/1-6/f_0002.png" && ok "[7] $file is back, identical to the reference" ||
       bad "[7] $A: $(state_of "$A"); $file: $(ls "$file" 2>&1)"
-    cli ann events "$A" 2>/dev/null | grep -q "frames 2-2 requeued by ann" && ok "[7] $A's history: frames 2-2 requeued by ann" ||
+    prints "frames 2-2 requeued by ann" cli ann events "$A" && ok "[7] $A's history: frames 2-2 requeued by ann" ||
       bad "[7] $A's history lacks the requeue"
     frames_check 7 "$A" 1 6
   fi
@@ -526,7 +526,7 @@ scenario7() {
     bad "[7] $R: $(state_of "$R") at $d/12 bands"
   out=$(cli ann retry "$R" 2>&1) || bad "[7] retry $R: $out"
   poll 30 job_is "$R" succeeded && ok "[7] retried $R succeeded" || { bad "[7] $R: $(state_of "$R")"; return; }
-  cli ann events "$R" 2>/dev/null | grep -q "retried by ann" && ok "[7] $R's history: retried by ann" ||
+  prints "retried by ann" cli ann events "$R" && ok "[7] $R's history: retried by ann" ||
     bad "[7] $R's history lacks the retry"
   frames_check 7 "$R" 1 6
 }

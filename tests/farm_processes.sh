@@ -173,7 +173,7 @@ locus submit "$glass" --farm "$farm" --frames 1-400 --size 96x72 --method raytra
   >"$tmp/cancel.out" 2>"$tmp/cancel.log"
 cjob=$(head -1 "$tmp/cancel.out")
 sleep 0.3
-locus cancel "$cjob" --farm "$farm" | grep -q cancelled && ok "cancel $cjob" || bad "cancel $cjob"
+prints cancelled locus cancel "$cjob" --farm "$farm" && ok "cancel $cjob" || bad "cancel $cjob"
 before=$(locus status "$cjob" --farm "$farm" | awk '/progress/ {print $2}')
 sleep 0.5
 after=$(locus status "$cjob" --farm "$farm" | awk '/progress/ {print $2}')

@@ -83,7 +83,7 @@ job=$(locus submit "$src/scenes/paper/d_spheres_2lights.json" --size 320x240 --f
   --bands 16 --band-timeout 2 -o "shot_####.png" 2>>"$tmp/client.log") ||
   { cat "$tmp/client.log"; fail "submit"; }
 for _ in $(seq 100); do
-  locus events "$job" 2>/dev/null | grep -q "(hung-worker)" && break
+  [ "$(locus events "$job" 2>/dev/null | grep -c "(hung-worker)")" -ge 1 ] && break
   sleep 0.05
 done
 worker render-1 80
