@@ -37,6 +37,7 @@ pid_t spawn_worker(const std::string& binary, const std::string& address, int th
   std::vector<const char*> envp;
   for (const std::string& e : env) envp.push_back(e.c_str());
   envp.push_back(nullptr);
+  const std::string threads_arg = std::to_string(threads);
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid != 0) return pid;
@@ -54,7 +55,6 @@ pid_t spawn_worker(const std::string& binary, const std::string& address, int th
   sigset_t none;
   sigemptyset(&none);
   sigprocmask(SIG_SETMASK, &none, nullptr);
-  const std::string threads_arg = std::to_string(threads);
   const char* argv[] = {binary.c_str(),      "--coordinator", address.c_str(), "--threads",
                         threads_arg.c_str(), "--poll-ms",     "2000",          nullptr};
   execve(binary.c_str(), const_cast<char* const*>(argv), const_cast<char* const*>(envp.data()));

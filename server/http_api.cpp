@@ -2,7 +2,6 @@
 
 #include <google/protobuf/util/json_util.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -12,6 +11,7 @@
 
 #include "common/base/image.h"
 #include "common/base/log.h"
+#include "common/base/png.h"
 #include "common/farm/movie.h"
 #include "server/dashboard_assets.h"
 
@@ -184,19 +184,6 @@ HttpResponse png_file(const std::string& path) {
   return r;
 }
 
-// The image as PNG bytes, through a temporary file beside `dir`'s others.
-Result<std::string> png_bytes(const Image& image, const fs::path& dir) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  const fs::path tmp = dir / (".tmp-" + std::to_string(::getpid()) + "-" +
-                              std::to_string(reinterpret_cast<uintptr_t>(&image)) + ".png");
-  if (Status s = write_image(tmp.string(), image, true); !s.ok()) return s;
-  std::ifstream in(tmp, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  fs::remove(tmp, ec);
-  return bytes;
-}
-
 // Each output pixel is the mean of a k x k block of input pixels (fewer at
 // the right and bottom edges), k the smallest integer that fits the width.
 Image box_downscale(const Image& in, int max_width) {
@@ -233,8 +220,9 @@ Status refresh(const fs::path& source, const fs::path& cached,
   if (!frame.ok()) return frame.status();
   auto image = make(*frame);
   if (!image.ok()) return image.status();
-  auto bytes = png_bytes(*image, cached.parent_path());
+  auto bytes = encode_png(*image, PngTag::kDisplay);
   if (!bytes.ok()) return bytes.status();
+  fs::create_directories(cached.parent_path(), ec);
   const fs::path tmp = cached.string() + ".partial";
   {
     std::ofstream out(tmp, std::ios::binary);
@@ -536,7 +524,7 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
     auto pixels = c_.band_image(job, f, static_cast<int>(*band), caller);
     if (!pixels.ok()) return error(pixels.status());
     std::lock_guard lk(images_mu_);
-    auto bytes = png_bytes(*pixels, fs::path(c_.job_dir(job)) / ".dashboard");
+    auto bytes = encode_png(*pixels, PngTag::kDisplay);
     if (!bytes.ok()) return error(bytes.status());
     HttpResponse r;
     r.content_type = "image/png";

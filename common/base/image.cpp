@@ -1,12 +1,73 @@
+// Image files: PNGs written here (png.h); EXR, TIFF and every read through
+// the image plugin (image_plugin.h), loaded on first use.
 #include "common/base/image.h"
 
-#include <OpenImageIO/imageio.h>
+#include <dlfcn.h>
 
-#include <algorithm>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
+
+#include "common/base/image_plugin.h"
+#include "common/base/png.h"
 
 namespace locus {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct LoadedPlugin {
+  const ImagePlugin* plugin = nullptr;
+  std::string error;  // why there is none
+};
+
+// Loaded once per process (a function-local static: thread-safe), never
+// unloaded.
+const LoadedPlugin& loaded_plugin() {
+  static const LoadedPlugin loaded = [] {
+    LoadedPlugin l;
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) {
+      l.error = "cannot find this executable's directory (/proc/self/exe: " + ec.message() + ")";
+      return l;
+    }
+    const fs::path path =
+        (exe.parent_path() / ".." / "lib" / "locus" / kImagePluginFile).lexically_normal();
+    const std::string where = "the image plugin " + path.string() +
+                              " (looked for in ../lib/locus/ from the executable's directory, "
+                              "where the package and the build put it)";
+    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+      const char* why = dlerror();
+      l.error = "cannot load " + where + ": " + (why ? why : "unknown error");
+      return l;
+    }
+    using Entry = const ImagePlugin* (*)();
+    const auto entry = reinterpret_cast<Entry>(dlsym(handle, kImagePluginEntry));
+    const ImagePlugin* plugin = entry ? entry() : nullptr;
+    if (!plugin || plugin->abi != kImagePluginAbi || !plugin->write || !plugin->read) {
+      l.error = where + " is of another build (its interface is " +
+                (plugin ? std::to_string(plugin->abi) : std::string("missing")) +
+                ", this build's " + std::to_string(kImagePluginAbi) + ")";
+      return l;
+    }
+    l.plugin = plugin;
+    return l;
+  }();
+  return loaded;
+}
+
+Status write_file(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) return Internal(path + ": cannot create the file");
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  out.close();
+  if (!out) return Internal(path + ": cannot write the file (is the disk full?)");
+  return Status::Ok();
+}
+
+}  // namespace
 
 Status write_image(const std::string& path, const Image& image, bool for_display) {
   const SampleFormat format = output_sample_format(path);
@@ -15,47 +76,36 @@ Status write_image(const std::string& path, const Image& image, bool for_display
                            "' (expected .png, .exr, .tif)");
   }
   if (image.width <= 0 || image.height <= 0) return InvalidArgument(path + ": empty image");
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) return Internal(path + ": cannot create image writer: " + OIIO::geterror());
+  if (format == SampleFormat::kUint8) {
+    // SHADING.md "Output": round(255 * clamp(v, 0, 1)), no transfer curve.
+    auto png = encode_png(image, for_display ? PngTag::kDisplay : PngTag::kLinear);
+    if (!png.ok()) return Internal(path + ": " + png.status().message());
+    return write_file(path, *png);
+  }
+  const LoadedPlugin& l = loaded_plugin();
+  if (!l.plugin) return Internal(path + ": cannot write it: " + l.error);
+  std::string error;
   bool ok = false;
   if (format == SampleFormat::kFloat32) {
-    OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::FLOAT);
-    spec.attribute("compression", "zip");
-    ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::FLOAT, image.rgb.data());
-  } else if (format == SampleFormat::kUint8) {
-    // SHADING.md "Output": round(255 * clamp(v, 0, 1)), no transfer curve.
-    std::vector<uint8_t> px(image.rgb.size());
-    for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint8_t>(quantize8(image.rgb[i]));
-    OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
-    spec.attribute("oiio:ColorSpace", for_display ? "sRGB" : "Linear");
-    spec.attribute("png:compressionLevel", kPngLevel);
-    ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
+    ok = l.plugin->write(path.c_str(), image.width, image.height, format, image.rgb.data(), &error);
   } else {
     std::vector<uint16_t> px(image.rgb.size());
     for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint16_t>(quantize16(image.rgb[i]));
-    OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT16);
-    ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT16, px.data());
+    ok = l.plugin->write(path.c_str(), image.width, image.height, format, px.data(), &error);
   }
-  if (!ok) return Internal(path + ": cannot write image: " + out->geterror());
-  if (!out->close()) return Internal(path + ": cannot finish image: " + out->geterror());
+  if (!ok) return Internal(path + ": " + error);
   return Status::Ok();
 }
 
 Result<Image> read_image(const std::string& path) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) return NotFound(path + ": cannot read image: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.nchannels < 3) return InvalidArgument(path + ": expected an RGB image");
-  Image img(spec.width, spec.height);
-  std::vector<float> all(static_cast<size_t>(spec.width) * spec.height * spec.nchannels);
-  // 8-bit files are read back as their stored code values / 255.
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data())) {
-    return InvalidArgument(path + ": cannot decode image: " + in->geterror());
-  }
-  for (size_t p = 0; p < static_cast<size_t>(spec.width) * spec.height; ++p) {
-    for (int c = 0; c < 3; ++c) img.rgb[p * 3 + c] = all[p * spec.nchannels + c];
-  }
-  return img;
+  const LoadedPlugin& l = loaded_plugin();
+  if (!l.plugin) return Internal(path + ": cannot read it: " + l.error);
+  Image image;
+  std::string error;
+  const int r = l.plugin->read(path.c_str(), &image, &error);
+  if (r == 1) return NotFound(path + ": " + error);
+  if (r != 0) return InvalidArgument(path + ": " + error);
+  return image;
 }
 
 }  // namespace locus

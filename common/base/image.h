@@ -1,4 +1,5 @@
-// Linear float RGB images and their output through OpenImageIO.
+// Linear float RGB images and their files: PNGs written by png.h, EXR and
+// TIFF files and every read by the image plugin (image_plugin.h).
 #pragma once
 
 #include <string>

@@ -10,6 +10,7 @@
 #include <string_view>
 
 #include "common/base/image.h"
+#include "common/base/png.h"
 
 namespace locus::farm {
 namespace {
@@ -136,40 +137,6 @@ std::string band_size_text(int width, int rows) {
 // zlib's fastest level: the worker pays it per pixel, next to about a
 // microsecond of rendering per pixel (docs/farm.md "Frames" has the sizes).
 constexpr int kDeflateLevel = 1;
-// PNG's filter types (PNG specification, 9.2).
-constexpr unsigned char kFilterNone = 0, kFilterSub = 1, kFilterUp = 2, kFilterAverage = 3,
-                        kFilterPaeth = 4;
-
-size_t png_row_bytes(int width) { return 1 + static_cast<size_t>(width) * 3; }
-
-void put_be32(std::string& out, uint32_t v) {
-  for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<char>((v >> s) & 0xff));
-}
-uint32_t get_be32(const char* p) {
-  uint32_t v = 0;
-  for (int i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(p[i]);
-  return v;
-}
-
-// The rows as a PNG's image data holds them before compression: a filter
-// byte, then the row filtered (the first Sub, the others Up).
-std::string png_filtered(int width, int rows, const std::vector<float>& rgb) {
-  const size_t stride = static_cast<size_t>(width) * 3;
-  std::string out(png_row_bytes(width) * rows, '\0');
-  std::vector<unsigned char> prev(stride), cur(stride);
-  for (int y = 0; y < rows; ++y) {
-    for (size_t i = 0; i < stride; ++i)
-      cur[i] = static_cast<unsigned char>(quantize8(rgb[y * stride + i]));
-    char* o = out.data() + y * png_row_bytes(width);
-    o[0] = static_cast<char>(y == 0 ? kFilterSub : kFilterUp);
-    for (size_t i = 0; i < stride; ++i) {
-      const unsigned char ref = y == 0 ? (i >= 3 ? cur[i - 3] : 0) : prev[i];
-      o[1 + i] = static_cast<char>(static_cast<unsigned char>(cur[i] - ref));
-    }
-    prev.swap(cur);
-  }
-  return out;
-}
 
 Result<std::string> deflate_rows(const std::string& raw) {
   z_stream z{};
@@ -230,7 +197,7 @@ Result<std::string> png8_rows(const EncodedBand& band, const std::string& what) 
     return InvalidArgument(what + ": the rows do not match their adler-32");
   for (int y = 0; y < band.rows; ++y) {
     const auto filter = static_cast<unsigned char>(raw[y * row_bytes]);
-    if (filter > kFilterPaeth || (y == 0 && filter > kFilterSub)) {
+    if (filter > kPngFilterPaeth || (y == 0 && filter > kPngFilterSub)) {
       std::string m = what;
       m.append(": row ").append(std::to_string(y)).append(" has filter ");
       m.append(std::to_string(filter)).append(y == 0 ? " (the first row: 0 or 1)" : " (0 to 4)");
@@ -257,10 +224,10 @@ std::vector<unsigned char> png8_codes(const std::string& raw, int width, int row
       const int c = up && i >= 3 ? up[i - 3] : 0;
       int pred = 0;
       switch (filter) {
-        case kFilterNone: pred = 0; break;
-        case kFilterSub: pred = a; break;
-        case kFilterUp: pred = b; break;
-        case kFilterAverage: pred = (a + b) / 2; break;
+        case kPngFilterNone: pred = 0; break;
+        case kPngFilterSub: pred = a; break;
+        case kPngFilterUp: pred = b; break;
+        case kPngFilterAverage: pred = (a + b) / 2; break;
         default: {
           const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
           pred = (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
@@ -270,15 +237,6 @@ std::vector<unsigned char> png8_codes(const std::string& raw, int width, int row
     }
   }
   return codes;
-}
-
-void put_chunk(std::string& png, const char* type, std::string_view data) {
-  put_be32(png, static_cast<uint32_t>(data.size()));
-  png.append(type, 4);
-  png.append(data);
-  uLong crc = crc32(0, reinterpret_cast<const Bytef*>(type), 4);
-  crc = crc32(crc, reinterpret_cast<const Bytef*>(data.data()), static_cast<uInt>(data.size()));
-  put_be32(png, static_cast<uint32_t>(crc));
 }
 
 }  // namespace
@@ -309,7 +267,7 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
     return InvalidArgument(m);
   }
   if (!l) {
-    auto bytes = deflate_rows(png_filtered(width, rows, rgb));
+    auto bytes = deflate_rows(png_filter_rows(width, rows, rgb));
     if (!bytes.ok()) return bytes.status();
     return EncodedBand{encoding, width, rows, std::move(*bytes)};
   }
@@ -417,18 +375,10 @@ Result<std::vector<float>> decode_band(const EncodedBand& band) {
 
 Result<std::string> png_from_bands(int width, int height, const std::vector<EncodedBand>& bands) {
   if (width < 1 || height < 1) return InvalidArgument("a PNG frame of no pixels");
-  std::string png("\x89PNG\r\n\x1a\n", 8);
-  std::string header;
-  put_be32(header, static_cast<uint32_t>(width));
-  put_be32(header, static_cast<uint32_t>(height));
-  header.append("\x08\x02\x00\x00\x00", 5);  // 8 bits, RGB, deflate, filters, no interlace
-  put_chunk(png, "IHDR", header);
-  std::string gamma;
-  put_be32(gamma, 100000);  // linear, as write_image tags its PNGs
-  put_chunk(png, "gAMA", gamma);
-  put_chunk(png, "tEXt", std::string_view("oiio:ColorSpace\0Linear", 22));
   // The zlib stream: its header, each band's deflate bytes, an empty last
   // block, the adler-32 of all rows (RFC 1950, 1951).
+  std::vector<std::string_view> idat;
+  std::string first("\x78\x01", 2);
   uLong adler = 1;
   int rows = 0;
   for (size_t b = 0; b < bands.size(); ++b) {
@@ -445,11 +395,10 @@ Result<std::string> png_from_bands(int width, int height, const std::vector<Enco
                             static_cast<z_off_t>(png_row_bytes(width) * band.rows));
     const std::string_view stream = std::string_view(band.bytes).substr(4);
     if (b == 0) {
-      std::string first("\x78\x01", 2);
       first.append(stream);
-      put_chunk(png, "IDAT", first);
+      idat.emplace_back(first);
     } else {
-      put_chunk(png, "IDAT", stream);
+      idat.push_back(stream);
     }
   }
   if (rows != height) {
@@ -459,9 +408,8 @@ Result<std::string> png_from_bands(int width, int height, const std::vector<Enco
   }
   std::string last("\x03\x00", 2);
   put_be32(last, static_cast<uint32_t>(adler));
-  put_chunk(png, "IDAT", last);
-  put_chunk(png, "IEND", "");
-  return png;
+  idat.emplace_back(last);
+  return png_file(width, height, PngTag::kLinear, idat);
 }
 
 }  // namespace locus::farm

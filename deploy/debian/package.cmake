@@ -20,6 +20,9 @@ set(locus_debian ${CMAKE_CURRENT_LIST_DIR})
 set(locus_systemd ${CMAKE_SOURCE_DIR}/deploy/systemd)
 
 install(TARGETS locus locus-coordinator locus-worker RUNTIME DESTINATION bin)
+# The image plugin (common/base/image_plugin.h): a private library, where
+# the binaries look for it, bin/../lib/locus (/usr/lib/locus).
+install(TARGETS locus-image-io LIBRARY DESTINATION lib/locus)
 # lib/systemd/system under the prefix /usr: /usr/lib/systemd/system, which
 # is /lib/systemd/system on Debian 12's merged /usr.
 install(FILES ${locus_systemd}/locus-coordinator.service ${locus_systemd}/locus-worker@.service

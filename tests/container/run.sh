@@ -128,11 +128,14 @@ else
   rm -rf "$stage"
   mkdir -p "$stage/worker" "$stage/coordinator"
   bin_dir=$(cd "$1" && pwd) || { bad "no binaries in $1"; exit 1; }
+  mkdir -p "$stage/coordinator/lib"
   cp "$bin_dir/locus-worker" "$stage/worker/" &&
     cp "$bin_dir/locus" "$bin_dir/locus-coordinator" "$bin_dir/locus-worker" "$stage/coordinator/" &&
+    cp "$bin_dir/../lib/locus/liblocus-image-io.so" "$stage/coordinator/lib/" &&
     bash "$src/deploy/docker/runtime-packages.sh" "$stage/worker/locus-worker" >"$stage/worker/packages" &&
     bash "$src/deploy/docker/runtime-packages.sh" "$stage/coordinator/locus" \
-      "$stage/coordinator/locus-coordinator" "$stage/coordinator/locus-worker" >"$stage/coordinator/packages" ||
+      "$stage/coordinator/locus-coordinator" "$stage/coordinator/locus-worker" \
+      "$stage/coordinator/lib/liblocus-image-io.so" >"$stage/coordinator/packages" ||
     { bad "staging the binaries of $1 for the images"; exit 1; }
   binaries=(--build-arg WORKER_BINARIES=prebuilt --build-arg COORDINATOR_BINARIES=prebuilt)
   phase "binaries of $bin_dir staged"

@@ -12,7 +12,8 @@
 #     of the test's own: it goes away with the test, however the test ends.
 #     Each command in the root runs under chroot in mount and PID
 #     namespaces of its own, with its own /proc.
-#  3. In the root: the binaries load, the user `locus` and /var/lib/locus,
+#  3. In the root: the binaries and the image plugin (/usr/lib/locus) load,
+#     an EXR render through the plugin, the user `locus` and /var/lib/locus,
 #     the units, the conffiles, the man pages; `locus render` of a scene at
 #     64x48 with --workers 0 equals this build's exactly (the same bytes;
 #     the same pixels, should the mirror's libraries encode PNG otherwise).
@@ -42,6 +43,7 @@ if [ -z "${LOCUS_PACKAGE_TEST_NS:-}" ]; then
   LOCUS_PACKAGE_TEST_NS=1 exec unshare --mount --propagation private bash "$0" "$@"
 fi
 bin=$(realpath "$1") src=$(realpath "$2") build=$(realpath "$3")
+plugin=$bin/../lib/locus/liblocus-image-io.so  # common/base/image_plugin.h
 . "$src/tests/farm_lib.sh"  # same_pixels
 start=$SECONDS
 fails=0
@@ -101,8 +103,8 @@ provides() {
   dpkg-query -W -f='${Provides}\n' "$1" 2>/dev/null | tr ',' '\n' | awk 'NF {print $1}'
 }
 missing=
-for lib in $(for b in locus locus-coordinator locus-worker; do
-               readelf -d "$bin/$b" | sed -n 's/.*(NEEDED).*\[\(.*\)\]/\1/p'
+for lib in $(for b in "$bin/locus" "$bin/locus-coordinator" "$bin/locus-worker" "$plugin"; do
+               readelf -d "$b" | sed -n 's/.*(NEEDED).*\[\(.*\)\]/\1/p'
              done | sort -u); do
   path=$(ldconfig -p | awk -v l="$lib" '$1 == l && $NF ~ /^\// {print $NF; exit}')
   [ -n "$path" ] || { missing+=" $lib(unresolved)"; continue; }
@@ -144,9 +146,10 @@ ok "installed: $(grep -Eo '[0-9]+ newly installed' "$tmp/apt.log" | head -1), $(
 step "installed files"
 [ "$(in_root dpkg-query -W -f='${Status}' locus)" = "install ok installed" ] && ok "dpkg: locus installed" ||
   bad "locus is not installed"
-ldd_out=$(in_root ldd /usr/bin/locus /usr/bin/locus-coordinator /usr/bin/locus-worker 2>&1)
+ldd_out=$(in_root ldd /usr/bin/locus /usr/bin/locus-coordinator /usr/bin/locus-worker \
+  /usr/lib/locus/liblocus-image-io.so 2>&1)
 grep -q "not found" <<<"$ldd_out" && bad "libraries missing in the root: $(grep "not found" <<<"$ldd_out" | sort -u | tr '\n' ' ')" ||
-  ok "the three binaries find every library"
+  ok "the three binaries and the image plugin (/usr/lib/locus) find every library"
 for b in locus locus-coordinator locus-worker; do
   in_root "/usr/bin/$b" --help >"$tmp/$b.help" 2>&1 && ok "/usr/bin/$b --help" || bad "/usr/bin/$b --help fails"
 done
@@ -184,6 +187,14 @@ in_root /usr/bin/locus render /tmp/spheres.json --size 64x48 --workers 0 -o /tmp
   >"$tmp/root-render.log" 2>&1 && same_image "$tmp/host.png" "$root/tmp/root.png" &&
   ok "/usr/bin/locus render --workers 0 == $bin/locus render ($(cmp -s "$tmp/host.png" "$root/tmp/root.png" && echo same bytes || echo same pixels))" ||
   { bad "render in the root"; cat "$tmp/root-render.log"; }
+# An EXR goes through the image plugin, which the root's locus loads from
+# /usr/lib/locus.
+"$bin/locus" render "$src/scenes/simple/spheres.json" --size 64x48 --workers 0 -o "$tmp/host.exr" \
+  >"$tmp/host-exr.log" 2>&1 || { cat "$tmp/host-exr.log"; die "host render (EXR)"; }
+in_root /usr/bin/locus render /tmp/spheres.json --size 64x48 --workers 0 -o /tmp/root.exr \
+  >"$tmp/root-exr.log" 2>&1 && same_pixels "$tmp/host.exr" "$root/tmp/root.exr" &&
+  ok "/usr/bin/locus render -o root.exr (the image plugin) == $bin/locus render" ||
+  { bad "EXR render in the root"; cat "$tmp/root-exr.log"; }
 
 # ---- 4. the units' command lines
 # unit_command UNIT INSTANCE: the ExecStart= command line systemd builds

@@ -92,6 +92,13 @@ TEST(Backup, WhileBandsAreAcceptedHoldsEveryAcknowledgedBandAndRestores) {
       ASSERT_TRUE(w.complete(*t));
       acknowledged.insert({t->job_id, t->frame, t->band});
     }
+    // The frames those bands complete are written by the coordinator's
+    // writer thread (the first EXR loads the image plugin): the backup is
+    // to hard-link some.
+    for (int i = 0; i < 10000 && a.job(exr_job)->frames_done == 0; ++i) {
+      std::this_thread::sleep_for(Millis(1));
+    }
+    ASSERT_GT(a.job(exr_job)->frames_done, 0);
     // Meanwhile another worker keeps returning bands, and frames are
     // written (their band files removed) while the backup runs.
     std::atomic<bool> stop{false};
