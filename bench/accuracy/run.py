@@ -86,17 +86,25 @@ def loadavg():
 
 def snapshot_locus(src, dst_dir, wait_s=600):
     """Copy the locus binary once, so a rebuild under us cannot mix two
-    versions in one run; wait while it is missing (being rebuilt)."""
+    versions in one run; wait while it is missing (being rebuilt). The copy
+    is dst_dir/bin/locus, with the image plugin (EXR files) where it looks,
+    dst_dir/lib/locus/ (docs/architecture.md "Image files")."""
     deadline = time.time() + wait_s
+    plugin = os.path.join(os.path.dirname(os.path.abspath(src)), "..", "lib", "locus",
+                          "liblocus-image-io.so")
     while True:
-        if os.path.isfile(src) and os.access(src, os.X_OK):
-            dst = os.path.join(dst_dir, "locus")
+        if os.path.isfile(src) and os.access(src, os.X_OK) and os.path.isfile(plugin):
+            os.makedirs(os.path.join(dst_dir, "bin"), exist_ok=True)
+            os.makedirs(os.path.join(dst_dir, "lib", "locus"), exist_ok=True)
+            shutil.copy2(plugin, os.path.join(dst_dir, "lib", "locus"))
+            dst = os.path.join(dst_dir, "bin", "locus")
             shutil.copy2(src, dst)
             r = subprocess.run([dst, "render", "--help"], capture_output=True)
             if r.returncode == 0:
                 return dst
         if time.time() > deadline:
-            raise SystemExit(f"{src}: missing or not runnable after {wait_s} s (build it first)")
+            raise SystemExit(f"{src} or {plugin}: missing or not runnable after {wait_s} s "
+                             "(build it first)")
         log(f"waiting for {src} ...")
         time.sleep(10)
 

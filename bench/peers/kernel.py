@@ -270,7 +270,8 @@ def main():
     excluded = {}
     try:
         locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
-        peer_bin = os.path.join(tmp, "locus-embree-whitted")
+        # Beside the copy of locus: it writes its EXRs through the same plugin.
+        peer_bin = os.path.join(os.path.dirname(locus.binary), "locus-embree-whitted")
         shutil.copy2(args.peer, peer_bin)
         peer = Peer(peer_bin, tmp)
         info.update(locus=locus.sha[:12], peer=peer.sha[:12])

@@ -254,7 +254,7 @@ def main():
         worker = os.path.join(os.path.dirname(args.locus), "locus-worker")
         farm = not args.no_farm and os.path.exists(worker)
         if farm:
-            shutil.copy2(worker, os.path.join(tmp, "locus-worker"))
+            shutil.copy2(worker, os.path.join(os.path.dirname(locus.binary), "locus-worker"))
         info["locus"] = locus.sha[:12]
         H.log(f"locus {info['locus']} (HEAD {info['commit']}), load {info['load_start']}")
         results = {}

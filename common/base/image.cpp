@@ -1,5 +1,6 @@
-// Image files: PNGs written here (png.h); EXR, TIFF and every read through
-// the image plugin (image_plugin.h), loaded on first use.
+// Image files: PNGs written here (png.h), EXRs through OpenEXR (exr.h);
+// TIFF and every other read through the image plugin (image_plugin.h),
+// loaded on first use.
 #include "common/base/image.h"
 
 #include <dlfcn.h>
@@ -8,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/base/exr.h"
 #include "common/base/image_plugin.h"
 #include "common/base/png.h"
 
@@ -82,22 +84,20 @@ Status write_image(const std::string& path, const Image& image, bool for_display
     if (!png.ok()) return Internal(path + ": " + png.status().message());
     return write_file(path, *png);
   }
+  if (format == SampleFormat::kFloat32) return write_exr(path, image);
   const LoadedPlugin& l = loaded_plugin();
   if (!l.plugin) return Internal(path + ": cannot write it: " + l.error);
+  std::vector<uint16_t> px(image.rgb.size());
+  for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint16_t>(quantize16(image.rgb[i]));
   std::string error;
-  bool ok = false;
-  if (format == SampleFormat::kFloat32) {
-    ok = l.plugin->write(path.c_str(), image.width, image.height, format, image.rgb.data(), &error);
-  } else {
-    std::vector<uint16_t> px(image.rgb.size());
-    for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint16_t>(quantize16(image.rgb[i]));
-    ok = l.plugin->write(path.c_str(), image.width, image.height, format, px.data(), &error);
+  if (!l.plugin->write(path.c_str(), image.width, image.height, format, px.data(), &error)) {
+    return Internal(path + ": " + error);
   }
-  if (!ok) return Internal(path + ": " + error);
   return Status::Ok();
 }
 
 Result<Image> read_image(const std::string& path) {
+  if (is_exr_file(path)) return read_exr(path);
   const LoadedPlugin& l = loaded_plugin();
   if (!l.plugin) return Internal(path + ": cannot read it: " + l.error);
   Image image;

@@ -1,12 +1,13 @@
-// The image plugin: the EXR and TIFF writer and every image reader, in a
-// shared library of its own (liblocus-image-io.so, common/base/image_plugin/oiio.cpp),
-// the one part of Locus that links OpenImageIO. OpenImageIO brings about
-// 250 shared libraries (OpenCV, FFmpeg, GDAL, ...): linked into a binary
-// they cost each start of `locus` and `locus-coordinator` half a second in
-// the dynamic loader, whether it touches an image or not. image.cpp loads
-// the plugin on its first EXR, TIFF or read, from
-// <the executable's directory>/../lib/locus/ (the build tree and the
-// installed package alike). docs/architecture.md "Image files".
+// The image plugin: the TIFF writer and the reader of every image that
+// is no EXR (exr.h does those), in a shared library of its own,
+// liblocus-image-io.so (common/base/image_plugin/oiio.cpp), the one part of
+// Locus that links OpenImageIO. OpenImageIO brings about 250 shared
+// libraries (OpenCV, FFmpeg, GDAL, ...): linked into a binary they cost
+// each start of `locus` and `locus-coordinator` half a second in the
+// dynamic loader, whether it touches an image or not. image.cpp loads the
+// plugin on its first TIFF or such a read, from <the executable's
+// directory>/../lib/locus/ (the build tree and the installed package
+// alike). docs/architecture.md "Image files".
 #pragma once
 
 #include <string>

@@ -133,6 +133,30 @@ TEST(ImageFiles, BadPathsAndFilesAreNamedInTheError) {
   auto cut = read_image((dir / "cut.png").string());
   EXPECT_FALSE(cut.ok());
   EXPECT_NE(cut.status().message().find("cut.png"), std::string::npos) << cut.status().message();
+  // An EXR cut short, and one that is only the magic number: OpenEXR's
+  // error, named, not a crash.
+  ASSERT_TRUE(write_image((dir / "whole.exr").string(), img).ok());
+  const std::string exr = file_bytes(dir / "whole.exr");
+  std::ofstream(dir / "cut.exr", std::ios::binary) << exr.substr(0, exr.size() / 2);
+  std::ofstream(dir / "magic.exr", std::ios::binary) << exr.substr(0, 4);
+  for (const char* name : {"cut.exr", "magic.exr"}) {
+    auto bad = read_image((dir / name).string());
+    EXPECT_EQ(bad.status().code(), Code::kInvalidArgument) << name;
+    EXPECT_NE(bad.status().message().find(name), std::string::npos) << bad.status().message();
+  }
+}
+
+TEST(ImageFiles, AGoldenExrWrittenByOpenImageIOReadsAndWritesBackUnchanged) {
+  // tests/golden/*.exr were written by OpenImageIO before Locus wrote its
+  // EXRs with OpenEXR: both read them alike (render_test compares them).
+  auto golden = read_image(std::string(LOCUS_SOURCE_DIR) + "/tests/golden/spheres.exr");
+  ASSERT_TRUE(golden.ok()) << golden.status().message();
+  const fs::path path = temp_dir() / "again.exr";
+  ASSERT_TRUE(write_image(path.string(), *golden).ok());
+  auto again = read_image(path.string());
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->width, golden->width);
+  EXPECT_EQ(again->rgb, golden->rgb);
 }
 
 }  // namespace

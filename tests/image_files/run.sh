@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # tests/image_files/run.sh BIN_DIR SOURCE_DIR (CTest image_plugin): the
 # image plugin (common/base/image_plugin.h) with the real `locus`:
-#   1 the binaries link no OpenImageIO; a PNG render loads neither the
-#     plugin nor OpenImageIO (LD_DEBUG=files lists what the loader opens);
-#     an EXR render loads the plugin from BIN_DIR/../lib/locus;
-#   2 a copy of `locus` with no plugin beside it still renders PNGs, the
-#     same pixels; an EXR or a TIFF fails at once with a message that
+#   1 the binaries link no OpenImageIO; a PNG or an EXR render loads
+#     neither the plugin nor OpenImageIO (LD_DEBUG=files lists what the
+#     loader opens); a TIFF render loads the plugin from BIN_DIR/../lib/locus;
+#   2 a copy of `locus` with no plugin beside it still renders PNGs and
+#     EXRs, the same pixels; a TIFF fails at once with a message that
 #     names the file it wanted and where it looked;
 #   3 a plugin of another build (a library without the entry point) is
 #     refused by name, not called.
@@ -34,43 +34,44 @@ for b in locus locus-coordinator locus-worker; do
     ok "$b links no OpenImageIO"
   fi
 done
-LD_DEBUG=files LD_DEBUG_OUTPUT="$tmp/ld-png" render "$bin/locus" "$tmp/a.png" "$tmp/a.log" ||
-  bad "PNG render: $(cat "$tmp/a.log")"
-if grep -qhE 'file=[^ ]*(liblocus-image-io|libOpenImageIO)' "$tmp"/ld-png.*; then
-  bad "a PNG render loaded: $(grep -ohE 'file=[^ ]*(liblocus-image-io|libOpenImageIO)[^ ]*' "$tmp"/ld-png.* | sort -u | tr '\n' ' ')"
+for ext in png exr; do
+  LD_DEBUG=files LD_DEBUG_OUTPUT="$tmp/ld-$ext" render "$bin/locus" "$tmp/a.$ext" "$tmp/a-$ext.log" ||
+    bad "$ext render: $(cat "$tmp/a-$ext.log")"
+  if grep -qhE 'file=[^ ]*(liblocus-image-io|libOpenImageIO)' "$tmp"/ld-$ext.*; then
+    bad "a .$ext render loaded: $(grep -ohE 'file=[^ ]*(liblocus-image-io|libOpenImageIO)[^ ]*' "$tmp"/ld-$ext.* | sort -u | tr '\n' ' ')"
+  else
+    ok "a .$ext render loads neither the image plugin nor OpenImageIO ($(cat "$tmp"/ld-$ext.* | grep -c 'file=.*\[0\];  needed by') libraries opened)"
+  fi
+done
+LD_DEBUG=files LD_DEBUG_OUTPUT="$tmp/ld-tif" render "$bin/locus" "$tmp/a.tif" "$tmp/a-tif.log" ||
+  bad "TIFF render: $(cat "$tmp/a-tif.log")"
+if grep -qhF "file=$plugin" "$tmp"/ld-tif.* && [ -s "$tmp/a.tif" ]; then
+  ok "a TIFF render loads the plugin from $plugin and writes a.tif"
 else
-  ok "a PNG render loads neither the image plugin nor OpenImageIO ($(cat "$tmp"/ld-png.* | grep -c 'file=.*\[0\];  needed by') libraries opened)"
+  bad "a TIFF render did not load $plugin"
 fi
-LD_DEBUG=files LD_DEBUG_OUTPUT="$tmp/ld-exr" render "$bin/locus" "$tmp/a.exr" "$tmp/a-exr.log" ||
-  bad "EXR render: $(cat "$tmp/a-exr.log")"
-if grep -qhF "file=$plugin" "$tmp"/ld-exr.*; then
-  ok "an EXR render loads the plugin from $plugin"
-else
-  bad "an EXR render did not load $plugin"
-fi
-"$bin/locus" render "$scene" --size 48x32 --workers 0 -o "$tmp/a.tif" >"$tmp/a-tif.log" 2>&1 &&
-  [ -s "$tmp/a.tif" ] && ok "a TIFF render writes a.tif" || bad "TIFF render: $(cat "$tmp/a-tif.log")"
 
 # ---- 2. no plugin
 mkdir -p "$tmp/alone/bin"
 cp "$bin/locus" "$tmp/alone/bin/"
-render "$tmp/alone/bin/locus" "$tmp/b.png" "$tmp/b.log" && same_pixels "$tmp/a.png" "$tmp/b.png" &&
-  ok "with no plugin, a PNG render works, the same pixels" || bad "PNG render with no plugin: $(cat "$tmp/b.log")"
-for ext in exr tif; do
-  if render "$tmp/alone/bin/locus" "$tmp/b.$ext" "$tmp/b-$ext.log"; then
-    bad "with no plugin, a .$ext render succeeded"
-  elif grep -q "cannot load the image plugin $tmp/alone/lib/locus/liblocus-image-io.so" "$tmp/b-$ext.log" &&
-       grep -qF "b.$ext" "$tmp/b-$ext.log"; then
-    ok "with no plugin, a .$ext render fails naming the plugin and where it looked: $(grep -o 'cannot load.*' "$tmp/b-$ext.log" | head -1 | cut -c1-110)..."
-  else
-    bad "with no plugin, the .$ext render's message: $(cat "$tmp/b-$ext.log")"
-  fi
+for ext in png exr; do
+  render "$tmp/alone/bin/locus" "$tmp/b.$ext" "$tmp/b-$ext.log" && same_pixels "$tmp/a.$ext" "$tmp/b.$ext" &&
+    ok "with no plugin, a .$ext render works, the same pixels" ||
+    bad ".$ext render with no plugin: $(cat "$tmp/b-$ext.log")"
 done
+if render "$tmp/alone/bin/locus" "$tmp/b.tif" "$tmp/b-tif.log"; then
+  bad "with no plugin, a .tif render succeeded"
+elif grep -q "cannot load the image plugin $tmp/alone/lib/locus/liblocus-image-io.so" "$tmp/b-tif.log" &&
+     grep -qF "b.tif" "$tmp/b-tif.log"; then
+  ok "with no plugin, a .tif render fails naming the plugin and where it looked: $(grep -o 'cannot load.*' "$tmp/b-tif.log" | head -1 | cut -c1-110)..."
+else
+  bad "with no plugin, the .tif render's message: $(cat "$tmp/b-tif.log")"
+fi
 
 # ---- 3. a plugin of another build
 mkdir -p "$tmp/alone/lib/locus"
 cp "$(readlink -f /lib/x86_64-linux-gnu/libz.so.1)" "$tmp/alone/lib/locus/liblocus-image-io.so"
-if render "$tmp/alone/bin/locus" "$tmp/c.exr" "$tmp/c.log"; then
+if render "$tmp/alone/bin/locus" "$tmp/c.tif" "$tmp/c.log"; then
   bad "a stranger's library taken for the plugin"
 elif prints "liblocus-image-io.so .* is of another build" cat "$tmp/c.log"; then
   ok "a library without the entry point is refused: $(grep -o 'is of another build.*' "$tmp/c.log" | head -1)"

@@ -13,7 +13,7 @@
 #     Each command in the root runs under chroot in mount and PID
 #     namespaces of its own, with its own /proc.
 #  3. In the root: the binaries and the image plugin (/usr/lib/locus) load,
-#     an EXR render through the plugin, the user `locus` and /var/lib/locus,
+#     a TIFF render through the plugin, the user `locus` and /var/lib/locus,
 #     the units, the conffiles, the man pages; `locus render` of a scene at
 #     64x48 with --workers 0 equals this build's exactly (the same bytes;
 #     the same pixels, should the mirror's libraries encode PNG otherwise).
@@ -187,14 +187,14 @@ in_root /usr/bin/locus render /tmp/spheres.json --size 64x48 --workers 0 -o /tmp
   >"$tmp/root-render.log" 2>&1 && same_image "$tmp/host.png" "$root/tmp/root.png" &&
   ok "/usr/bin/locus render --workers 0 == $bin/locus render ($(cmp -s "$tmp/host.png" "$root/tmp/root.png" && echo same bytes || echo same pixels))" ||
   { bad "render in the root"; cat "$tmp/root-render.log"; }
-# An EXR goes through the image plugin, which the root's locus loads from
+# A TIFF goes through the image plugin, which the root's locus loads from
 # /usr/lib/locus.
-"$bin/locus" render "$src/scenes/simple/spheres.json" --size 64x48 --workers 0 -o "$tmp/host.exr" \
-  >"$tmp/host-exr.log" 2>&1 || { cat "$tmp/host-exr.log"; die "host render (EXR)"; }
-in_root /usr/bin/locus render /tmp/spheres.json --size 64x48 --workers 0 -o /tmp/root.exr \
-  >"$tmp/root-exr.log" 2>&1 && same_pixels "$tmp/host.exr" "$root/tmp/root.exr" &&
-  ok "/usr/bin/locus render -o root.exr (the image plugin) == $bin/locus render" ||
-  { bad "EXR render in the root"; cat "$tmp/root-exr.log"; }
+"$bin/locus" render "$src/scenes/simple/spheres.json" --size 64x48 --workers 0 -o "$tmp/host.tif" \
+  >"$tmp/host-tif.log" 2>&1 || { cat "$tmp/host-tif.log"; die "host render (TIFF)"; }
+in_root /usr/bin/locus render /tmp/spheres.json --size 64x48 --workers 0 -o /tmp/root.tif \
+  >"$tmp/root-tif.log" 2>&1 && same_pixels "$tmp/host.tif" "$root/tmp/root.tif" &&
+  ok "/usr/bin/locus render -o root.tif (the image plugin) == $bin/locus render" ||
+  { bad "TIFF render in the root"; cat "$tmp/root-tif.log"; }
 
 # ---- 4. the units' command lines
 # unit_command UNIT INSTANCE: the ExecStart= command line systemd builds
