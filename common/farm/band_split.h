@@ -19,8 +19,12 @@ inline constexpr int kPreviewRows = 64;
 
 // Predicted relative cost of each of the scene's camera.height rows under
 // `params` (the scene posed at the frame wanted). Deterministic: counts,
-// not clocks; relative units (about one point-sampled diffuse pixel).
-Result<std::vector<double>> predict_row_costs(const Scene& scene, const RenderParams& params);
+// not clocks; relative units (about one point-sampled diffuse pixel); the
+// same for any `threads`, the threads of the pre-pass (its preparation and
+// its rows; 0: one per core of the machine it runs on, whatever the job's
+// --threads asks of its workers).
+Result<std::vector<double>> predict_row_costs(const Scene& scene, const RenderParams& params,
+                                              int threads = 0);
 
 // Cuts rows [0, costs.size()) into `bands` bands of nearly equal total cost:
 // edges[0] = 0 < edges[1] < ... < edges[bands] = costs.size(), so every band

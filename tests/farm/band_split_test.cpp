@@ -52,11 +52,15 @@ TEST(BandSplit, PredictsMirrorRowsAsDearerAndIsDeterministic) {
   RenderParams p;
   p.method = Method::kLocal;
   p.aa = 4;
-  auto a = predict_row_costs(*scene, p);
-  auto b = predict_row_costs(*scene, p);
+  auto a = predict_row_costs(*scene, p, 1);
+  auto b = predict_row_costs(*scene, p, 1);
   ASSERT_TRUE(a.ok()) << a.status().message();
   ASSERT_EQ(a->size(), 256u);
   EXPECT_EQ(*a, *b);
+  // The pre-pass on three threads (rows side by side) counts the same.
+  auto c = predict_row_costs(*scene, p, 3);
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ(*a, *c);
   // The image's top rows show only the floor far away (no mirror): the
   // dearest rows, through the mirror spheres, cost several times more.
   const auto [lo, hi] = std::minmax_element(a->begin(), a->end());
