@@ -26,8 +26,8 @@ struct ImagePlugin {
   int abi = kImagePluginAbi;
   // Writes width x height RGB `samples` (uint8_t, uint16_t or float, by
   // `format`) to `path`, by its extension; false with *error on failure.
-  bool (*write)(const char* path, int width, int height, SampleFormat format,
-                const void* samples, std::string* error) = nullptr;
+  bool (*write)(const char* path, int width, int height, SampleFormat format, const void* samples,
+                std::string* error) = nullptr;
   // Reads the first three channels of `path` as floats (8-bit files: code
   // / 255) into *image. 0: read; 1: cannot open it; 2: it is no RGB
   // image, or it does not decode. *error says which and why.

@@ -2,6 +2,8 @@
 // Locus's own writer, EXR and TIFF through the image plugin, all read back
 // by the plugin (OpenImageIO), which checks every chunk's CRC and the
 // zlib stream's adler-32 as it decodes.
+#include "common/base/image.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <fstream>
 #include <limits>
 
-#include "common/base/image.h"
 #include "common/base/png.h"
 
 namespace locus {
@@ -34,9 +35,8 @@ Image test_image(int w, int h) {
 
 fs::path temp_dir() {
   const fs::path d = fs::temp_directory_path() /
-                     ("locus-image-" + std::string(::testing::UnitTest::GetInstance()
-                                                       ->current_test_info()
-                                                       ->name()));
+                     ("locus-image-" +
+                      std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
   fs::remove_all(d);
   fs::create_directories(d);
   return d;

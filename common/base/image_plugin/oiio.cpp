@@ -21,8 +21,8 @@ OIIO::TypeDesc type_of(locus::SampleFormat format) {
   }
 }
 
-bool write(const char* path, int width, int height, locus::SampleFormat format,
-           const void* samples, std::string* error) {
+bool write(const char* path, int width, int height, locus::SampleFormat format, const void* samples,
+           std::string* error) {
   auto out = OIIO::ImageOutput::create(path);
   if (!out) {
     *error = "cannot create image writer: " + OIIO::geterror();
