@@ -706,9 +706,7 @@ Result<JobInfo> Coordinator::delete_job(const std::string& job_id, bool outputs,
 
 void Coordinator::apply_retention() {
   if (options_.retention.count() <= 0 || !store_) return;
-  const double before =
-      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
-      std::chrono::duration<double>(options_.retention).count();
+  const double before = wall_now() - std::chrono::duration<double>(options_.retention).count();
   auto old = store_->jobs_finished_before(before);
   if (!old.ok()) {
     spdlog::error("retention: {}", old.status().message());

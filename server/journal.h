@@ -4,6 +4,7 @@
 // (server/store.h) in one transaction after each call. No SQLite here.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <string>
 #include <variant>
@@ -13,6 +14,11 @@
 #include "common/farm/types.h"
 
 namespace locus::farm {
+
+// Seconds since the epoch, the store's and the history's times.
+inline double wall_now() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
 
 // How a lease ended (the `outcome` column of the attempts table).
 enum class LeaseOutcome {
@@ -72,6 +78,10 @@ struct LeaseGranted {
   std::string worker_id;
   std::string worker_name;
   bool speculative = false;
+  // When it was granted (wall_now()): its history line's time, not the
+  // later one of the transaction that stores it (a lease granted with a
+  // result's answer is stored by the next). 0: the store's time.
+  double granted_at = 0;
 };
 struct LeaseEnded {
   std::string lease_id;

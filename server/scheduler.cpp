@@ -737,7 +737,7 @@ Result<std::optional<BandLease>> Scheduler::grant(Job& job, int job_band, Worker
   }
   events_.push_back(event::LeaseGranted{id, job.info.job_id, frame_of(job, job_band),
                                         band_of(job, job_band), worker.info.worker_id,
-                                        worker.info.name, speculative});
+                                        worker.info.name, speculative, wall_now()});
   ++version_;
   return std::optional<BandLease>(make_lease(job, job_band, lease, id));
 }

@@ -87,10 +87,6 @@ CREATE VIEW IF NOT EXISTS leases AS
 INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '1');
 )sql";
 
-double wall_now() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
 // Stats as one line of text: the fields in declaration order, then the
 // shadow method.
 std::string encode_stats(const Stats& s) {
@@ -411,7 +407,7 @@ Status JobStore::apply_one(const Event& e) {
                  "INSERT INTO attempts(lease_id, job_id, frame, band, worker_id, worker_name, "
                  "speculative, started_at, grant_seq, attempt) VALUES(?,?,?,?,?,?,?,?,?,?)");
     st.bind(g->lease_id, g->job_id, g->frame, g->band, g->worker_id, g->worker_name, g->speculative,
-            now, next_seq_++, attempt);
+            g->granted_at > 0 ? g->granted_at : now, next_seq_++, attempt);
     return st.run();
   }
   if (const auto* l = std::get_if<event::LeaseEnded>(&e)) {

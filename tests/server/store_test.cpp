@@ -127,6 +127,34 @@ TEST(JobStore, LeaseLinesComeFromTheAttemptsInOrder) {
   EXPECT_TRUE(more->empty());
 }
 
+// A lease granted with a result's answer is stored by a later
+// transaction: its history line keeps the time of the grant.
+TEST(JobStore, ALeaseLineIsTimedAtItsGrantNotWhenStored) {
+  TempDir dir;
+  FakeClock clock;
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  Scheduler s(SchedulerOptions{}, clock.fn());
+  const std::string job = s.add_job(spec(4, 6, 1, 1, 3), "", "");
+  const std::string w = s.add_worker("host:1", 1);
+  const double before = wall_now();
+  auto lease = s.next_band(w);
+  ASSERT_TRUE(lease.ok() && *lease);
+  const double granted = wall_now();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE((*store)->apply(s.take_events()).ok());
+  auto h = (*store)->history(job, 0, 100);
+  ASSERT_TRUE(h.ok()) << h.status().message();
+  int leases = 0;
+  for (const HistoryEntry& e : *h) {
+    if (e.text.rfind("lease " + (*lease)->lease_id + ":", 0) != 0) continue;
+    ++leases;
+    EXPECT_GE(e.at, before);
+    EXPECT_LE(e.at, granted);  // not the store's time, 0.3 s later
+  }
+  EXPECT_EQ(leases, 1);
+}
+
 TEST(JobStore, RecoversWhatTheSchedulerRecorded) {
   TempDir dir;
   FakeClock clock;
