@@ -171,14 +171,6 @@ Status write_atomically(const std::string& job_dir, const std::string& file_name
   return Status::Ok();
 }
 
-Status write_bytes(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  out.close();
-  if (!out) return Internal(path + ": cannot write: " + errno_text());
-  return Status::Ok();
-}
-
 }  // namespace
 
 Status write_frame_file(const std::string& job_dir, const std::string& file_name,
@@ -213,7 +205,7 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
     if (!png.ok()) return png.status();
     deflated.clear();
     return write_atomically(
-        job_dir, f.file_name, [&](const std::string& path) { return write_bytes(path, *png); },
+        job_dir, f.file_name, [&](const std::string& path) { return write_file(path, *png); },
         sync, sync_dir);
   }
   // Otherwise (other outputs, older workers' bands, a damaged record named

@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 
 #include "common/base/image.h"
@@ -224,11 +223,7 @@ Status refresh(const fs::path& source, const fs::path& cached,
   if (!bytes.ok()) return bytes.status();
   fs::create_directories(cached.parent_path(), ec);
   const fs::path tmp = cached.string() + ".partial";
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << *bytes;
-    if (!out) return Internal(tmp.string() + ": cannot write");
-  }
+  if (Status s = write_file(tmp.string(), *bytes); !s.ok()) return s;
   fs::rename(tmp, cached, ec);
   if (ec) return Internal(cached.string() + ": " + ec.message());
   return Status::Ok();

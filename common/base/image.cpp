@@ -5,7 +5,9 @@
 
 #include <dlfcn.h>
 
+#include <cerrno>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -48,7 +50,7 @@ const LoadedPlugin& loaded_plugin() {
     using Entry = const ImagePlugin* (*)();
     const auto entry = reinterpret_cast<Entry>(dlsym(handle, kImagePluginEntry));
     const ImagePlugin* plugin = entry ? entry() : nullptr;
-    if (!plugin || plugin->abi != kImagePluginAbi || !plugin->write || !plugin->read) {
+    if (!plugin || plugin->abi != kImagePluginAbi || !plugin->write16 || !plugin->read) {
       l.error = where + " is of another build (its interface is " +
                 (plugin ? std::to_string(plugin->abi) : std::string("missing")) +
                 ", this build's " + std::to_string(kImagePluginAbi) + ")";
@@ -60,16 +62,15 @@ const LoadedPlugin& loaded_plugin() {
   return loaded;
 }
 
-Status write_file(const std::string& path, const std::string& bytes) {
+}  // namespace
+
+Status write_file(const std::string& path, std::string_view bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) return Internal(path + ": cannot create the file");
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   out.close();
-  if (!out) return Internal(path + ": cannot write the file (is the disk full?)");
+  if (!out) return Internal(path + ": cannot write: " + std::strerror(errno));
   return Status::Ok();
 }
-
-}  // namespace
 
 Status write_image(const std::string& path, const Image& image, bool for_display) {
   const SampleFormat format = output_sample_format(path);
@@ -90,7 +91,7 @@ Status write_image(const std::string& path, const Image& image, bool for_display
   std::vector<uint16_t> px(image.rgb.size());
   for (size_t i = 0; i < px.size(); ++i) px[i] = static_cast<uint16_t>(quantize16(image.rgb[i]));
   std::string error;
-  if (!l.plugin->write(path.c_str(), image.width, image.height, format, px.data(), &error)) {
+  if (!l.plugin->write16(path.c_str(), image.width, image.height, px.data(), &error)) {
     return Internal(path + ": " + error);
   }
   return Status::Ok();

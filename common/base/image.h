@@ -1,5 +1,6 @@
-// Linear float RGB images and their files: PNGs written by png.h, EXR and
-// TIFF files and every read by the image plugin (image_plugin.h).
+// Linear float RGB images and their files: PNGs written by png.h, EXRs
+// written and read by exr.h, TIFFs and every other read by the image plugin
+// (image_plugin.h).
 #pragma once
 
 #include <string>
@@ -54,6 +55,8 @@ std::string lower_extension(std::string_view path);
 inline constexpr int kPngLevel = 3;
 Status write_image(const std::string& path, const Image& image, bool for_display = false);
 Result<Image> read_image(const std::string& path);
+// `bytes` (an image already encoded) as the file `path`, replacing it.
+Status write_file(const std::string& path, std::string_view bytes);
 
 // 8-bit quantisation used by every 8-bit output (SHADING.md "Output").
 inline int quantize8(float v) {

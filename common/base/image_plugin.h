@@ -10,6 +10,7 @@
 // alike). docs/architecture.md "Image files".
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "common/base/image.h"
@@ -18,16 +19,16 @@ namespace locus {
 
 // Raised when the table's layout or meaning changes: a plugin of another
 // build is refused by name, not called.
-inline constexpr int kImagePluginAbi = 1;
+inline constexpr int kImagePluginAbi = 2;
 inline constexpr const char* kImagePluginFile = "liblocus-image-io.so";
 inline constexpr const char* kImagePluginEntry = "locus_image_plugin";
 
 struct ImagePlugin {
   int abi = kImagePluginAbi;
-  // Writes width x height RGB `samples` (uint8_t, uint16_t or float, by
-  // `format`) to `path`, by its extension; false with *error on failure.
-  bool (*write)(const char* path, int width, int height, SampleFormat format, const void* samples,
-                std::string* error) = nullptr;
+  // Writes width x height RGB 16-bit `samples` (quantize16) to `path`, a
+  // TIFF; false with *error on failure.
+  bool (*write16)(const char* path, int width, int height, const uint16_t* samples,
+                  std::string* error) = nullptr;
   // Reads the first three channels of `path` as floats (8-bit files: code
   // / 255) into *image. 0: read; 1: cannot open it; 2: it is no RGB
   // image, or it does not decode. *error says which and why.

@@ -10,27 +10,14 @@
 
 namespace {
 
-OIIO::TypeDesc type_of(locus::SampleFormat format) {
-  switch (format) {
-    case locus::SampleFormat::kUint8:
-      return OIIO::TypeDesc::UINT8;
-    case locus::SampleFormat::kUint16:
-      return OIIO::TypeDesc::UINT16;
-    default:
-      return OIIO::TypeDesc::FLOAT;
-  }
-}
-
-bool write(const char* path, int width, int height, locus::SampleFormat format, const void* samples,
-           std::string* error) {
+bool write16(const char* path, int width, int height, const uint16_t* samples, std::string* error) {
   auto out = OIIO::ImageOutput::create(path);
   if (!out) {
     *error = "cannot create image writer: " + OIIO::geterror();
     return false;
   }
-  OIIO::ImageSpec spec(width, height, 3, type_of(format));
-  if (format == locus::SampleFormat::kFloat32) spec.attribute("compression", "zip");
-  if (!out->open(path, spec) || !out->write_image(type_of(format), samples)) {
+  const OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT16);
+  if (!out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT16, samples)) {
     *error = "cannot write image: " + out->geterror();
     return false;
   }
@@ -65,7 +52,7 @@ int read(const char* path, locus::Image* image, std::string* error) {
   return 0;
 }
 
-const locus::ImagePlugin kPlugin{locus::kImagePluginAbi, &write, &read};
+const locus::ImagePlugin kPlugin{locus::kImagePluginAbi, &write16, &read};
 
 }  // namespace
 
