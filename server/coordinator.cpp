@@ -436,8 +436,25 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   scene->SerializeToString(&bytes);
   job->spec.scene_hash = content_hash(bytes);
   const std::string fingerprint = submission_fingerprint(r, job->spec);
-
+  {
+    std::lock_guard lk(mu_);
+    if (auto answer = refused_or_retried(r, *job, fingerprint)) return *answer;
+    if (Status s = count_bands(r.bands, *job); !s.ok()) return s;
+  }
+  // The cost pre-pass outside mu_: it renders a preview of the scene
+  // (seconds for a big one), and every worker's lease, result and
+  // heartbeat waits on mu_.
+  if (options_.cost_bands) job->spec.band_edges = options_.cost_pass(*job, &job->spec.row_costs);
   std::lock_guard lk(mu_);
+  // Asked again: meanwhile a retry of this request may have been recorded,
+  // a drain begun or the queue filled.
+  if (auto answer = refused_or_retried(r, *job, fingerprint)) return *answer;
+  return record_job(job->spec, std::move(scene), bytes, r.request_id, fingerprint);
+}
+
+std::optional<Result<JobInfo>> Coordinator::refused_or_retried(const SubmitRequest& r,
+                                                               const CheckedSubmission& job,
+                                                               const std::string& fingerprint) {
   if (stopping_ || draining_) {
     return Status(Code::kUnavailable,
                   "the coordinator is shutting down; submit again once it is back");
@@ -453,18 +470,17 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   if (auto earlier = scheduler_.job_for_request(r.request_id)) {
     return resubmitted(*earlier, r.request_id, fingerprint);
   }
-  if (Status s = scheduler_.check_after(job->spec.after); !s.ok()) return s;
-  if (!job->spec.notify_url.empty()) {
-    if (Status s = check_notify_url(job->spec.notify_url, options_.notify_urls); !s.ok()) return s;
+  if (Status s = scheduler_.check_after(job.spec.after); !s.ok()) return s;
+  if (!job.spec.notify_url.empty()) {
+    if (Status s = check_notify_url(job.spec.notify_url, options_.notify_urls); !s.ok()) return s;
   }
-  if (Status s = cut_into_bands(r.bands, *job); !s.ok()) return s;
   const int max_jobs = options_.limits.max_jobs;
   if (scheduler_.unfinished_jobs() >= static_cast<size_t>(max_jobs)) {
     return Status(Code::kResourceExhausted,
                   "the farm already has " + std::to_string(max_jobs) +
                       " jobs queued or running (--max-jobs); wait for one to end, or cancel one");
   }
-  return record_job(job->spec, std::move(scene), bytes, r.request_id, fingerprint);
+  return std::nullopt;
 }
 
 Result<JobInfo> Coordinator::resubmitted(const JobRecord& earlier, const std::string& request_id,
@@ -478,7 +494,7 @@ Result<JobInfo> Coordinator::resubmitted(const JobRecord& earlier, const std::st
   return scheduler_.job(earlier.job_id);
 }
 
-Status Coordinator::cut_into_bands(int bands, CheckedSubmission& job) {
+Status Coordinator::count_bands(int bands, CheckedSubmission& job) {
   JobSpec& spec = job.spec;
   spec.bands = bands > 0 ? bands
                          : default_bands(spec.width, spec.height, spec.frames(),
@@ -489,7 +505,6 @@ Status Coordinator::cut_into_bands(int bands, CheckedSubmission& job) {
                            std::to_string(options_.limits.max_bands) +
                            " bands per job (--max-bands)");
   }
-  if (options_.cost_bands) spec.band_edges = cost_band_edges(job, &spec.row_costs);
   return Status::Ok();
 }
 

@@ -26,6 +26,7 @@
 #include "server/latency.h"
 #include "server/scheduler.h"
 #include "server/store.h"
+#include "server/submission.h"
 
 namespace locus::farm {
 
@@ -81,6 +82,10 @@ struct CoordinatorOptions {
   // Cut frames into bands of equal predicted cost (common/farm/band_split.h)
   // rather than equal height; local method only.
   bool cost_bands = true;
+  // The cost pre-pass: the band edges (none: equal heights) and the
+  // predicted cost of each row. Tests put a slow one in its place.
+  std::function<std::vector<int>(const CheckedSubmission&, std::vector<float>*)> cost_pass =
+      cost_band_edges;
   // --private-jobs: a job's status, history and frames are its owner's and
   // admins' only (by default every client reads every job).
   bool private_jobs = false;
@@ -280,11 +285,16 @@ class Coordinator {
  private:
   Status recover();  // start(), before the threads
   // submit()'s steps under mu_, after check_submission() and the
-  // fingerprint (server/submission.h): a retry answered with its first
-  // job; the band count and edges; the job stored, then scheduled.
+  // fingerprint (server/submission.h): the answer when the farm refuses
+  // the job now or it is a retry (answered with its first job), else
+  // none; a retry's answer; the band count; the job stored, then
+  // scheduled. The band edges are cut between them, outside mu_.
+  std::optional<Result<JobInfo>> refused_or_retried(const SubmitRequest& r,
+                                                    const CheckedSubmission& job,
+                                                    const std::string& fingerprint);
   Result<JobInfo> resubmitted(const JobRecord& earlier, const std::string& request_id,
                               const std::string& fingerprint);
-  Status cut_into_bands(int bands, CheckedSubmission& job);
+  Status count_bands(int bands, CheckedSubmission& job);
   Result<JobInfo> record_job(const JobSpec& spec, std::shared_ptr<const v1::Scene> scene,
                              const std::string& bytes, const std::string& request_id,
                              const std::string& fingerprint);
