@@ -122,26 +122,31 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
     if (pid < 0) return Internal("cannot start " + *binary);
     farm->pids_.push_back(pid);
   }
+  farm->workers_ = o.workers;
   farm->monitor_ = std::thread([f = farm.get()] { f->monitor(); });
-  // The default split counts the registered workers; give them a moment.
-  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (std::chrono::steady_clock::now() < until) {
-    if (farm->coordinator_->workers().size() >= static_cast<size_t>(o.workers)) break;
-    {
-      std::lock_guard lk(farm->mu_);
-      if (farm->pids_.empty())
-        return Internal("every locus-worker exited at start; see the logs in " + farm->dir_);
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
   return farm;
 }
 
+Status LocalFarm::wait_for_workers() {
+  // The default split counts the registered workers; give them a moment.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (std::chrono::steady_clock::now() < until) {
+    if (coordinator_->workers().size() >= static_cast<size_t>(workers_)) break;
+    {
+      std::lock_guard lk(mu_);
+      if (pids_.empty())
+        return Internal("every locus-worker exited at start; see the logs in " + dir_);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return Status::Ok();
+}
+
 void LocalFarm::monitor() {
+  std::unique_lock lk(mu_);
   while (!stopping_) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    std::lock_guard lk(mu_);
-    if (stopping_) return;
+    if (stop_.wait_for(lk, std::chrono::milliseconds(50), [&] { return stopping_.load(); }))
+      return;
     bool died = false;
     for (auto it = pids_.begin(); it != pids_.end();) {
       int status = 0;
@@ -165,7 +170,11 @@ void LocalFarm::monitor() {
 }
 
 LocalFarm::~LocalFarm() {
-  stopping_ = true;
+  {
+    std::lock_guard lk(mu_);
+    stopping_ = true;
+  }
+  stop_.notify_all();
   if (monitor_.joinable()) monitor_.join();
   for (pid_t pid : pids_) kill(pid, SIGTERM);
   // Workers end their long poll at once on SIGTERM; a worker stuck in a

@@ -8,6 +8,7 @@
 #include <sys/types.h>
 
 #include <atomic>
+#include <condition_variable>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -29,9 +30,11 @@ struct LocalFarmOptions {
 
 class LocalFarm {
  public:
-  // Starts the coordinator and the workers and waits (briefly) until the
-  // workers have registered.
+  // Starts the coordinator and the workers. The workers load and register
+  // while the caller goes on (reading the scene); wait_for_workers() then
+  // waits (briefly) until they have.
   static Result<std::unique_ptr<LocalFarm>> start(const LocalFarmOptions& options);
+  Status wait_for_workers();
   ~LocalFarm();  // SIGTERM to the workers (SIGKILL if they linger), then the server
 
   const std::string& address() const { return address_; }
@@ -57,7 +60,9 @@ class LocalFarm {
   std::string dashboard_url_;
   std::unique_ptr<farm::Coordinator> coordinator_;
   std::unique_ptr<rpc::CoordinatorServer> server_;
+  int workers_ = 0;  // started
   std::mutex mu_;
+  std::condition_variable stop_;  // wakes the monitor at once
   std::vector<pid_t> pids_;  // running workers
   std::atomic<bool> stopping_{false};
   std::thread monitor_;

@@ -301,8 +301,6 @@ int follow_movie(client::FarmClient& farm, const farm::JobInfo& render, const st
 }
 
 int render_on_local_farm(const RenderArgs& a, int workers) {
-  auto job = prepare_job(a.job, true);
-  if (!job.ok()) return fail(job.status());
   // Farm mode: --threads is per worker, and a worker is one core unless
   // told otherwise (the farm's parallelism is its workers).
   client::LocalFarmOptions options;
@@ -317,6 +315,14 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
   if (!local.ok()) {
     spdlog::set_level(level);
     return fail(local.status());
+  }
+  // The scene is read while the workers load and register.
+  auto job = prepare_job(a.job, true);
+  Status ready = job.ok() ? (*local)->wait_for_workers() : job.status();
+  if (!ready.ok()) {
+    local->reset();
+    spdlog::set_level(level);
+    return fail(ready);
   }
   if (!(*local)->dashboard_url().empty()) {
     std::fprintf(stderr, "locus: watch the render at %s\n", (*local)->dashboard_url().c_str());

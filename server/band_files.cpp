@@ -209,7 +209,7 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
         sync, sync_dir);
   }
   // Otherwise (other outputs, older workers' bands, a damaged record named
-  // by stitch_frame): the frame's pixels, written by OpenImageIO.
+  // by stitch_frame): the frame's pixels, encoded by write_image.
   deflated.clear();
   auto image = stitch_frame(f, [&](int b) -> Result<std::string> {
     if (b < static_cast<int>(records.size())) return std::move(records[b]);

@@ -51,7 +51,7 @@ Result<std::string> read_band_file(const std::string& path);
 Result<Image> stitch_frame(const FrameReady& frame,
                            const std::function<Result<std::string>(int band)>& record);
 // Writes the image as job_dir/file_name through a temporary name (the
-// extension kept, by which OpenImageIO picks the format), fsyncing file and
+// extension kept, by which write_image picks the format), fsyncing file and
 // directory when `sync`.
 Status write_frame_file(const std::string& job_dir, const std::string& file_name,
                         const Image& image, bool sync, bool sync_dir = true);
