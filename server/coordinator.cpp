@@ -16,6 +16,7 @@
 
 #include "common/base/image.h"
 #include "common/base/log.h"
+#include "common/farm/band_split.h"
 #include "common/scene/animation.h"
 #include "server/await.h"
 #include "server/band_files.h"
@@ -436,15 +437,21 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   scene->SerializeToString(&bytes);
   job->spec.scene_hash = content_hash(bytes);
   const std::string fingerprint = submission_fingerprint(r, job->spec);
+  bool cost_split = false;
   {
     std::lock_guard lk(mu_);
     if (auto answer = refused_or_retried(r, *job, fingerprint)) return *answer;
     if (Status s = count_bands(r.bands, *job); !s.ok()) return s;
+    cost_split = options_.cost_bands &&
+                 (options_.always_cost_bands
+                      ? job->spec.bands > 1
+                      : cost_split_pays(job->spec.bands,
+                                        static_cast<int>(scheduler_.worker_count())));
   }
   // The cost pre-pass outside mu_: it renders a preview of the scene
   // (seconds for a big one), and every worker's lease, result and
   // heartbeat waits on mu_.
-  if (options_.cost_bands) job->spec.band_edges = options_.cost_pass(*job, &job->spec.row_costs);
+  if (cost_split) job->spec.band_edges = options_.cost_pass(*job, &job->spec.row_costs);
   std::lock_guard lk(mu_);
   // Asked again: meanwhile a retry of this request may have been recorded,
   // a drain begun or the queue filled.

@@ -82,6 +82,8 @@ struct CoordinatorOptions {
   // Cut frames into bands of equal predicted cost (common/farm/band_split.h)
   // rather than equal height; local method only.
   bool cost_bands = true;
+  // ... even when the frame has many bands per worker (cost_split_pays).
+  bool always_cost_bands = false;
   // The cost pre-pass: the band edges (none: equal heights) and the
   // predicted cost of each row. Tests put a slow one in its place.
   std::function<std::vector<int>(const CheckedSubmission&, std::vector<float>*)> cost_pass =

@@ -52,6 +52,7 @@ struct Flags {
   int frame_writers = 0;
   int handler_threads = 0;
   bool equal_bands = false;
+  bool always_cost_bands = false;
   std::string health_address, metrics_address, http_address;
   double http_rate = 200;
   std::string log_format = "text", log_level = "info";
@@ -139,6 +140,10 @@ void add_farm_flags(CLI::App& app, Flags& f) {
       ->check(CLI::Range(0, 1 << 20));
   app.add_flag("--equal-bands", f.equal_bands,
                "Cut frames into bands of equal height instead of equal predicted cost");
+  app.add_flag("--always-cost-bands", f.always_cost_bands,
+               "Cut by predicted cost even frames with 8 or more bands per worker (by default "
+               "those get equal heights, sooner; the dashboard draws the prediction)")
+      ->excludes("--equal-bands");
 }
 
 void add_security_flags(CLI::App& app, Flags& f) {
@@ -240,6 +245,7 @@ farm::CoordinatorOptions coordinator_options(const Flags& f) {
   options.handler_threads = f.handler_threads;
   options.min_free_bytes = static_cast<uint64_t>(f.min_free_mb) << 20;
   options.cost_bands = !f.equal_bands;
+  options.always_cost_bands = f.always_cost_bands;
   return options;
 }
 

@@ -54,6 +54,10 @@ Result<std::vector<double>> predict_row_costs(const Scene& scene, const RenderPa
   return costs;
 }
 
+bool cost_split_pays(int bands, int workers) {
+  return bands > 1 && bands < kCostSplitBandsPerWorker * std::max(workers, 1);
+}
+
 std::vector<int> split_rows_by_cost(const std::vector<double>& costs, int bands) {
   const int h = static_cast<int>(costs.size());
   bands = std::clamp(bands, 1, std::max(1, h));

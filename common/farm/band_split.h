@@ -17,6 +17,16 @@ namespace locus {
 // columns), point sampled.
 inline constexpr int kPreviewRows = 64;
 
+// Whether a frame cut into `bands` for a farm of `workers` gets the
+// pre-pass at all. With many bands per worker the farm's leasing, a band
+// at a time to whichever worker is free, balances equal heights about as
+// well (the last band's tail is short), and the pre-pass, a preparation of
+// the scene and a preview, only delays the first band: on 1 and 2 workers
+// at 16 bands each, SPD gears and balls at 512x512 finished 0.2-0.4 s
+// sooner with equal heights (docs/farm.md "Cost-aware bands").
+inline constexpr int kCostSplitBandsPerWorker = 8;
+bool cost_split_pays(int bands, int workers);
+
 // Predicted relative cost of each of the scene's camera.height rows under
 // `params` (the scene posed at the frame wanted). Deterministic: counts,
 // not clocks; relative units (about one point-sampled diffuse pixel); the

@@ -58,7 +58,8 @@ chmod 600 "$tmp/clients" "$tmp/admins"
 farm=127.0.0.1:7070
 in_ns "$bin/locus-coordinator" --listen $farm --http 127.0.0.1:7080 --data "$tmp/data" --insecure \
   --client-tokens "$tmp/clients" --admin-tokens "$tmp/admins" --worker-tokens "$tmp/worker.tok" \
-  --lease-ms 2000 --heartbeat-ms 300 >"$tmp/coordinator.out" 2>"$tmp/coordinator.log" &
+  --lease-ms 2000 --heartbeat-ms 300 --always-cost-bands \
+  >"$tmp/coordinator.out" 2>"$tmp/coordinator.log" &
 pids+=($!)
 locus() { in_ns "$bin/locus" "$@" --farm $farm --token-file "$tmp/ann.tok"; }
 for _ in $(seq 100); do

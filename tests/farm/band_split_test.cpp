@@ -44,6 +44,18 @@ TEST(BandSplit, SkewedCostsAreBalancedAndEveryBandHasARow) {
   EXPECT_EQ(split_rows_by_cost(one, 5), (std::vector<int>{0, 1, 2, 3, 4, 5}));
 }
 
+TEST(BandSplit, ThePrePassRunsOnlyForFewBandsPerWorker) {
+  EXPECT_TRUE(cost_split_pays(2, 1));
+  EXPECT_TRUE(cost_split_pays(7, 1));
+  EXPECT_FALSE(cost_split_pays(8, 1));
+  EXPECT_TRUE(cost_split_pays(15, 2));
+  EXPECT_FALSE(cost_split_pays(32, 2));  // `locus render --workers 2`'s default
+  EXPECT_TRUE(cost_split_pays(64, 64));  // a band per worker
+  EXPECT_TRUE(cost_split_pays(5, 0));    // no worker yet: as for one
+  EXPECT_FALSE(cost_split_pays(8, 0));
+  EXPECT_FALSE(cost_split_pays(1, 4));   // one band: nothing to split
+}
+
 TEST(BandSplit, PredictsMirrorRowsAsDearerAndIsDeterministic) {
   auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
   ASSERT_TRUE(scene.ok()) << scene.status().message();

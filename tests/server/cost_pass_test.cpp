@@ -119,5 +119,35 @@ TEST(CostPass, ASubmissionIsAdmittedAgainAfterItsPass) {
   c.shutdown();
 }
 
+// With many bands per worker the pre-pass is not run and the bands are
+// of equal height (cost_split_pays), unless the coordinator is told to
+// run it always (--always-cost-bands).
+TEST(CostPass, ManyBandsPerWorkerGetEqualHeightsUnlessAlwaysAskedFor) {
+  for (const bool always : {false, true}) {
+    test_doubles::TempDir dir;
+    CoordinatorOptions o = test_doubles::test_options(dir.path);
+    o.always_cost_bands = always;
+    int passes = 0;
+    o.cost_pass = [&](const CheckedSubmission& job, std::vector<float>* costs) {
+      ++passes;
+      return cost_band_edges(job, costs);
+    };
+    Coordinator c(o);
+    ASSERT_TRUE(c.start().ok());
+    test_doubles::TestWorker w(c, "w:1");
+    // One worker: 4 bands get the pre-pass, 8 do not (unless always).
+    auto few = c.submit(testing_farm::request(testing_farm::kSpheres, 16, 16, 1, 1, 4, "f_####.png"));
+    ASSERT_TRUE(few.ok()) << few.status().message();
+    EXPECT_EQ(few->spec.band_edges.size(), 5u);
+    EXPECT_EQ(few->spec.row_costs.size(), 16u);
+    auto many = c.submit(testing_farm::request(testing_farm::kSpheres, 16, 16, 1, 1, 8, "m_####.png"));
+    ASSERT_TRUE(many.ok()) << many.status().message();
+    EXPECT_EQ(many->spec.band_edges.size(), always ? 9u : 0u) << "always " << always;
+    EXPECT_EQ(many->spec.row_costs.size(), always ? 16u : 0u);
+    EXPECT_EQ(passes, always ? 2 : 1);
+    c.shutdown();
+  }
+}
+
 }  // namespace
 }  // namespace locus::farm
