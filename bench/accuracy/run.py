@@ -23,6 +23,7 @@ import os
 import re
 import shutil
 import subprocess
+import tempfile
 import sys
 import tempfile
 import time
@@ -180,6 +181,25 @@ def metrics(img, ref, mask):
 
 # ------------------------------------------------------------------ renderers
 
+def run_child(cmd, cwd=None):
+    """subprocess.run(cmd, capture_output=True, text=True), and the child's
+    own peak resident memory in KiB (ru_maxrss of wait4 for that child:
+    RUSAGE_CHILDREN would give the largest of all children so far). Linux
+    keeps a process's peak across exec, so it is at least what this Python
+    process had resident when it started the child (~35 MiB with numpy):
+    a smaller figure is that floor, not the child's."""
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        p = subprocess.Popen(cmd, stdout=out, stderr=err, cwd=cwd)
+        _, status, usage = os.wait4(p.pid, 0)
+        p.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        r = subprocess.CompletedProcess(cmd, p.returncode,
+                                        out.read().decode(errors="replace"),
+                                        err.read().decode(errors="replace"))
+    return r, usage.ru_maxrss
+
+
 class Locus:
     def __init__(self, binary, tmp):
         self.binary = binary
@@ -192,7 +212,7 @@ class Locus:
             os.remove(stats)
         cmd = [self.binary, "render", scene, "-o", out, "--size", f"{size}x{size}",
                "--workers", "0", "--threads", str(threads), "--stats", stats] + args
-        r = subprocess.run(cmd, capture_output=True, text=True)
+        r, self.peak_kib = run_child(cmd)
         if r.returncode != 0:
             lines = r.stderr.strip().splitlines()
             raise RuntimeError(lines[-1] if lines else f"exit {r.returncode}")

@@ -68,7 +68,7 @@ class Locus(acc.Locus):
         st = self.stats(scene, size, args, out, threads)
         s = st["seconds"]
         return {"cpu": s["render_cpu"], "wall": s["render"], "prepare": s.get("prepare", 0.0),
-                "stats": st}
+                "peak_mib": self.peak_kib / 1024.0, "stats": st}
 
 
 class PovRay(acc.PovRay):
@@ -88,7 +88,7 @@ class PovRay(acc.PovRay):
                f"+O{os.path.basename(out)}", "+FN16", "File_Gamma=1.0"] + list(flags)
         if include:
             cmd.append(f"+HI{self.include}")
-        r = subprocess.run(cmd, capture_output=True, text=True, cwd=os.path.dirname(out))
+        r, peak_kib = acc.run_child(cmd, cwd=os.path.dirname(out))
         m = self.CPU.search(r.stderr)
         if r.returncode != 0 or not m:
             lines = [x for x in r.stderr.strip().splitlines() if "rror" in x] or \
@@ -96,7 +96,7 @@ class PovRay(acc.PovRay):
             raise RuntimeError(lines[-1] if lines else f"exit {r.returncode}")
         setup = sum(float(s) for _, s in self.SETUP.findall(r.stderr))
         return {"cpu": float(m.group(3)), "wall": float(m.group(1)), "prepare": setup,
-                "stats": None}
+                "peak_mib": peak_kib / 1024.0, "stats": None}
 
 
 def best(runs):
@@ -106,6 +106,9 @@ def best(runs):
     b = dict(min(runs, key=lambda r: r["cpu"]))
     b["wall"] = min(r["wall"] for r in runs)
     b["prepare"] = min(r["prepare"] for r in runs)
+    # Peak memory: the largest of the runs (it hardly varies).
+    if all("peak_mib" in r for r in runs):
+        b["peak_mib"] = max(r["peak_mib"] for r in runs)
     b["all_cpu"] = ";".join(f"{r['cpu']:.4f}" for r in runs)
     b["all_wall"] = ";".join(f"{r['wall']:.4f}" for r in runs)
     b["runs"] = len(runs)
@@ -117,7 +120,8 @@ def summarize(row, runs, image=None, ref=None, mask=None, ref_label=None):
     the image's error against it (bench/accuracy's metrics, edge mask).
     Returns the best run's record (with its --stats, for Locus)."""
     b = best(runs)
-    row.update({k: b[k] for k in ("cpu", "wall", "prepare", "runs", "all_cpu", "all_wall")})
+    row.update({k: b[k] for k in ("cpu", "wall", "prepare", "runs", "all_cpu", "all_wall",
+                                  "peak_mib") if k in b})
     if ref is not None:
         row.update(metrics(read_image(image), ref, mask))
         row["reference"] = ref_label

@@ -2,7 +2,15 @@
 """Scaling with scene size (issue #9 item 5): SPD balls and tetra from size
 s1 to beyond the default, rendered by Locus (configuration IV, --aa 4 and
 --aa 0) and POV-Ray (-A) at 512x512 on one thread; time per frame against
-primitive count on log-log axes, with the fitted slopes.
+primitive count on log-log axes, with the fitted slopes, and peak memory.
+
+Target lines (issue #27 "Big scenes at POV-Ray's slope"), printed PASS or
+FAIL: at the largest level of each kind (balls 5, tetra 9 in a full run),
+Locus --aa 0's render CPU below POV-Ray -A's trace CPU; Locus's prepare at
+most 2x POV-Ray's parse + bounding; the two together below POV-Ray's
+parse + bounding + trace; Locus's peak memory at most 2x POV-Ray's. And
+the slope of render CPU over the largest 3 levels at most 0.4, for Locus
+--aa 0 and --aa 4 (POV-Ray's own is printed beside them).
 
 Levels 1, 2 and the default are ../shared/spd/{s1,s2,def}; the others are
 written by spdgen.py (which reproduces those three exactly, `--check`).
@@ -32,6 +40,9 @@ CONFIGS = [("aa4", "Locus IV --aa 4", "locus", IV + ["--aa", "4"]),
            ("aa0", "Locus IV --aa 0", "locus", IV + ["--aa", "0"]),
            ("pov_noaa", "POV-Ray -A", "povray", ["-A"])]
 UPPER = 3   # the "large end" fit uses the largest UPPER levels
+SLOPE_TARGET = 0.4   # issue #27: render time's slope over the largest UPPER levels
+PREPARE_TARGET = 2.0  # Locus prepare <= 2x POV-Ray parse + bounding
+MEMORY_TARGET = 2.0   # Locus peak memory <= 2x POV-Ray's
 
 
 def scene_file(kind, level, tmp):
@@ -168,7 +179,7 @@ def report(out_dir, rows, info):
 
 
 FIELDS = ["kind", "level", "source", "primitives", "size", "config", "label", "renderer", "cpu",
-          "wall", "prepare", "runs", "all_cpu", "all_wall", "pixels_ray_traced",
+          "wall", "prepare", "peak_mib", "runs", "all_cpu", "all_wall", "pixels_ray_traced",
           "tests_shadow_volume", "tests_ray_object", "note"]
 
 
@@ -191,17 +202,58 @@ def sec(v):
     return f"{v:.3f}" if H.finite(v) else "—"
 
 
-def write_md(path, rows, fit, info):
-    size = info["size"]
-    checks = []
+def verdict(ok):
+    return "PASS" if ok else "FAIL"
+
+
+def target_lines(rows, fit):
+    """The issue's target lines: the largest level of each kind against
+    POV-Ray, and the slopes of the largest UPPER levels."""
+    lines = []
+    for kind in sorted({r["kind"] for r in rows}, key=["balls", "tetra"].index):
+        levels = sorted({r["level"] for r in rows if r["kind"] == kind})
+        level = levels[-1]
+        g = {r["config"]: r for r in rows if r["kind"] == kind and r["level"] == level}
+        loc, pov = g.get("aa0", {}), g.get("pov_noaa", {})
+        tag = f"{kind} level {level} ({g[next(iter(g))]['primitives']} primitives)"
+        if "cpu" not in loc or "cpu" not in pov:
+            lines.append(f"FAIL {tag}: not measured ({loc.get('note') or pov.get('note') or '?'})")
+            continue
+        lines.append(f"{verdict(loc['cpu'] < pov['cpu'])} {tag}: Locus --aa 0 render "
+                     f"{loc['cpu']:.3f} s CPU against POV-Ray -A trace {pov['cpu']:.3f} s "
+                     f"({loc['cpu'] / pov['cpu']:.2f}x; target below it)")
+        ratio = loc["prepare"] / pov["prepare"] if pov["prepare"] > 0 else float("inf")
+        lines.append(f"{verdict(ratio <= PREPARE_TARGET)} {tag}: Locus prepare "
+                     f"{loc['prepare']:.3f} s against POV-Ray parse + bounding "
+                     f"{pov['prepare']:.3f} s ({ratio:.2f}x; target <= {PREPARE_TARGET:g}x)")
+        lt, pt = loc["prepare"] + loc["cpu"], pov["prepare"] + pov["cpu"]
+        lines.append(f"{verdict(lt < pt)} {tag}: Locus prepare + render {lt:.3f} s against "
+                     f"POV-Ray parse + bounding + trace {pt:.3f} s ({lt / pt:.2f}x; target "
+                     "below it)")
+        if "peak_mib" in loc and "peak_mib" in pov:
+            m = loc["peak_mib"] / pov["peak_mib"]
+            lines.append(f"{verdict(m <= MEMORY_TARGET)} {tag}: peak memory Locus --aa 0 "
+                         f"{loc['peak_mib']:.0f} MiB against POV-Ray {pov['peak_mib']:.0f} MiB "
+                         f"({m:.2f}x; target <= {MEMORY_TARGET:g}x)")
+        else:
+            lines.append(f"FAIL {tag}: peak memory not measured")
+    pov_slope = {x["kind"]: x["slope_upper"] for x in fit
+                 if x["field"] == "cpu" and x["config"] == "pov_noaa"}
     for x in fit:
         if x["field"] != "cpu" or not x["config"].startswith("aa"):
             continue
-        ok = x["slope_all"] < 1 and x["slope_upper"] < 1
-        checks.append(f"{'PASS' if ok else 'FAIL'} {x['kind']} {x['label']}: log-log slope "
-                      f"{x['slope_all']:.2f} over {x['range']} primitives, "
-                      f"{x['slope_upper']:.2f} over the largest {UPPER} ({x['upper_range']}); "
-                      "sub-linear needs < 1")
+        ok = x["levels"] >= UPPER and x["slope_upper"] <= SLOPE_TARGET
+        lines.append(f"{verdict(ok)} {x['kind']} {x['label']}: slope of render CPU over the "
+                     f"largest {UPPER} levels ({x['upper_range']} primitives) "
+                     f"{x['slope_upper']:.2f} (target <= {SLOPE_TARGET:g}; POV-Ray -A "
+                     f"{pov_slope.get(x['kind'], float('nan')):.2f}; over every level "
+                     f"{x['slope_all']:.2f})")
+    return lines
+
+
+def write_md(path, rows, fit, info):
+    size = info["size"]
+    checks = target_lines(rows, fit)
     L = [f"# Scaling with scene size{' (quick smoke test)' if info['quick'] else ''}", "",
          f"`bench/peers/scaling.py{' --quick' if info['quick'] else ''}`, {info['date']}: locus "
          f"`{info['locus']}` (HEAD `{info['commit']}`), {info['pov']}, load average "
@@ -212,8 +264,10 @@ def write_md(path, rows, fit, info):
          f"{info['repeat']} runs in rounds; wall times and setup (Locus `seconds.prepare`, "
          "POV-Ray parse + bounding, both wall) beside it. Levels 1, 2 and the default are "
          "`../shared/spd/{s1,s2,def}`, the others are written by `spdgen.py` (the same "
-         "generator reproduces the shared files exactly). See bench/peers/README.md.", "",
-         "## Slopes", "", "```"] + checks + ["```", "",
+         "generator reproduces the shared files exactly). Peak memory is each process's "
+         "own largest resident set (`ru_maxrss` from `wait4`; at least the harness's own "
+         "~35 MiB, which Linux carries across exec). See bench/peers/README.md.", "",
+         "## Targets (issue #27)", "", "```"] + checks + ["```", "", "## Slopes", "",
          "| scene | configuration | fitted on | slope, all levels | slope, largest "
          f"{UPPER} |", "|---|---|---|---|---|"]
     for x in fit:
@@ -222,8 +276,9 @@ def write_md(path, rows, fit, info):
     for kind in sorted({r["kind"] for r in rows}, key=["balls", "tetra"].index):
         L += ["", f"## {kind}", "",
               "| level | file | primitives | Locus --aa 4 | Locus --aa 0 | POV-Ray -A | "
-              "Locus prepare | POV-Ray parse + bounding | Locus --aa 4 shadow-volume tests |",
-              "|---|---|---|---|---|---|---|---|---|"]
+              "Locus prepare | POV-Ray parse + bounding | peak MiB: Locus --aa 4 / --aa 0 / "
+              "POV-Ray | Locus --aa 4 shadow-volume tests |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
         for level in sorted({r["level"] for r in rows if r["kind"] == kind}):
             g = {r["config"]: r for r in rows if r["kind"] == kind and r["level"] == level}
             any_r = next(iter(g.values()))
@@ -234,9 +289,11 @@ def write_md(path, rows, fit, info):
                     return "failed: " + r.get("note", "") if r else "—"
                 return f"{r['cpu']:.3f} ({r['wall']:.2f})"
             a4, pv = g.get("aa4", {}), g.get("pov_noaa", {})
+            peaks = " / ".join(f"{g[k]['peak_mib']:.0f}" if "peak_mib" in g.get(k, {}) else "—"
+                               for k in ("aa4", "aa0", "pov_noaa"))
             L.append(f"| {level} | {any_r['source']} | {any_r['primitives']} | {tm('aa4')} | "
                      f"{tm('aa0')} | {tm('pov_noaa')} | "
-                     f"{sec(a4.get('prepare'))} | {sec(pv.get('prepare'))} | "
+                     f"{sec(a4.get('prepare'))} | {sec(pv.get('prepare'))} | {peaks} | "
                      f"{H.fmt(a4.get('tests_shadow_volume'))} |")
     L += ["", "Chart: `scaling.png`; figures `scaling.csv`, fits `scaling_fit.csv`.", ""]
     with open(path, "w") as f:
