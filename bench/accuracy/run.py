@@ -181,23 +181,27 @@ def metrics(img, ref, mask):
 
 # ------------------------------------------------------------------ renderers
 
+GNU_TIME = "/usr/bin/time"  # Debian's `time` (deploy/local/install-deps.sh)
+
+
 def run_child(cmd, cwd=None):
     """subprocess.run(cmd, capture_output=True, text=True), and the child's
-    own peak resident memory in KiB (ru_maxrss of wait4 for that child:
-    RUSAGE_CHILDREN would give the largest of all children so far). Linux
-    keeps a process's peak across exec, so it is at least what this Python
-    process had resident when it started the child (~35 MiB with numpy):
-    a smaller figure is that floor, not the child's."""
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        p = subprocess.Popen(cmd, stdout=out, stderr=err, cwd=cwd)
-        _, status, usage = os.wait4(p.pid, 0)
-        p.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        r = subprocess.CompletedProcess(cmd, p.returncode,
-                                        out.read().decode(errors="replace"),
-                                        err.read().decode(errors="replace"))
-    return r, usage.ru_maxrss
+    own peak resident memory in KiB, as GNU time reports it (%M). Not this
+    process's wait4: Linux carries a process's peak across exec, so a child
+    started from Python would count Python's own resident memory as its
+    floor (~35 MiB, ~120 MiB after a big scene was generated); GNU time is
+    small, and the child it starts is measured from its own start."""
+    if not os.access(GNU_TIME, os.X_OK):
+        raise RuntimeError(f"{GNU_TIME} not found (Debian package `time`; "
+                           "deploy/local/install-deps.sh installs it)")
+    with tempfile.NamedTemporaryFile(mode="r", suffix=".maxrss") as peak:
+        r = subprocess.run([GNU_TIME, "-f", "%M", "-o", peak.name] + list(cmd),
+                           capture_output=True, text=True, cwd=cwd)
+        text = peak.read().strip().splitlines()
+    # On a failed child, GNU time writes "Command exited with non-zero
+    # status N" before the figure.
+    kib = int(text[-1]) if text and text[-1].isdigit() else 0
+    return r, kib
 
 
 class Locus:

@@ -265,8 +265,7 @@ def write_md(path, rows, fit, info):
          "POV-Ray parse + bounding, both wall) beside it. Levels 1, 2 and the default are "
          "`../shared/spd/{s1,s2,def}`, the others are written by `spdgen.py` (the same "
          "generator reproduces the shared files exactly). Peak memory is each process's "
-         "own largest resident set (`ru_maxrss` from `wait4`; at least the harness's own "
-         "~35 MiB, which Linux carries across exec). See bench/peers/README.md.", "",
+         "own largest resident set (GNU time's %M). See bench/peers/README.md.", "",
          "## Targets (issue #27)", "", "```"] + checks + ["```", "", "## Slopes", "",
          "| scene | configuration | fitted on | slope, all levels | slope, largest "
          f"{UPPER} |", "|---|---|---|---|---|"]

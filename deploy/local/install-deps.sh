@@ -21,8 +21,9 @@ PACKAGES=(
   ffmpeg
   python3 python3-numpy python3-pil python3-matplotlib python3-openimageio python3-yaml
   # bench/peers: the Embree 3 Whitted caster (locus-embree-whitted, optional);
-  # POV-Ray 3.7, the peer of bench/peers and bench/accuracy.
-  libembree-dev povray
+  # POV-Ray 3.7, the peer of bench/peers and bench/accuracy; GNU time for
+  # each renderer's peak memory (bench/accuracy/run.py run_child).
+  libembree-dev povray time
   # The Python client (client/python, docs/python.md); its stubs come from
   # protobuf-compiler-grpc's grpc_python_plugin, above.
   python3-grpcio python3-protobuf
