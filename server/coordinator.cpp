@@ -442,11 +442,9 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
     std::lock_guard lk(mu_);
     if (auto answer = refused_or_retried(r, *job, fingerprint)) return *answer;
     if (Status s = count_bands(r.bands, *job); !s.ok()) return s;
-    cost_split = options_.cost_bands &&
-                 (options_.always_cost_bands
-                      ? job->spec.bands > 1
-                      : cost_split_pays(job->spec.bands,
-                                        static_cast<int>(scheduler_.worker_count())));
+    cost_split = options_.cost_bands && job->spec.bands > 1 &&
+                 (options_.always_cost_bands ||
+                  cost_split_pays(job->spec.bands, static_cast<int>(scheduler_.worker_count())));
   }
   // The cost pre-pass outside mu_: it renders a preview of the scene
   // (seconds for a big one), and every worker's lease, result and
