@@ -238,10 +238,12 @@ int render_in_process(const RenderArgs& a) {
   Stats total;
   double seconds = 0;
   for (int f = r.frame_first; f <= r.frame_last; ++f) {
-    const Scene s = farm::frame_scene(job->scene, r.width, r.height, f, r.frame_first, r.frame_last,
-                                      r.orbit_degrees);
+    // The last frame takes the job's scene itself: a one-frame render
+    // never copies its meshes.
+    Scene s = farm::frame_scene(f == r.frame_last ? std::move(job->scene) : job->scene, r.width,
+                                r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
     CostBuffer cost;
-    auto result = render_image(s, *params, a.cost_map.empty() ? nullptr : &cost);
+    auto result = render_image(std::move(s), *params, a.cost_map.empty() ? nullptr : &cost);
     if (!result.ok()) return fail(result.status());
     const std::string path = frame_path(a.job.output, f);
     make_parent_dirs(path);

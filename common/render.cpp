@@ -7,6 +7,7 @@
 #include <ctime>
 #include <sstream>
 #include <thread>
+#include <utility>
 
 #include "common/base/log.h"
 #include "common/prepare/parallel.h"
@@ -116,13 +117,14 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   return result;
 }
 
-Result<BandResult> render_image(const Scene& scene, const RenderParams& params, CostBuffer* cost) {
+Result<BandResult> render_image(Scene scene, const RenderParams& params, CostBuffer* cost) {
   const auto start = std::chrono::steady_clock::now();
-  auto prepared = prepare_scene(scene, params);
+  const int height = scene.camera.height;
+  auto prepared = prepare_scene(std::move(scene), params);
   if (!prepared.ok()) return prepared.status();
   const double prep =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  BandResult r = render_band(**prepared, Band{0, scene.camera.height}, params, nullptr, cost);
+  BandResult r = render_band(**prepared, Band{0, height}, params, nullptr, cost);
   r.stats.seconds_prepare = prep;
   r.stats.seconds_tessellate = (*prepared)->seconds_tessellate;
   return r;

@@ -46,7 +46,7 @@ void set_row_hook_for_test(std::function<void(int row)> hook);
 
 // prepare_scene + render_band over the whole image; stats include prepare time.
 // `cost`, if given, as render_band's.
-Result<BandResult> render_image(const Scene& scene, const RenderParams& params,
+Result<BandResult> render_image(Scene scene, const RenderParams& params,
                                 CostBuffer* cost = nullptr);
 
 }  // namespace locus

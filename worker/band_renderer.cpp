@@ -63,9 +63,9 @@ Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bo
   }
   if (!prepared) {
     const auto start = SteadyClock::now();
-    const Scene s = frame_scene(*it->second, t.width, t.height, t.frame, t.frame_first,
-                                t.frame_last, t.orbit_degrees);
-    auto r = prepare_scene(s, *params);
+    auto r = prepare_scene(frame_scene(*it->second, t.width, t.height, t.frame, t.frame_first,
+                                       t.frame_last, t.orbit_degrees),
+                           *params);
     if (!r.ok()) return r.status();
     prepared = *r;
     ++prepares_;

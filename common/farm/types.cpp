@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <utility>
 
 #include "common/scene/animation.h"
 #include "common/scene/validate.h"
@@ -63,12 +64,11 @@ Band band_rows(const JobSpec& spec, int index) {
   return band_rows(spec.height, spec.bands, spec.band_edges, index);
 }
 
-Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
+Scene frame_scene(Scene base, int width, int height, int frame, int frame_first,
                   int frame_last, double orbit_degrees) {
-  Scene s = base;
-  s.camera.width = width;
-  s.camera.height = height;
-  return scene_at_frame(s, frame, Orbit{orbit_degrees, frame_first, frame_last});
+  base.camera.width = width;
+  base.camera.height = height;
+  return scene_at_frame(std::move(base), frame, Orbit{orbit_degrees, frame_first, frame_last});
 }
 
 std::string band_edges_text(const std::vector<int>& edges) {

@@ -423,7 +423,7 @@ std::string content_hash(std::string_view bytes);
 // The frame's still scene exactly as every renderer of the farm builds it:
 // the resolution set, then scene_at_frame() with the job's orbit. The
 // in-process `locus render --workers 0` calls it too.
-Scene frame_scene(const Scene& base, int width, int height, int frame, int frame_first,
+Scene frame_scene(Scene base, int width, int height, int frame, int frame_first,
                   int frame_last, double orbit_degrees);
 
 }  // namespace locus::farm

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <utility>
 
 #include "common/prepare/parallel.h"
 #include "common/prepare/scan_scene.h"
@@ -26,9 +27,9 @@ CameraFrame::CameraFrame(const Camera& c)
 namespace {
 // Free-form surfaces become triangles first (METHOD.md §3): everything after
 // this sees a mesh.
-Scene tessellated(const Scene& s, const RenderParams& params, double* seconds) {
+Scene tessellated(Scene s, const RenderParams& params, double* seconds) {
   const auto start = std::chrono::steady_clock::now();
-  Scene out = tessellate_scene(s, params.tess_tol);
+  Scene out = tessellate_scene(std::move(s), params.tess_tol);
   *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }
@@ -43,16 +44,16 @@ double scale_of_world(const std::vector<Aabb>& bounds) {
 }
 }  // namespace
 
-PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
-    : scene(tessellated(s, params, &seconds_tessellate)),
+PreparedScene::PreparedScene(Scene s, const RenderParams& params)
+    : scene(tessellated(std::move(s), params, &seconds_tessellate)),
       camera(scene.camera),
       prims(build_primitives(scene)) {
   bvh_for_rays = params.boxes != Boxes::kNone;
   bvh_for_shadows = params.boxes == Boxes::kEyeShadow;
   if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
-  for (int j = 0; j < static_cast<int>(s.lights.size()); ++j)
-    emission.push_back(light_emission(s, j));
-  ambient = ambient_intensity(s);
+  for (int j = 0; j < static_cast<int>(scene.lights.size()); ++j)
+    emission.push_back(light_emission(scene, j));
+  ambient = ambient_intensity(scene);
   world_scale = scale_of_world(prims.bounds);
   // Secondary rays start this far off the surface: relative to the scene's
   // size, far above double rounding, far below any feature of SPD scenes.
@@ -70,13 +71,13 @@ PreparedScene::PreparedScene(const Scene& s, const RenderParams& params)
   }
 }
 
-Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
+Result<std::shared_ptr<const PreparedScene>> prepare_scene(Scene scene,
                                                            const RenderParams& params) {
   if (Status s = check_render_params(params); !s.ok()) return s;
   if (scene.camera.width < 1 || scene.camera.height < 1) {
     return InvalidArgument("image size must be positive");
   }
-  return std::shared_ptr<const PreparedScene>(std::make_shared<PreparedScene>(scene, params));
+  return std::shared_ptr<const PreparedScene>(std::make_shared<PreparedScene>(std::move(scene), params));
 }
 
 }  // namespace locus

@@ -31,7 +31,7 @@ struct CameraFrame {
 
 class PreparedScene {
  public:
-  PreparedScene(const Scene& s, const RenderParams& params);
+  PreparedScene(Scene s, const RenderParams& params);
 
   double seconds_tessellate = 0;  // set first: the scene below is tessellated
   Scene scene;                    // Bezier surfaces already cut into meshes
@@ -57,7 +57,9 @@ class PreparedScene {
 // The paper's §3 steps ii-iii for one frame: tessellation, primitives and
 // their hierarchy of boxes, the scan scene and the shadow volumes. Checks
 // `params` first (check_render_params) and the image size.
-Result<std::shared_ptr<const PreparedScene>> prepare_scene(const Scene& scene,
+// `scene` by value: a caller done with it moves it in (a big mesh is then
+// never copied).
+Result<std::shared_ptr<const PreparedScene>> prepare_scene(Scene scene,
                                                            const RenderParams& params);
 
 }  // namespace locus

@@ -727,7 +727,27 @@ ShadowVolumes build_shadow_volumes(const PreparedScene& ps, bool search, int thr
   });
   parallel_for(lights, threads, [&](int j) {
     LightVolumes& lv = sv.lights[j];
-    for (int c = 0; c < tasks; ++c) append_part(lv, std::move(parts[j * tasks + c]));
+    // Reserved exactly, and each part freed once joined: growth by doubling
+    // would hold up to twice the volumes at the peak (a quarter of a big
+    // scene's memory, issue #27).
+    size_t planes = 0, volumes = 0, occluders = 0, nodes = 0;
+    for (int c = 0; c < tasks; ++c) {
+      const LightVolumes& part = parts[j * tasks + c];
+      planes += part.set.planes.size();
+      volumes += part.set.volumes.size();
+      occluders += part.occluders.size();
+      nodes += part.node_volume.size();
+    }
+    for (int c = 0; c < tasks; ++c) {
+      append_part(lv, std::move(parts[j * tasks + c]));
+      parts[j * tasks + c] = LightVolumes{};
+      // After the first part that held anything was moved in (a no-op
+      // once reserved).
+      lv.set.planes.reserve(planes);
+      lv.set.volumes.reserve(volumes);
+      lv.occluders.reserve(occluders);
+      lv.node_volume.reserve(nodes);
+    }
     if (search) lv.candidates = CandidateTable(n);
     add_camera_dots(ps.camera, lv.set);
   });

@@ -110,9 +110,10 @@ double orbit_angle(const Orbit& orbit, int frame) {
   return orbit.degrees * static_cast<double>(frame - orbit.first) / (orbit.last - orbit.first);
 }
 
-Scene scene_at_frame(const Scene& scene, int frame, const Orbit& orbit) {
-  Scene s = scene;
-  const Animation& a = scene.animation;
+Scene scene_at_frame(Scene s, int frame, const Orbit& orbit) {
+  // By value: a caller done with its scene moves it in, and a big mesh is
+  // not copied (issue #27, memory per primitive).
+  const Animation& a = s.animation;
   const Interpolation how = a.interpolation;
 
   if (!a.camera.empty()) {

@@ -84,7 +84,7 @@ double orbit_angle(const Orbit& orbit, int frame);
 // Quantities that are not animated are copied untouched, so a scene without
 // animation and a zero orbit comes back bit-identical. Out-of-range indices
 // are skipped (check_animation reports them).
-Scene scene_at_frame(const Scene& scene, int frame, const Orbit& orbit = {});
+Scene scene_at_frame(Scene scene, int frame, const Orbit& orbit = {});
 
 // Problems of the animation, one "<origin>: animation.<path>: <what>" each:
 // indices out of range, keys not in increasing frame order, non-finite
