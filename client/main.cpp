@@ -64,6 +64,9 @@ struct RenderArgs {
   // --cost-map: where the work went, per pixel (docs/cost-map.md); a
   // pattern like -o's for several frames.
   std::string cost_map;
+  // --visibility: the local method's visible-surface pass (RenderParams);
+  // anything but auto renders in process.
+  std::string visibility = "auto";
 };
 
 int fail(const std::string& message) {
@@ -234,6 +237,8 @@ int render_in_process(const RenderArgs& a) {
   }
   auto params = farm::to_render_params(job->request.render, a.threads);
   if (!params.ok()) return fail(params.status());
+  params->visibility = *label_value(kVisibilityLabels, a.visibility);  // checked by CLI11
+  if (Status st = check_render_params(*params); !st.ok()) return fail(st);
   const farm::SubmitRequest& r = job->request;
   Stats total;
   double seconds = 0;
@@ -364,6 +369,11 @@ int run_render(const RenderArgs& a) {
   if (!a.cost_map.empty()) {
     // The farm's bands carry no cost buffers yet (docs/cost-map.md).
     spdlog::info("--cost-map: the farm does not make cost maps yet; rendering in process");
+    return render_in_process(a);
+  }
+  if (a.visibility != "auto") {
+    // A farm job chooses per frame (auto); a forced pass is for comparing.
+    spdlog::info("--visibility {}: renders in process", a.visibility);
     return render_in_process(a);
   }
   if (!a.workers_given && !client::worker_binary().ok()) {
@@ -729,6 +739,12 @@ int main(int argc, char** argv) {
       "Also write a cost map (.png, .exr, .tif): each pixel's rays and shadow-volume tests in "
       "false colour, ray-traced spans outlined, a legend (docs/cost-map.md); #### for several "
       "frames, like -o. Renders in process");
+  render
+      ->add_option("--visibility", ra.visibility,
+                   "local, configuration IV: how visible surfaces are found: scanline (the "
+                   "paper's pass), rays (an eye ray per sample) or auto (default: rays where the "
+                   "scene is finer than its pixels; docs/renderer.md). Not auto: renders in process")
+      ->check(CLI::IsMember(label_names(kVisibilityLabels)));
 
   std::string vpath;
   auto* validate = app.add_subcommand("validate", "Check a scene file and list every problem");

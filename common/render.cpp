@@ -109,6 +109,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   for (const ThreadStats& t : stats) result.stats += t.s;
   for (const double c : cpu) result.stats.seconds_render_cpu += c;
   result.stats.geometry_triangles = ps.prims.triangles.size();
+  result.stats.visibility = ps.scan && !ps.by_rays ? "scanline" : "rays";
   result.stats.shadow_method = !ps.volumes          ? "rays"
                                : ps.volumes->search ? "volumes"
                                                     : "volumes+rays";

@@ -88,7 +88,7 @@ INSERT OR IGNORE INTO meta(key, value) VALUES('schema', '1');
 )sql";
 
 // Stats as one line of text: the fields in declaration order, then the
-// shadow method.
+// shadow method, then what later versions added (each read if present).
 std::string encode_stats(const Stats& s) {
   std::ostringstream o;
   o.precision(17);
@@ -96,7 +96,8 @@ std::string encode_stats(const Stats& s) {
     << ' ' << s.rays_refracted << ' ' << s.rays_shadow << ' ' << s.tests_ray_object << ' '
     << s.tests_shadow_volume << ' ' << s.pixels_total << ' ' << s.pixels_ray_traced << ' '
     << s.spans_total << ' ' << s.spans_ray_traced << ' ' << s.shadow_method << ' '
-    << s.seconds_tessellate << ' ' << s.geometry_triangles << ' ' << s.seconds_render_cpu;
+    << s.seconds_tessellate << ' ' << s.geometry_triangles << ' ' << s.seconds_render_cpu << ' '
+    << s.visibility;
   return o.str();
 }
 
@@ -117,6 +118,8 @@ Stats decode_stats(const std::string& text) {
   }
   double cpu = 0;
   if (i >> cpu) s.seconds_render_cpu = cpu;
+  std::string visibility;
+  if (i >> visibility) s.visibility = visibility;
   return s;
 }
 

@@ -26,6 +26,12 @@ Status check_render_params(const RenderParams& params) {
         "--aa " + std::to_string(params.aa) +
         ": multi-scanning belongs to --method local; the ray tracer uses --spp N");
   }
+  if (params.visibility != Visibility::kAuto &&
+      !(params.method == Method::kLocal && params.boxes == Boxes::kEyeShadow)) {
+    return InvalidArgument(std::string("--visibility ") +
+                           std::string(label_name(kVisibilityLabels, params.visibility)) +
+                           ": only for --method local --boxes eye+shadow (configuration IV)");
+  }
   if (!(params.tess_tol > 0.0 && std::isfinite(params.tess_tol))) {
     return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
                            format_number(params.tess_tol));
@@ -50,6 +56,7 @@ Stats& Stats::operator+=(const Stats& o) {
   spans_total += o.spans_total;
   spans_ray_traced += o.spans_ray_traced;
   if (!o.shadow_method.empty()) shadow_method = o.shadow_method;
+  if (!o.visibility.empty()) visibility = o.visibility;
   return *this;
 }
 
@@ -65,7 +72,8 @@ std::string Stats::to_json() const {
     << ", \"shadow_volume\": " << tests_shadow_volume
     << "},\n  \"pixels\": {\"total\": " << pixels_total << ", \"ray_traced\": " << pixels_ray_traced
     << "},\n  \"spans\": {\"total\": " << spans_total << ", \"ray_traced\": " << spans_ray_traced
-    << "},\n  \"shadows\": {\"method\": \"" << shadow_method << "\"}\n}\n";
+    << "},\n  \"shadows\": {\"method\": \"" << shadow_method
+    << "\"},\n  \"visibility\": {\"method\": \"" << visibility << "\"}\n}\n";
   return o.str();
 }
 

@@ -21,6 +21,15 @@ inline constexpr Labels<Method, 2> kMethodLabels = {
 inline constexpr Labels<Boxes, 3> kBoxesLabels = {
     {{Boxes::kNone, "none"}, {Boxes::kEye, "eye"}, {Boxes::kEyeShadow, "eye+shadow"}}};
 
+// The local method's visible-surface pass (issue #27; docs/renderer.md
+// "Visibility by rays"): the scanline pass of the paper (§3.2), or an eye ray
+// per sample; `auto` casts rays for a point-sampled frame crossed by many
+// faces per row (common/prepare/visibility.h) and scans otherwise.
+// Configuration IV only: II and III always scan.
+enum class Visibility { kAuto, kScanline, kRays };
+inline constexpr Labels<Visibility, 3> kVisibilityLabels = {
+    {{Visibility::kAuto, "auto"}, {Visibility::kScanline, "scanline"}, {Visibility::kRays, "rays"}}};
+
 inline constexpr int kMaxAa = 64;
 inline constexpr int kMaxSpp = 64;
 // `--tess-tol`: largest screen-space deviation of a tessellated free-form
@@ -36,6 +45,7 @@ struct RenderParams {
   int aa = 0;
   int threads = 0;                    // 0 = all cores
   double tess_tol = kDefaultTessTol;  // Bezier surfaces: pixels, > 0
+  Visibility visibility = Visibility::kAuto;  // local, configuration IV
 };
 
 // The one check of a RenderParams, whoever built it (the CLI, a job from the
@@ -76,6 +86,10 @@ struct Stats {
   // How shadows were found: "rays" (raytrace), "volumes+rays" (II, III:
   // spans by volumes, secondary points by rays), "volumes" (IV).
   std::string shadow_method = "rays";
+  // How visible surfaces were found: "scanline" (the local method's pass,
+  // paper §3.2) or "rays" (the ray tracer, or the local method where the
+  // scene is finer than its pixels: Visibility).
+  std::string visibility = "rays";
 
   Stats& operator+=(const Stats& o);
   std::string to_json() const;

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "common/prepare/parallel.h"
+#include "common/prepare/visibility.h"
 
 namespace locus {
 
@@ -19,6 +20,9 @@ Result<std::vector<double>> predict_row_costs(const Scene& scene, const RenderPa
   preview.camera.width = std::max(1, w / scale);
   preview.camera.height = std::max(1, (h + scale - 1) / scale);
   RenderParams p = params;
+  // The frame's visible-surface pass, whatever the preview's size and
+  // sampling would choose.
+  p.visibility = frame_visibility(scene, params);
   p.threads = threads;
   p.aa = 0;   // the localization, point sampled
   p.spp = 1;

@@ -9,6 +9,7 @@
 #include "common/prepare/scan_scene.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/prepare/tessellate.h"
+#include "common/prepare/visibility.h"
 
 namespace locus {
 
@@ -59,6 +60,13 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
   if (params.method == Method::kLocal) {
+    by_rays = visibility_by_rays(measure_visibility(prims, camera), camera, params);
+    if (by_rays) {
+      // Finer than the pixels (common/prepare/visibility.h): an eye ray per
+      // sample, shadow rays through the boxes; no faces, no volumes.
+      scan = std::make_unique<ScanScene>(traced_scan_scene(camera.height, params.aa > 0));
+      return;
+    }
     // Each stage on the render's threads, its pieces side by side
     // (common/prepare/parallel.h); the result is the one of one thread.
     const int threads = render_threads(params);

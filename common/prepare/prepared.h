@@ -49,6 +49,9 @@ class PreparedScene {
   // Offset of secondary ray origins: 1e-7 of world_scale (capped at 1e7).
   double eps = 1e-9;
   std::unique_ptr<ScanScene> scan;  // the local method's faces (--method local)
+  // The local method finds visible surfaces by eye rays: `scan` has no
+  // faces and traces everything, `volumes` is empty (Visibility::kRays).
+  bool by_rays = false;
   // Configuration IV (--method local --boxes eye+shadow): shadow volumes
   // replace shadow rays (paper §4.1).
   std::shared_ptr<const ShadowVolumes> volumes;

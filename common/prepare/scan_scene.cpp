@@ -201,4 +201,11 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads)
   return scan;
 }
 
+ScanScene traced_scan_scene(int height, bool multiscan) {
+  ScanScene scan;
+  scan.trace_everything = true;
+  bucket_rows(scan, height, multiscan);
+  return scan;
+}
+
 }  // namespace locus

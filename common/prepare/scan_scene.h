@@ -48,4 +48,8 @@ struct ScanScene {
 // scene is the same, bit for bit, for any count.
 ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1);
 
+// No faces, every pixel traced (Visibility::kRays): the rows' passes find
+// an eye ray per sample, as inside a curved body's span.
+ScanScene traced_scan_scene(int height, bool multiscan);
+
 }  // namespace locus

@@ -265,6 +265,7 @@ v1::RenderStats ToProto(const Stats& s) {
   p.set_spans_total(s.spans_total);
   p.set_spans_ray_traced(s.spans_ray_traced);
   p.set_shadow_method(s.shadow_method);
+  p.set_visibility(s.visibility);
   return p;
 }
 
@@ -286,6 +287,7 @@ Stats FromProto(const v1::RenderStats& p) {
   s.spans_total = p.spans_total();
   s.spans_ray_traced = p.spans_ray_traced();
   if (!p.shadow_method().empty()) s.shadow_method = p.shadow_method();
+  if (!p.visibility().empty()) s.visibility = p.visibility();
   return s;
 }
 

@@ -1,0 +1,89 @@
+#include "common/prepare/visibility.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/prepare/prepared.h"
+#include "common/prepare/tessellate.h"
+
+namespace locus {
+
+VisibilityMeasure measure_visibility(const PrimitiveSet& prims, const CameraFrame& cam) {
+  VisibilityMeasure m;
+  const double w = cam.width, h = cam.height;
+  const double sx = cam.tan_half * cam.aspect, sy = cam.tan_half;
+  for (const Aabb& b : prims.bounds) {
+    if (b.empty()) continue;
+    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+    bool behind = false;
+    for (int c = 0; c < 8 && !behind; ++c) {
+      const Vec3 p{c & 1 ? b.hi.x : b.lo.x, c & 2 ? b.hi.y : b.lo.y, c & 4 ? b.hi.z : b.lo.z};
+      const Vec3 d = p - cam.from;
+      const double z = glm::dot(d, cam.w);
+      if (z <= 0.0) {
+        behind = true;
+        break;
+      }
+      const double x = (glm::dot(d, cam.u) / (z * sx) + 1.0) * 0.5 * w;
+      const double y = (1.0 - glm::dot(d, cam.v) / (z * sy)) * 0.5 * h;
+      x0 = std::min(x0, x);
+      x1 = std::max(x1, x);
+      y0 = std::min(y0, y);
+      y1 = std::max(y1, y);
+    }
+    if (behind) {
+      x0 = y0 = 0.0;
+      x1 = w;
+      y1 = h;
+    }
+    x0 = std::max(x0, 0.0);
+    y0 = std::max(y0, 0.0);
+    x1 = std::min(x1, w);
+    y1 = std::min(y1, h);
+    if (x0 > x1 || y0 > y1) continue;
+    ++m.in_view;
+    // A box thinner than a pixel still costs the scanline a row.
+    const double rows = std::max(y1 - y0, 1.0);
+    m.box_pixels += std::max(x1 - x0, 1.0) * rows;
+    m.face_rows += rows;
+  }
+  return m;
+}
+
+namespace {
+// Point sampled, the scanline pass computes the samples an eye ray per
+// pixel would; measured side by side on 22 scenes at 512x512 (docs/
+// renderer.md "Visibility by rays", the table there) it is faster only on
+// scenes of a few large faces (the paper's (a)-(d), jacks: at most 7 boxes
+// per row), and rays are faster from 28 per row up (balls level 3, tree,
+// sombrero; teapot at 71 and tetra level 5 at 69 are ties).
+constexpr double kRaysPerRow = 16;
+}  // namespace
+
+bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
+                        const RenderParams& params) {
+  if (params.method != Method::kLocal || params.boxes != Boxes::kEyeShadow) return false;
+  if (params.visibility != Visibility::kAuto) return params.visibility == Visibility::kRays;
+  // Multi-scanned, the scanline pass gives every figure's exact coverage of
+  // its pixels (paper §3.3), which sampling by rays does not match: on tree
+  // and tetra level 8 rays at --aa 8 left twice the scanline's error
+  // (docs/renderer.md). So it scans, whatever it costs.
+  if (params.aa > 0) return false;
+  // Primitives' boxes crossed by the average row: what the scanline pass
+  // pays per row, with a box thinner than a row counted as one.
+  const double per_row = m.face_rows / std::max(1, cam.height);
+  return per_row >= kRaysPerRow;
+}
+
+Visibility frame_visibility(const Scene& scene, const RenderParams& params) {
+  if (params.visibility != Visibility::kAuto || params.method != Method::kLocal ||
+      params.boxes != Boxes::kEyeShadow) {
+    return params.visibility;
+  }
+  const CameraFrame cam(scene.camera);
+  const PrimitiveSet prims = build_primitives(tessellate_scene(scene, params.tess_tol));
+  return visibility_by_rays(measure_visibility(prims, cam), cam, params) ? Visibility::kRays
+                                                                         : Visibility::kScanline;
+}
+
+}  // namespace locus

@@ -1,0 +1,221 @@
+// The local method's visible-surface pass chosen per frame (issue #27;
+// common/prepare/visibility.h): scanline where faces span pixels, eye rays
+// where the scene is finer than its pixels; both give the same image.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <string>
+
+#include "common/base/image.h"
+#include "common/farm/band_split.h"
+#include "common/prepare/prepared.h"
+#include "common/prepare/shadow_volume.h"
+#include "common/prepare/visibility.h"
+#include "common/render.h"
+#include "common/scene/scene_io.h"
+#include "tests/render_compare.h"
+
+namespace locus {
+namespace {
+
+// A square of n x n quads, each cut into two triangles, facing the camera
+// over a floor, lit by one light; at size x size pixels. n = 120 at 64 x 64:
+// every triangle is smaller than a pixel (450 per row); n = 16: about 4 x 4
+// pixels each (between the point-sampled and the multi-scanned thresholds).
+Scene grid_scene(int n, int size) {
+  std::ostringstream nff;
+  nff << "v\nfrom 0 -3 0.2\nat 0 0 0\nup 0 0 1\nangle 40\nhither 0.01\nresolution " << size << ' '
+      << size << "\nb 0.1 0.2 0.3\nl 2 -3 3\n";
+  nff << "f 0.8 0.6 0.4 1 0 0 0 1\np 4\n-3 -3 -1\n3 -3 -1\n3 3 -1\n-3 3 -1\n";
+  nff << "f 0.3 0.7 0.9 1 0 0 0 1\n";
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const double x0 = -1 + 2.0 * i / n, x1 = -1 + 2.0 * (i + 1) / n;
+      const double z0 = -0.8 + 1.6 * j / n, z1 = -0.8 + 1.6 * (j + 1) / n;
+      // A little relief, so that neighbouring faces are not coplanar.
+      const double y = 0.05 * std::sin(7.0 * x0 + 5.0 * z0);
+      nff << "p 3\n" << x0 << ' ' << y << ' ' << z0 << '\n' << x1 << ' ' << y << ' ' << z0 << '\n'
+          << x1 << ' ' << y << ' ' << z1 << '\n';
+      nff << "p 3\n" << x0 << ' ' << y << ' ' << z0 << '\n' << x1 << ' ' << y << ' ' << z1 << '\n'
+          << x0 << ' ' << y << ' ' << z1 << '\n';
+    }
+  }
+  auto scene = parse_nff(nff.str(), "grid.nff");
+  EXPECT_TRUE(scene.ok()) << scene.status().message();
+  return scene.ok() ? *scene : Scene{};
+}
+
+RenderParams iv(int aa, Visibility v = Visibility::kAuto) {
+  RenderParams p;
+  p.method = Method::kLocal;
+  p.boxes = Boxes::kEyeShadow;
+  p.aa = aa;
+  p.threads = 2;
+  p.visibility = v;
+  return p;
+}
+
+// RMS and largest difference over every channel of two images of one size.
+std::pair<double, double> difference(const Image& a, const Image& b) {
+  double sum = 0, worst = 0;
+  for (int y = 0; y < a.height; ++y) {
+    for (int x = 0; x < a.width; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        const double d = a.pixel(x, y)[c] - b.pixel(x, y)[c];
+        sum += d * d;
+        worst = std::max(worst, std::abs(d));
+      }
+    }
+  }
+  return {std::sqrt(sum / (3.0 * a.width * a.height)), worst};
+}
+
+TEST(Visibility, APointSampledFrameFinerThanItsPixelsIsRayCastAndBuildsNoFacesOrVolumes) {
+  // Multi-scanned, it scans (the exact coverage is the method's point).
+  auto multi = prepare_scene(grid_scene(120, 64), iv(4));
+  ASSERT_TRUE(multi.ok());
+  EXPECT_FALSE((*multi)->by_rays);
+  EXPECT_TRUE((*multi)->volumes);
+  // Forced, a multi-scanned frame is ray cast too.
+  for (int aa : {0, 4}) {
+    auto ps = prepare_scene(grid_scene(120, 64), iv(aa, aa == 0 ? Visibility::kAuto : Visibility::kRays));
+    ASSERT_TRUE(ps.ok()) << ps.status().message();
+    EXPECT_TRUE((*ps)->by_rays) << "aa " << aa;
+    ASSERT_TRUE((*ps)->scan);
+    EXPECT_TRUE((*ps)->scan->faces.empty());
+    EXPECT_TRUE((*ps)->scan->trace_everything);
+    EXPECT_FALSE((*ps)->volumes) << "rays find the shadows: no volumes are built";
+    const BandResult r = render_band(**ps, Band{0, 64}, iv(aa));
+    EXPECT_EQ(r.stats.visibility, "rays");
+    EXPECT_EQ(r.stats.shadow_method, "rays");
+    EXPECT_EQ(r.stats.tests_shadow_volume, 0u);
+    EXPECT_GT(r.stats.rays_shadow, 0u);
+  }
+}
+
+TEST(Visibility, ThePapersSceneIsScanned) {
+  auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_1light.json");
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  for (int aa : {0, 4}) {
+    auto ps = prepare_scene(*scene, iv(aa));
+    ASSERT_TRUE(ps.ok());
+    EXPECT_FALSE((*ps)->by_rays) << "aa " << aa;
+    EXPECT_FALSE((*ps)->scan->faces.empty());
+    ASSERT_TRUE((*ps)->volumes);
+    Scene small = *scene;
+    small.camera.width = small.camera.height = 32;
+    auto r = render_image(small, iv(aa));
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->stats.visibility, "scanline");
+    EXPECT_EQ(r->stats.shadow_method, "volumes");
+  }
+}
+
+// Point sampled, rays; multi-scanned, the scanline's exact coverage. The
+// farm's cost preview (point sampled, smaller) passes the way the frame
+// will.
+TEST(Visibility, TheChoiceFollowsTheSamplingAndThePreviewFollowsTheFrame) {
+  const Scene scene = grid_scene(16, 64);
+  auto point = prepare_scene(scene, iv(0));
+  auto multi = prepare_scene(scene, iv(4));
+  ASSERT_TRUE(point.ok() && multi.ok());
+  EXPECT_TRUE((*point)->by_rays);
+  EXPECT_FALSE((*multi)->by_rays);
+  EXPECT_EQ(frame_visibility(scene, iv(4)), Visibility::kScanline);
+  EXPECT_EQ(frame_visibility(scene, iv(0)), Visibility::kRays);
+  EXPECT_EQ(frame_visibility(scene, iv(4, Visibility::kRays)), Visibility::kRays);
+  RenderParams ii = iv(4);
+  ii.boxes = Boxes::kNone;
+  EXPECT_EQ(frame_visibility(scene, ii), Visibility::kAuto) << "II and III always scan";
+  auto ps = prepare_scene(scene, ii);
+  ASSERT_TRUE(ps.ok());
+  EXPECT_FALSE((*ps)->by_rays);
+  // The preview's prediction: rows of a scanned frame cost span and volume
+  // work, which a ray-cast preview would not count.
+  auto costs = predict_row_costs(scene, iv(4), 1);
+  ASSERT_TRUE(costs.ok()) << costs.status().message();
+  EXPECT_EQ(costs->size(), 64u);
+}
+
+// Point sampled, both passes take the same samples (they differ only where
+// a sample's centre grazes an edge). Multi-scanned, both approximate the
+// pixels' integrals: each against a dense ray-traced reference, the
+// scanline's exact coverage is the closer (why auto scans then), and rays'
+// sampling with bisection (paper §3.3) stays near it.
+TEST(Visibility, RaysAndScanlineRenderTheSamePicture) {
+  auto d = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
+  ASSERT_TRUE(d.ok());
+  d->camera.width = 96;
+  d->camera.height = 72;
+  for (const Scene& scene : {*d, grid_scene(16, 64)}) {
+    RenderParams dense;
+    dense.spp = 8;
+    dense.threads = 2;
+    auto ref = render_image(scene, dense);
+    ASSERT_TRUE(ref.ok());
+    for (int aa : {0, 4}) {
+      auto scan = render_image(scene, iv(aa, Visibility::kScanline));
+      auto rays = render_image(scene, iv(aa, Visibility::kRays));
+      ASSERT_TRUE(scan.ok() && rays.ok());
+      EXPECT_EQ(scan->stats.visibility, "scanline");
+      EXPECT_EQ(rays->stats.visibility, "rays");
+      const auto [rms, worst] = difference(scan->pixels, rays->pixels);
+      const double scan_error = difference(scan->pixels, ref->pixels).first;
+      const double rays_error = difference(rays->pixels, ref->pixels).first;
+      SCOPED_TRACE("aa " + std::to_string(aa) + ", " + std::to_string(scene.camera.width) +
+                   " wide: between the passes rms " + std::to_string(rms) + ", max " +
+                   std::to_string(worst) + "; against the reference scanline " +
+                   std::to_string(scan_error) + ", rays " + std::to_string(rays_error));
+      if (aa == 0) {
+        EXPECT_LT(rms, 2e-3);
+        int differ = 0;
+        for (int y = 0; y < scan->pixels.height; ++y)
+          for (int x = 0; x < scan->pixels.width; ++x)
+            for (int c = 0; c < 3; ++c)
+              differ += std::abs(scan->pixels.pixel(x, y)[c] - rays->pixels.pixel(x, y)[c]) > 2.0 / 255;
+        EXPECT_LE(differ, scan->pixels.width * scan->pixels.height / 100);
+      } else {
+        EXPECT_LE(scan_error, rays_error);
+        EXPECT_LT(rays_error, 2.0 * scan_error + 0.01);
+      }
+    }
+  }
+}
+
+TEST(Visibility, BandsOfARayCastFrameAreBitIdenticalToTheWhole) {
+  for (int aa : {0, 4}) {
+    testing_util::expect_bands_bit_identical(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_1light.json",
+                                             iv(aa, Visibility::kRays));
+    testing_util::expect_bands_bit_identical(LOCUS_SOURCE_DIR "/scenes/paper/c_thermometer.json",
+                                             iv(aa, Visibility::kRays));
+  }
+}
+
+TEST(Visibility, AForcedPassIsForConfigurationIVOnly) {
+  RenderParams p = iv(4, Visibility::kRays);
+  EXPECT_TRUE(check_render_params(p).ok());
+  p.boxes = Boxes::kEye;
+  Status s = check_render_params(p);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("--visibility rays"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("configuration IV"), std::string::npos) << s.message();
+  p = iv(0, Visibility::kScanline);
+  p.method = Method::kRaytrace;
+  EXPECT_FALSE(check_render_params(p).ok());
+  EXPECT_FALSE(prepare_scene(grid_scene(2, 16), p).ok()) << "prepare_scene checks it too";
+}
+
+TEST(Visibility, StatsNameThePass) {
+  Stats a;
+  a.visibility = "scanline";
+  EXPECT_NE(a.to_json().find("\"visibility\": {\"method\": \"scanline\"}"), std::string::npos)
+      << a.to_json();
+  Stats sum;
+  sum += a;
+  EXPECT_EQ(sum.visibility, "scanline") << "a sum of bands keeps the bands' pass";
+}
+
+}  // namespace
+}  // namespace locus
