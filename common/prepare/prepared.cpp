@@ -60,7 +60,7 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
   if (params.method == Method::kLocal) {
-    by_rays = visibility_by_rays(measure_visibility(prims, camera), camera, params);
+    by_rays = visibility_by_rays(measure_visibility(scene, prims, camera), camera, params);
     if (by_rays) {
       // Finer than the pixels (common/prepare/visibility.h): an eye ray per
       // sample, shadow rays through the boxes; no faces, no volumes.

@@ -8,11 +8,13 @@
 
 namespace locus {
 
-VisibilityMeasure measure_visibility(const PrimitiveSet& prims, const CameraFrame& cam) {
+VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& prims,
+                                     const CameraFrame& cam) {
   VisibilityMeasure m;
   const double w = cam.width, h = cam.height;
   const double sx = cam.tan_half * cam.aspect, sy = cam.tan_half;
-  for (const Aabb& b : prims.bounds) {
+  for (size_t i = 0; i < prims.bounds.size(); ++i) {
+    const Aabb& b = prims.bounds[i];
     if (b.empty()) continue;
     double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
     bool behind = false;
@@ -46,18 +48,27 @@ VisibilityMeasure measure_visibility(const PrimitiveSet& prims, const CameraFram
     const double rows = std::max(y1 - y0, 1.0);
     m.box_pixels += std::max(x1 - x0, 1.0) * rows;
     m.face_rows += rows;
+    const PrimRef& ref = prims.prims[i];
+    const Material& mat = scene.materials[scene.objects[ref.object].material];
+    const bool curved =
+        ref.kind == PrimKind::kSphere || ref.kind == PrimKind::kCone || ref.kind == PrimKind::kCsg;
+    if (curved || mat.ks > 0 || mat.t > 0) m.traced_rows += rows;
   }
   return m;
 }
 
 namespace {
 // Point sampled, the scanline pass computes the samples an eye ray per
-// pixel would; measured side by side on 22 scenes at 512x512 (docs/
-// renderer.md "Visibility by rays", the table there) it is faster only on
+// pixel would. Measured side by side on 26 scenes at 512x512 (docs/
+// renderer.md "Visibility by rays", the table there), it is faster on
 // scenes of a few large faces (the paper's (a)-(d), jacks: at most 7 boxes
-// per row), and rays are faster from 28 per row up (balls level 3, tree,
-// sombrero; teapot at 71 and tetra level 5 at 69 are ties).
+// per row), and rays are faster from 28 per row up where most of the rows'
+// boxes are traced in any case (balls level 3, tree); where they are
+// diffuse faces, the scanline stays faster up to 34 per row (tetra levels 3
+// and 4, by 3x), ties at 69-71 (tetra level 5, teapot) and loses from 138
+// (tetra level 6; sombrero at 43 loses by 1.3x, the one miss).
 constexpr double kRaysPerRow = 16;
+constexpr double kRaysPerRowDiffuse = 64;
 }  // namespace
 
 bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
@@ -72,7 +83,8 @@ bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
   // Primitives' boxes crossed by the average row: what the scanline pass
   // pays per row, with a box thinner than a row counted as one.
   const double per_row = m.face_rows / std::max(1, cam.height);
-  return per_row >= kRaysPerRow;
+  const double traced_share = m.face_rows > 0 ? m.traced_rows / m.face_rows : 0.0;
+  return per_row >= kRaysPerRow && (traced_share >= 0.5 || per_row >= kRaysPerRowDiffuse);
 }
 
 Visibility frame_visibility(const Scene& scene, const RenderParams& params) {
@@ -81,9 +93,11 @@ Visibility frame_visibility(const Scene& scene, const RenderParams& params) {
     return params.visibility;
   }
   const CameraFrame cam(scene.camera);
-  const PrimitiveSet prims = build_primitives(tessellate_scene(scene, params.tess_tol));
-  return visibility_by_rays(measure_visibility(prims, cam), cam, params) ? Visibility::kRays
-                                                                         : Visibility::kScanline;
+  const Scene tessellated = tessellate_scene(scene, params.tess_tol);
+  const PrimitiveSet prims = build_primitives(tessellated);
+  return visibility_by_rays(measure_visibility(tessellated, prims, cam), cam, params)
+             ? Visibility::kRays
+             : Visibility::kScanline;
 }
 
 }  // namespace locus

@@ -26,9 +26,13 @@ struct VisibilityMeasure {
   long long in_view = 0;     // primitives whose projected box meets the image
   double box_pixels = 0;     // their projected boxes' areas, in pixels, summed
   double face_rows = 0;      // the rows their projected boxes cross, summed
+  // face_rows of what the scanline pass would ray trace in any case: curved
+  // bodies and CSG (their true surface), mirrors and glass (paper §3.2).
+  double traced_rows = 0;
 };
 
-VisibilityMeasure measure_visibility(const PrimitiveSet& prims, const CameraFrame& cam);
+VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& prims,
+                                     const CameraFrame& cam);
 
 // True: find visible surfaces by eye rays (Visibility::kRays). `params`'
 // visibility decides unless it is kAuto; configurations II and III always

@@ -21,15 +21,16 @@ namespace locus {
 namespace {
 
 // A square of n x n quads, each cut into two triangles, facing the camera
-// over a floor, lit by one light; at size x size pixels. n = 120 at 64 x 64:
-// every triangle is smaller than a pixel (450 per row); n = 16: about 4 x 4
-// pixels each (between the point-sampled and the multi-scanned thresholds).
-Scene grid_scene(int n, int size) {
+// over a floor, lit by one light; at size x size pixels; the quads reflect
+// `ks`. n = 120 at 64 x 64: every triangle is smaller than a pixel (450
+// boxes per row); n = 16: about 4 x 4 pixels each (24 per row: rays if
+// most of them are traced in any case, the scanline if they are diffuse).
+Scene grid_scene(int n, int size, double ks = 0.0) {
   std::ostringstream nff;
   nff << "v\nfrom 0 -3 0.2\nat 0 0 0\nup 0 0 1\nangle 40\nhither 0.01\nresolution " << size << ' '
       << size << "\nb 0.1 0.2 0.3\nl 2 -3 3\n";
   nff << "f 0.8 0.6 0.4 1 0 0 0 1\np 4\n-3 -3 -1\n3 -3 -1\n3 3 -1\n-3 3 -1\n";
-  nff << "f 0.3 0.7 0.9 1 0 0 0 1\n";
+  nff << "f 0.3 0.7 0.9 1 " << ks << " 0 0 1\n";
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j) {
       const double x0 = -1 + 2.0 * i / n, x1 = -1 + 2.0 * (i + 1) / n;
@@ -117,7 +118,10 @@ TEST(Visibility, ThePapersSceneIsScanned) {
 // farm's cost preview (point sampled, smaller) passes the way the frame
 // will.
 TEST(Visibility, TheChoiceFollowsTheSamplingAndThePreviewFollowsTheFrame) {
-  const Scene scene = grid_scene(16, 64);
+  const Scene scene = grid_scene(16, 64, 0.3);
+  auto diffuse = prepare_scene(grid_scene(16, 64), iv(0));
+  ASSERT_TRUE(diffuse.ok());
+  EXPECT_FALSE((*diffuse)->by_rays) << "24 diffuse faces per row: the scanline is faster";
   auto point = prepare_scene(scene, iv(0));
   auto multi = prepare_scene(scene, iv(4));
   ASSERT_TRUE(point.ok() && multi.ok());
@@ -149,7 +153,7 @@ TEST(Visibility, RaysAndScanlineRenderTheSamePicture) {
   ASSERT_TRUE(d.ok());
   d->camera.width = 96;
   d->camera.height = 72;
-  for (const Scene& scene : {*d, grid_scene(16, 64)}) {
+  for (const Scene& scene : {*d, grid_scene(16, 64, 0.3)}) {
     RenderParams dense;
     dense.spp = 8;
     dense.threads = 2;
