@@ -78,22 +78,10 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
     if (ps.scan && params.aa > 0) {
       // Multi-scanning: chunks of rows, so that inside a chunk each
       // boundary sub-scanline is computed once (common/scan/multiscan.h).
-      // Guided: a unit is kMultiscanChunk rows, and fewer as the band's
-      // end nears (a quarter of what is left), so that the threads finish
-      // within a row or two of each other rather than a chunk (issue #27
-      // item 4). The units depend on where they start only, not on the
-      // threads, so the counters are the same for any thread count; the
-      // pixels do not depend on them at all (a sub-scanline computed twice
-      // is the same).
-      auto unit = [&](int y) { return std::clamp((y1 - y) / 4, 1, kMultiscanChunk); };
-      int y = next.load();
-      while (y < y1) {
-        const int end = std::min(y1, y + unit(y));
-        if (!next.compare_exchange_weak(y, end)) continue;  // y is now what another took
-        multiscan_rows(ps, params, Band{y0, y1}, y, end, result.pixels, stats[id].s,
-                       row_may_start, cost);
+      for (int y = next.fetch_add(kMultiscanChunk); y < y1; y = next.fetch_add(kMultiscanChunk)) {
+        multiscan_rows(ps, params, Band{y0, y1}, y, std::min(y1, y + kMultiscanChunk),
+                       result.pixels, stats[id].s, row_may_start, cost);
         if (stopped.load(std::memory_order_relaxed)) return;
-        y = next.load();
       }
       return;
     }
