@@ -67,6 +67,9 @@ struct RenderArgs {
   // --visibility: the local method's visible-surface pass (RenderParams);
   // anything but auto renders in process.
   std::string visibility = "auto";
+  // --shadows: configuration IV's shadows of scanned spans (RenderParams);
+  // rays renders in process.
+  std::string shadows = "volumes";
 };
 
 int fail(const std::string& message) {
@@ -238,6 +241,7 @@ int render_in_process(const RenderArgs& a) {
   auto params = farm::to_render_params(job->request.render, a.threads);
   if (!params.ok()) return fail(params.status());
   params->visibility = *label_value(kVisibilityLabels, a.visibility);  // checked by CLI11
+  params->shadows = *label_value(kShadowPassLabels, a.shadows);        // checked by CLI11
   if (Status st = check_render_params(*params); !st.ok()) return fail(st);
   const farm::SubmitRequest& r = job->request;
   Stats total;
@@ -371,9 +375,10 @@ int run_render(const RenderArgs& a) {
     spdlog::info("--cost-map: the farm does not make cost maps yet; rendering in process");
     return render_in_process(a);
   }
-  if (a.visibility != "auto") {
-    // A farm job chooses per frame (auto); a forced pass is for comparing.
-    spdlog::info("--visibility {}: renders in process", a.visibility);
+  if (a.visibility != "auto" || a.shadows != "volumes") {
+    // A farm job chooses per frame (auto) and uses volumes; the job's
+    // settings do not carry these yet.
+    spdlog::info("--visibility {} --shadows {}: renders in process", a.visibility, a.shadows);
     return render_in_process(a);
   }
   if (!a.workers_given && !client::worker_binary().ok()) {
@@ -745,6 +750,12 @@ int main(int argc, char** argv) {
                    "paper's pass), rays (an eye ray per sample) or auto (default: rays where the "
                    "scene is finer than its pixels; docs/renderer.md). Not auto: renders in process")
       ->check(CLI::IsMember(label_names(kVisibilityLabels)));
+  render
+      ->add_option("--shadows", ra.shadows,
+                   "local, configuration IV: the shadows of scanned spans: volumes (default, the "
+                   "paper's) or rays (no volumes: faster where occluders are many and small; "
+                   "docs/renderer.md \"Shadows by rays\"). rays: renders in process")
+      ->check(CLI::IsMember(label_names(kShadowPassLabels)));
 
   std::string vpath;
   auto* validate = app.add_subcommand("validate", "Check a scene file and list every problem");

@@ -32,6 +32,12 @@ Status check_render_params(const RenderParams& params) {
                            std::string(label_name(kVisibilityLabels, params.visibility)) +
                            ": only for --method local --boxes eye+shadow (configuration IV)");
   }
+  if (params.shadows != ShadowPass::kVolumes &&
+      !(params.method == Method::kLocal && params.boxes == Boxes::kEyeShadow)) {
+    return InvalidArgument(std::string("--shadows ") +
+                           std::string(label_name(kShadowPassLabels, params.shadows)) +
+                           ": only for --method local --boxes eye+shadow (configuration IV)");
+  }
   if (!(params.tess_tol > 0.0 && std::isfinite(params.tess_tol))) {
     return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
                            format_number(params.tess_tol));

@@ -74,8 +74,11 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
     // The scanline pass finds the shadows of its spans with shadow volumes
     // (paper §3.2 step 2) in configurations II-IV; IV also searches the
     // boxes' volumes for points reached by secondary rays (paper §4.1).
-    volumes = std::make_shared<const ShadowVolumes>(
-        build_shadow_volumes(*this, bvh_for_shadows, threads));
+    // --shadows rays: none; shadows by rays through the boxes.
+    if (params.shadows == ShadowPass::kVolumes) {
+      volumes = std::make_shared<const ShadowVolumes>(
+          build_shadow_volumes(*this, bvh_for_shadows, threads));
+    }
   }
 }
 
