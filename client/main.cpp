@@ -715,6 +715,13 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
       ->check(CLI::Range(1, farm::kMaxFps));
 }
 
+// An option whose value is one of a label table's names.
+template <class E, size_t N>
+CLI::Option* add_choice(CLI::App* cmd, const std::string& name, std::string& value,
+                        const Labels<E, N>& labels, const std::string& help) {
+  return cmd->add_option(name, value, help)->check(CLI::IsMember(label_names(labels)));
+}
+
 std::string default_farm() {
   const char* env = std::getenv("LOCUS_FARM");
   return env && *env ? env : "127.0.0.1:7000";
@@ -744,18 +751,14 @@ int main(int argc, char** argv) {
       "Also write a cost map (.png, .exr, .tif): each pixel's rays and shadow-volume tests in "
       "false colour, ray-traced spans outlined, a legend (docs/cost-map.md); #### for several "
       "frames, like -o. Renders in process");
-  render
-      ->add_option("--visibility", ra.visibility,
-                   "local, configuration IV: how visible surfaces are found: scanline (the "
-                   "paper's pass), rays (an eye ray per sample) or auto (default: rays where the "
-                   "scene is finer than its pixels; docs/renderer.md). Not auto: renders in process")
-      ->check(CLI::IsMember(label_names(kVisibilityLabels)));
-  render
-      ->add_option("--shadows", ra.shadows,
-                   "local, configuration IV: the shadows of scanned spans: volumes (default, the "
-                   "paper's) or rays (no volumes: faster where occluders are many and small; "
-                   "docs/renderer.md \"Shadows by rays\"). rays: renders in process")
-      ->check(CLI::IsMember(label_names(kShadowPassLabels)));
+  add_choice(render, "--visibility", ra.visibility, kVisibilityLabels,
+             "local, configuration IV: how visible surfaces are found: scanline (the paper's "
+             "pass), rays (an eye ray per sample) or auto (default: rays where the scene is finer "
+             "than its pixels; docs/renderer.md). Not auto: renders in process");
+  add_choice(render, "--shadows", ra.shadows, kShadowPassLabels,
+             "local, configuration IV: the shadows of scanned spans: volumes (default, the "
+             "paper's) or rays (no volumes: faster where occluders are many and small; "
+             "docs/renderer.md \"Shadows by rays\"). rays: renders in process");
 
   std::string vpath;
   auto* validate = app.add_subcommand("validate", "Check a scene file and list every problem");

@@ -26,17 +26,17 @@ Status check_render_params(const RenderParams& params) {
         "--aa " + std::to_string(params.aa) +
         ": multi-scanning belongs to --method local; the ray tracer uses --spp N");
   }
-  if (params.visibility != Visibility::kAuto &&
-      !(params.method == Method::kLocal && params.boxes == Boxes::kEyeShadow)) {
-    return InvalidArgument(std::string("--visibility ") +
-                           std::string(label_name(kVisibilityLabels, params.visibility)) +
-                           ": only for --method local --boxes eye+shadow (configuration IV)");
-  }
-  if (params.shadows != ShadowPass::kVolumes &&
-      !(params.method == Method::kLocal && params.boxes == Boxes::kEyeShadow)) {
-    return InvalidArgument(std::string("--shadows ") +
-                           std::string(label_name(kShadowPassLabels, params.shadows)) +
-                           ": only for --method local --boxes eye+shadow (configuration IV)");
+  // Configuration IV's own choices (issue #27), each named in the error.
+  if (!(params.method == Method::kLocal && params.boxes == Boxes::kEyeShadow)) {
+    std::string flag;
+    if (params.visibility != Visibility::kAuto) {
+      flag = "--visibility " + std::string(label_name(kVisibilityLabels, params.visibility));
+    } else if (params.shadows != ShadowPass::kVolumes) {
+      flag = "--shadows " + std::string(label_name(kShadowPassLabels, params.shadows));
+    }
+    if (!flag.empty()) {
+      return InvalidArgument(flag + ": only for --method local --boxes eye+shadow (configuration IV)");
+    }
   }
   if (!(params.tess_tol > 0.0 && std::isfinite(params.tess_tol))) {
     return InvalidArgument("--tess-tol must be a positive number of pixels, got " +
