@@ -66,10 +66,10 @@ struct RenderArgs {
   std::string cost_map;
   // --visibility: the local method's visible-surface pass (RenderParams);
   // anything but auto renders in process.
-  std::string visibility = "auto";
+  std::string visibility{label_name(kVisibilityLabels, RenderParams{}.visibility)};
   // --shadows: configuration IV's shadows of scanned spans (RenderParams);
-  // rays renders in process.
-  std::string shadows = "volumes";
+  // anything but the default renders in process.
+  std::string shadows{label_name(kShadowPassLabels, RenderParams{}.shadows)};
 };
 
 int fail(const std::string& message) {
@@ -375,7 +375,7 @@ int run_render(const RenderArgs& a) {
     spdlog::info("--cost-map: the farm does not make cost maps yet; rendering in process");
     return render_in_process(a);
   }
-  if (a.visibility != "auto" || a.shadows != "volumes") {
+  if (a.visibility != RenderArgs{}.visibility || a.shadows != RenderArgs{}.shadows) {
     // A farm job chooses per frame (auto) and uses volumes; the job's
     // settings do not carry these yet.
     spdlog::info("--visibility {} --shadows {}: renders in process", a.visibility, a.shadows);

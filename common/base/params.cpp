@@ -27,7 +27,7 @@ Status check_render_params(const RenderParams& params) {
         ": multi-scanning belongs to --method local; the ray tracer uses --spp N");
   }
   // Configuration IV's own choices (issue #27), each named in the error.
-  if (!(params.method == Method::kLocal && params.boxes == Boxes::kEyeShadow)) {
+  if (!configuration_iv(params)) {
     std::string flag;
     if (params.visibility != Visibility::kAuto) {
       flag = "--visibility " + std::string(label_name(kVisibilityLabels, params.visibility));

@@ -59,6 +59,12 @@ struct RenderParams {
   ShadowPass shadows = ShadowPass::kVolumes;  // local, configuration IV
 };
 
+// Configuration IV (METHOD.md §8), whose own choices are Visibility and
+// ShadowPass.
+inline bool configuration_iv(const RenderParams& p) {
+  return p.method == Method::kLocal && p.boxes == Boxes::kEyeShadow;
+}
+
 // The one check of a RenderParams, whoever built it (the CLI, a job from the
 // wire): InvalidArgument naming the flag and its allowed values.
 Status check_render_params(const RenderParams& params);

@@ -27,6 +27,14 @@ struct CameraFrame {
     return glm::normalize(w + (2.0 * x / width - 1.0) * tan_half * aspect * u +
                           (1.0 - 2.0 * y / height) * tan_half * v);
   }
+  // Image coordinates (x right, y down, in pixels) of a point in front of
+  // the eye: direction() inverted.
+  Vec2 project(const Vec3& p) const {
+    const Vec3 q = p - from;
+    const double zc = glm::dot(q, w);
+    return Vec2(0.5 * width * (1.0 + glm::dot(q, u) / (zc * tan_half * aspect)),
+                0.5 * height * (1.0 - glm::dot(q, v) / (zc * tan_half)));
+  }
 };
 
 class PreparedScene {

@@ -18,12 +18,7 @@ struct Projector {
   double depth(const Vec3& p) const { return glm::dot(p - cam.from, cam.w); }
   // Image coordinates of a point in front of the eye (SHADING.md camera,
   // inverted): x right, y down, in pixels.
-  Vec2 project(const Vec3& p) const {
-    const Vec3 q = p - cam.from;
-    const double zc = glm::dot(q, cam.w);
-    return Vec2(0.5 * cam.width * (1.0 + glm::dot(q, cam.u) / (zc * cam.tan_half * cam.aspect)),
-                0.5 * cam.height * (1.0 - glm::dot(q, cam.v) / (zc * cam.tan_half)));
-  }
+  Vec2 project(const Vec3& p) const { return cam.project(p); }
 };
 
 // Sutherland-Hodgman against the near plane depth >= z_near, into `out`.

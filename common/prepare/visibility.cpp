@@ -12,7 +12,6 @@ VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& pri
                                      const CameraFrame& cam) {
   VisibilityMeasure m;
   const double w = cam.width, h = cam.height;
-  const double sx = cam.tan_half * cam.aspect, sy = cam.tan_half;
   for (size_t i = 0; i < prims.bounds.size(); ++i) {
     const Aabb& b = prims.bounds[i];
     if (b.empty()) continue;
@@ -20,18 +19,15 @@ VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& pri
     bool behind = false;
     for (int c = 0; c < 8 && !behind; ++c) {
       const Vec3 p{c & 1 ? b.hi.x : b.lo.x, c & 2 ? b.hi.y : b.lo.y, c & 4 ? b.hi.z : b.lo.z};
-      const Vec3 d = p - cam.from;
-      const double z = glm::dot(d, cam.w);
-      if (z <= 0.0) {
+      if (glm::dot(p - cam.from, cam.w) <= 0.0) {
         behind = true;
         break;
       }
-      const double x = (glm::dot(d, cam.u) / (z * sx) + 1.0) * 0.5 * w;
-      const double y = (1.0 - glm::dot(d, cam.v) / (z * sy)) * 0.5 * h;
-      x0 = std::min(x0, x);
-      x1 = std::max(x1, x);
-      y0 = std::min(y0, y);
-      y1 = std::max(y1, y);
+      const Vec2 q = cam.project(p);
+      x0 = std::min(x0, q.x);
+      x1 = std::max(x1, q.x);
+      y0 = std::min(y0, q.y);
+      y1 = std::max(y1, q.y);
     }
     if (behind) {
       x0 = y0 = 0.0;
@@ -43,10 +39,8 @@ VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& pri
     x1 = std::min(x1, w);
     y1 = std::min(y1, h);
     if (x0 > x1 || y0 > y1) continue;
-    ++m.in_view;
     // A box thinner than a pixel still costs the scanline a row.
     const double rows = std::max(y1 - y0, 1.0);
-    m.box_pixels += std::max(x1 - x0, 1.0) * rows;
     m.face_rows += rows;
     const PrimRef& ref = prims.prims[i];
     const Material& mat = scene.materials[scene.objects[ref.object].material];
@@ -73,7 +67,7 @@ constexpr double kRaysPerRowDiffuse = 64;
 
 bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
                         const RenderParams& params) {
-  if (params.method != Method::kLocal || params.boxes != Boxes::kEyeShadow) return false;
+  if (!configuration_iv(params)) return false;
   if (params.visibility != Visibility::kAuto) return params.visibility == Visibility::kRays;
   // Multi-scanned, the scanline pass gives every figure's exact coverage of
   // its pixels (paper §3.3), which sampling by rays does not match: on tree
@@ -88,10 +82,7 @@ bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
 }
 
 Visibility frame_visibility(const Scene& scene, const RenderParams& params) {
-  if (params.visibility != Visibility::kAuto || params.method != Method::kLocal ||
-      params.boxes != Boxes::kEyeShadow) {
-    return params.visibility;
-  }
+  if (params.visibility != Visibility::kAuto || !configuration_iv(params)) return params.visibility;
   const CameraFrame cam(scene.camera);
   const Scene tessellated = tessellate_scene(scene, params.tess_tol);
   const PrimitiveSet prims = build_primitives(tessellated);

@@ -23,9 +23,9 @@ struct CameraFrame;  // common/prepare/prepared.h
 // image (clipped to it; a box reaching behind the eye counts as the whole
 // image).
 struct VisibilityMeasure {
-  long long in_view = 0;     // primitives whose projected box meets the image
-  double box_pixels = 0;     // their projected boxes' areas, in pixels, summed
-  double face_rows = 0;      // the rows their projected boxes cross, summed
+  // The rows crossed by the projected boxes of the primitives in view,
+  // summed.
+  double face_rows = 0;
   // face_rows of what the scanline pass would ray trace in any case: curved
   // bodies and CSG (their true surface), mirrors and glass (paper §3.2).
   double traced_rows = 0;
