@@ -376,8 +376,8 @@ int run_render(const RenderArgs& a) {
     return render_in_process(a);
   }
   if (a.visibility != RenderArgs{}.visibility || a.shadows != RenderArgs{}.shadows) {
-    // A farm job chooses per frame (auto) and uses volumes; the job's
-    // settings do not carry these yet.
+    // A farm job chooses both per frame (auto); the job's settings do not
+    // carry a forced choice.
     spdlog::info("--visibility {} --shadows {}: renders in process", a.visibility, a.shadows);
     return render_in_process(a);
   }
@@ -756,9 +756,10 @@ int main(int argc, char** argv) {
              "pass), rays (an eye ray per sample) or auto (default: rays where the scene is finer "
              "than its pixels; docs/renderer.md). Not auto: renders in process");
   add_choice(render, "--shadows", ra.shadows, kShadowPassLabels,
-             "local, configuration IV: the shadows of scanned spans: volumes (default, the "
-             "paper's) or rays (no volumes: faster where occluders are many and small; "
-             "docs/renderer.md \"Shadows by rays\"). rays: renders in process");
+             "local, configuration IV: the shadows of scanned spans: volumes (the paper's), "
+             "rays (no volumes built) or auto (default: rays where the occluders outnumber what "
+             "the image resolves; docs/renderer.md \"Shadows by rays\"). Not auto: renders in "
+             "process");
 
   std::string vpath;
   auto* validate = app.add_subcommand("validate", "Check a scene file and list every problem");

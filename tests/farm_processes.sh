@@ -45,18 +45,26 @@ glass=$src/scenes/paper/a_glass.json
   { bad "embedded farm, scenes/anim"; cat "$tmp/e.log"; }
 
 # ---- the embedded farm's token is in its workers' environment, not on their command line
-"$bin/locus" render "$glass" --frames 1-3 --size 96x72 --spp 6 --workers 2 -o "$tmp/e/t_####.png" 2>"$tmp/t.log" &
+"$bin/locus" render "$glass" --frames 1-6 --size 96x72 --spp 6 --workers 2 -o "$tmp/e/t_####.png" 2>"$tmp/t.log" &
 render=$!
 seen=
-for _ in $(seq 200); do
+# Until the render ends: each worker's command line, then its environment,
+# read once into variables, as a worker may exit between two reads of /proc
+# (a token in the environment means it was alive when its command line was
+# read).
+while [ -z "$seen" ] && kill -0 "$render" 2>/dev/null; do
   for w in $(pgrep -P "$render" 2>/dev/null); do
-    if tr '\0' '\n' <"/proc/$w/environ" 2>/dev/null | grep -Eq '^LOCUS_TOKEN=[0-9a-f]{64}$'; then
-      token=$(tr '\0' '\n' <"/proc/$w/environ" | sed -n 's/^LOCUS_TOKEN=//p')
-      tr '\0' ' ' <"/proc/$w/cmdline" | grep -q -- "$token" && seen=cmdline || seen=${seen:-env}
+    cmd_w=$(tr '\0' ' ' <"/proc/$w/cmdline" 2>/dev/null) || continue
+    env_w=$(tr '\0' '\n' <"/proc/$w/environ" 2>/dev/null) || continue
+    token=$(printf '%s\n' "$env_w" | sed -n 's/^LOCUS_TOKEN=//p')
+    if [[ $token =~ ^[0-9a-f]{64}$ ]]; then
+      case "$cmd_w" in
+        *"$token"*) seen=cmdline ;;
+        *) seen=${seen:-env} ;;
+      esac
     fi
   done
-  [ -n "$seen" ] && break
-  sleep 0.02
+  sleep 0.01
 done
 wait "$render"
 [ "$seen" = env ] && ok "embedded farm: random 64-hex token in the workers' LOCUS_TOKEN, not on their command line" ||

@@ -31,7 +31,7 @@ Status check_render_params(const RenderParams& params) {
     std::string flag;
     if (params.visibility != Visibility::kAuto) {
       flag = "--visibility " + std::string(label_name(kVisibilityLabels, params.visibility));
-    } else if (params.shadows != ShadowPass::kVolumes) {
+    } else if (params.shadows != ShadowPass::kAuto) {
       flag = "--shadows " + std::string(label_name(kShadowPassLabels, params.shadows));
     }
     if (!flag.empty()) {

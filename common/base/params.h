@@ -36,9 +36,11 @@ inline constexpr Labels<Visibility, 3> kVisibilityLabels = {
 // Rays cost far less where occluders are many and small (docs/renderer.md
 // "Shadows by rays": balls level 5 at --aa 4, 2.6x faster at equal error
 // and a third of the memory); the paper's scenes are faster with volumes.
-enum class ShadowPass { kVolumes, kRays };
-inline constexpr Labels<ShadowPass, 2> kShadowPassLabels = {
-    {{ShadowPass::kVolumes, "volumes"}, {ShadowPass::kRays, "rays"}}};
+// `auto` casts rays where the occluders outnumber what the image resolves
+// (common/prepare/visibility.h) and builds volumes otherwise.
+enum class ShadowPass { kAuto, kVolumes, kRays };
+inline constexpr Labels<ShadowPass, 3> kShadowPassLabels = {
+    {{ShadowPass::kAuto, "auto"}, {ShadowPass::kVolumes, "volumes"}, {ShadowPass::kRays, "rays"}}};
 
 inline constexpr int kMaxAa = 64;
 inline constexpr int kMaxSpp = 64;
@@ -56,7 +58,7 @@ struct RenderParams {
   int threads = 0;                    // 0 = all cores
   double tess_tol = kDefaultTessTol;  // Bezier surfaces: pixels, > 0
   Visibility visibility = Visibility::kAuto;  // local, configuration IV
-  ShadowPass shadows = ShadowPass::kVolumes;  // local, configuration IV
+  ShadowPass shadows = ShadowPass::kAuto;      // local, configuration IV
 };
 
 // Configuration IV (METHOD.md §8), whose own choices are Visibility and

@@ -19,10 +19,9 @@ Result<std::vector<double>> predict_row_costs(const Scene& scene, const RenderPa
   Scene preview = scene;
   preview.camera.width = std::max(1, w / scale);
   preview.camera.height = std::max(1, (h + scale - 1) / scale);
-  RenderParams p = params;
-  // The frame's visible-surface pass, whatever the preview's size and
-  // sampling would choose.
-  p.visibility = frame_visibility(scene, params);
+  // The frame's visible-surface and shadow passes, whatever the preview's
+  // size and sampling would choose.
+  RenderParams p = frame_passes(scene, params);
   p.threads = threads;
   p.aa = 0;   // the localization, point sampled
   p.spp = 1;

@@ -60,7 +60,8 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
   if (params.method == Method::kLocal) {
-    by_rays = visibility_by_rays(measure_visibility(scene, prims, camera), camera, params);
+    const VisibilityMeasure measure = measure_visibility(scene, prims, camera);
+    by_rays = visibility_by_rays(measure, camera, params);
     if (by_rays) {
       // Finer than the pixels (common/prepare/visibility.h): an eye ray per
       // sample, shadow rays through the boxes; no faces, no volumes.
@@ -74,8 +75,8 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
     // The scanline pass finds the shadows of its spans with shadow volumes
     // (paper §3.2 step 2) in configurations II-IV; IV also searches the
     // boxes' volumes for points reached by secondary rays (paper §4.1).
-    // --shadows rays: none; shadows by rays through the boxes.
-    if (params.shadows == ShadowPass::kVolumes) {
+    // Shadows by rays through the boxes instead (ShadowPass): none.
+    if (!shadows_by_rays(measure, camera, params)) {
       volumes = std::make_shared<const ShadowVolumes>(
           build_shadow_volumes(*this, bvh_for_shadows, threads));
     }

@@ -42,6 +42,7 @@ VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& pri
     // A box thinner than a pixel still costs the scanline a row.
     const double rows = std::max(y1 - y0, 1.0);
     m.face_rows += rows;
+    m.in_view += 1;
     const PrimRef& ref = prims.prims[i];
     const Material& mat = scene.materials[scene.objects[ref.object].material];
     const bool curved =
@@ -81,14 +82,42 @@ bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
   return per_row >= kRaysPerRow && (traced_share >= 0.5 || per_row >= kRaysPerRowDiffuse);
 }
 
-Visibility frame_visibility(const Scene& scene, const RenderParams& params) {
-  if (params.visibility != Visibility::kAuto || !configuration_iv(params)) return params.visibility;
+namespace {
+// Shadow volumes pay per occluder: each is built for every light and tested
+// wherever it covers a span, exactly (paper §3.2 step 2). Rays pay per
+// sample. Measured side by side at --aa 4 and 8 on 20 scenes (docs/
+// renderer.md "Shadows by rays", the table there): rays win by 2.6-4.3x at
+// equal error, or are better on the speed/accuracy curve, and use a third
+// of the memory, on the SPD big levels (balls 5, tetra 8 and 9: 128 to 512
+// primitives in view per image row at 512x512); from about 9 to 32 per row
+// (gears, lattice, balls, tree, mount, rings) rays are faster still but
+// their sampled shadow edges leave up to 40% more error at the same --aa
+// (gears), and below (the paper's scenes, tetra level 6, sombrero) the
+// volumes are faster. So rays only where the occluders outnumber the rows
+// many times over: an average occluder covers a few pixels at most.
+constexpr double kShadowRaysPerRow = 64;
+}  // namespace
+
+bool shadows_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
+                     const RenderParams& params) {
+  if (!configuration_iv(params)) return false;
+  if (params.shadows != ShadowPass::kAuto) return params.shadows == ShadowPass::kRays;
+  return m.in_view / std::max(1, cam.height) >= kShadowRaysPerRow;
+}
+
+RenderParams frame_passes(const Scene& scene, const RenderParams& params) {
+  RenderParams p = params;
+  if (!configuration_iv(params) ||
+      (params.visibility != Visibility::kAuto && params.shadows != ShadowPass::kAuto)) {
+    return p;
+  }
   const CameraFrame cam(scene.camera);
   const Scene tessellated = tessellate_scene(scene, params.tess_tol);
   const PrimitiveSet prims = build_primitives(tessellated);
-  return visibility_by_rays(measure_visibility(tessellated, prims, cam), cam, params)
-             ? Visibility::kRays
-             : Visibility::kScanline;
+  const VisibilityMeasure m = measure_visibility(tessellated, prims, cam);
+  p.visibility = visibility_by_rays(m, cam, params) ? Visibility::kRays : Visibility::kScanline;
+  p.shadows = shadows_by_rays(m, cam, params) ? ShadowPass::kRays : ShadowPass::kVolumes;
+  return p;
 }
 
 }  // namespace locus

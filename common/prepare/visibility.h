@@ -10,6 +10,11 @@
 // boxes alone, so a frame that casts rays never pays for the scan scene or
 // the volumes. Multi-scanned frames always scan: their exact coverage is the
 // method's point (paper §3.3).
+//
+// A scanned frame of configuration IV then finds the shadows of its spans by
+// shadow volumes (paper §3.2 step 2) or, where the occluders outnumber what
+// the image can resolve, by shadow rays through the boxes (ShadowPass;
+// docs/renderer.md "Shadows by rays"), from the same measure.
 #pragma once
 
 #include "common/base/params.h"
@@ -29,6 +34,9 @@ struct VisibilityMeasure {
   // face_rows of what the scanline pass would ray trace in any case: curved
   // bodies and CSG (their true surface), mirrors and glass (paper §3.2).
   double traced_rows = 0;
+  // The primitives in view (their boxes meet the image): the occluders whose
+  // volumes the scanline pass would build and test.
+  double in_view = 0;
 };
 
 VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& prims,
@@ -40,10 +48,16 @@ VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& pri
 bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
                         const RenderParams& params);
 
-// params.visibility with kAuto resolved for `scene` as prepare_scene()
-// would resolve it (kAuto is kept where the choice does not apply): for a
-// preview at another size or sampling (farm/band_split.h) that must pass
-// the way its frame will.
-Visibility frame_visibility(const Scene& scene, const RenderParams& params);
+// True: a scanned frame finds its spans' shadows by rays, no volumes built
+// (ShadowPass::kRays). `params`' shadows decide unless kAuto; II and III
+// always build volumes.
+bool shadows_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
+                     const RenderParams& params);
+
+// `params` with kAuto visibility and shadows resolved for `scene` as
+// prepare_scene() would resolve them (kAuto is kept where a choice does not
+// apply): for a preview at another size or sampling (farm/band_split.h) that
+// must pass the way its frame will.
+RenderParams frame_passes(const Scene& scene, const RenderParams& params);
 
 }  // namespace locus

@@ -121,9 +121,13 @@ TEST(ParallelPrepare, SameScanSceneAndVolumesForAnyThreadCount) {
         p.method = Method::kLocal;
         p.boxes = boxes;
         p.aa = aa;
-        // The scan scene and volumes are what is compared: IV scans even
-        // where a point-sampled frame would be found by rays.
-        if (boxes == Boxes::kEyeShadow) p.visibility = Visibility::kScanline;
+        // The scan scene and volumes are what is compared: IV scans and
+        // builds volumes even where a frame this small would be found or
+        // shadowed by rays (sombrero: 100 occluders per row).
+        if (boxes == Boxes::kEyeShadow) {
+          p.visibility = Visibility::kScanline;
+          p.shadows = ShadowPass::kVolumes;
+        }
         const auto one = prepare(scene, p, 1);
         ASSERT_TRUE(one && one->scan && one->volumes);
         ASSERT_FALSE(one->volumes->lights.empty());

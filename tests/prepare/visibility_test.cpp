@@ -51,7 +51,7 @@ Scene grid_scene(int n, int size, double ks = 0.0) {
 }
 
 RenderParams iv(int aa, Visibility v = Visibility::kAuto,
-               ShadowPass shadows = ShadowPass::kVolumes) {
+               ShadowPass shadows = ShadowPass::kAuto) {
   RenderParams p;
   p.method = Method::kLocal;
   p.boxes = Boxes::kEyeShadow;
@@ -80,11 +80,15 @@ std::pair<double, double> difference(const Image& a, const Image& b) {
 }
 
 TEST(Visibility, APointSampledFrameFinerThanItsPixelsIsRayCastAndBuildsNoFacesOrVolumes) {
-  // Multi-scanned, it scans (the exact coverage is the method's point).
+  // Multi-scanned, it scans (the exact coverage is the method's point);
+  // its 28,800 occluders, 450 per row, are shadowed by rays (ShadowPass).
   auto multi = prepare_scene(grid_scene(120, 64), iv(4));
   ASSERT_TRUE(multi.ok());
   EXPECT_FALSE((*multi)->by_rays);
-  EXPECT_TRUE((*multi)->volumes);
+  EXPECT_FALSE((*multi)->volumes);
+  auto with_volumes = prepare_scene(grid_scene(120, 64), iv(4, ShadowPass::kVolumes));
+  ASSERT_TRUE(with_volumes.ok());
+  EXPECT_TRUE((*with_volumes)->volumes) << "forced, the volumes are built";
   // Forced, a multi-scanned frame is ray cast too.
   for (int aa : {0, 4}) {
     auto ps = prepare_scene(grid_scene(120, 64), iv(aa, aa == 0 ? Visibility::kAuto : Visibility::kRays));
@@ -133,12 +137,13 @@ TEST(Visibility, TheChoiceFollowsTheSamplingAndThePreviewFollowsTheFrame) {
   ASSERT_TRUE(point.ok() && multi.ok());
   EXPECT_TRUE((*point)->by_rays);
   EXPECT_FALSE((*multi)->by_rays);
-  EXPECT_EQ(frame_visibility(scene, iv(4)), Visibility::kScanline);
-  EXPECT_EQ(frame_visibility(scene, iv(0)), Visibility::kRays);
-  EXPECT_EQ(frame_visibility(scene, iv(4, Visibility::kRays)), Visibility::kRays);
+  EXPECT_EQ(frame_passes(scene, iv(4)).visibility, Visibility::kScanline);
+  EXPECT_EQ(frame_passes(scene, iv(0)).visibility, Visibility::kRays);
+  EXPECT_EQ(frame_passes(scene, iv(4, Visibility::kRays)).visibility, Visibility::kRays);
   RenderParams ii = iv(4);
   ii.boxes = Boxes::kNone;
-  EXPECT_EQ(frame_visibility(scene, ii), Visibility::kAuto) << "II and III always scan";
+  EXPECT_EQ(frame_passes(scene, ii).visibility, Visibility::kAuto) << "II and III always scan";
+  EXPECT_EQ(frame_passes(scene, ii).shadows, ShadowPass::kAuto) << "and build volumes";
   auto ps = prepare_scene(scene, ii);
   ASSERT_TRUE(ps.ok());
   EXPECT_FALSE((*ps)->by_rays);
@@ -208,15 +213,18 @@ TEST(Visibility, BandsOfAFrameFoundOrShadowedByRaysAreBitIdenticalToTheWhole) {
 // Both choices of configuration IV (--visibility, --shadows) are refused
 // elsewhere, the error naming the flag.
 TEST(Visibility, AForcedPassIsForConfigurationIVOnly) {
-  for (const RenderParams& forced : {iv(4, Visibility::kRays), iv(4, ShadowPass::kRays)}) {
+  for (const RenderParams& forced :
+       {iv(4, Visibility::kRays), iv(4, ShadowPass::kRays), iv(4, ShadowPass::kVolumes)}) {
     const bool vis = forced.visibility != Visibility::kAuto;
+    const std::string flag =
+        vis ? "--visibility rays"
+            : "--shadows " + std::string(label_name(kShadowPassLabels, forced.shadows));
     RenderParams p = forced;
     EXPECT_TRUE(check_render_params(p).ok());
     p.boxes = Boxes::kEye;
     const Status s = check_render_params(p);
     EXPECT_FALSE(s.ok());
-    EXPECT_NE(s.message().find(vis ? "--visibility rays" : "--shadows rays"), std::string::npos)
-        << s.message();
+    EXPECT_NE(s.message().find(flag), std::string::npos) << s.message();
     EXPECT_NE(s.message().find("configuration IV"), std::string::npos) << s.message();
     p = forced;
     p.method = Method::kRaytrace;
@@ -292,6 +300,43 @@ TEST(ShadowPass, RaysAndVolumesRenderTheSameShadows) {
     const double er = difference(ray4->pixels, ref->pixels).first;
     EXPECT_LT(er, 1.5 * ev + 0.003) << "--aa 4 against --spp 8: volumes " << ev << ", rays " << er;
   }
+}
+
+// auto (the default): rays where the occluders in view outnumber the image's
+// rows 64 times over (docs/renderer.md "Shadows by rays"), volumes
+// otherwise; the same scene at a larger size builds volumes again, and the
+// farm's smaller cost preview builds what its frame will.
+TEST(ShadowPass, AutoCastsRaysWhereTheOccludersOutnumberTheRows) {
+  Scene fine = grid_scene(60, 64);  // 7,201 primitives: 112 per row
+  Scene coarse = fine;              // 28 per row
+  coarse.camera.width = coarse.camera.height = 256;
+  const Scene d = paper_scene("d_spheres_2lights.json", 64, 48);
+  for (int aa : {0, 4}) {
+    SCOPED_TRACE("aa " + std::to_string(aa));
+    RenderParams scan = iv(aa, Visibility::kScanline);
+    auto f = prepare_scene(fine, scan);
+    auto c = prepare_scene(coarse, scan);
+    auto pd = prepare_scene(d, scan);
+    ASSERT_TRUE(f.ok() && c.ok() && pd.ok());
+    EXPECT_FALSE((*f)->volumes);
+    EXPECT_TRUE((*c)->volumes);
+    EXPECT_TRUE((*pd)->volumes) << "the paper's scene keeps the paper's volumes";
+    EXPECT_EQ(frame_passes(fine, scan).shadows, ShadowPass::kRays);
+    EXPECT_EQ(frame_passes(coarse, scan).shadows, ShadowPass::kVolumes);
+    const BandResult r = render_band(**f, Band{0, 64}, scan);
+    EXPECT_EQ(r.stats.shadow_method, "rays");
+    EXPECT_EQ(r.stats.visibility, "scanline");
+    EXPECT_EQ(r.stats.tests_shadow_volume, 0u);
+  }
+  // The farm's preview of the coarse frame is kPreviewRows (64) rows, the
+  // size of `fine`, where auto alone would choose rays: it renders with the
+  // frame's passes (frame_passes), volumes.
+  EXPECT_EQ(kPreviewRows, fine.camera.height);
+  EXPECT_EQ(frame_passes(coarse, iv(4)).shadows, ShadowPass::kVolumes);
+  EXPECT_EQ(frame_passes(coarse, iv(4, ShadowPass::kRays)).shadows, ShadowPass::kRays);
+  auto costs = predict_row_costs(coarse, iv(4), 1);
+  ASSERT_TRUE(costs.ok()) << costs.status().message();
+  EXPECT_EQ(costs->size(), 256u);
 }
 
 }  // namespace
