@@ -310,8 +310,9 @@ def write_md(path, rows, lines, edge_lines, info):
               + (f", {run['minutes']:.0f} min" if "minutes" in run else "")
               + (", cut short" if run.get("partial") else "")]
     if info.get("runs"):
-        L += ["", "The header's figures are the first run's; the runs above were made at the "
-              "same time, each on its own scenes (every point of a scene in the same run).", ""]
+        L += ["", "The header's figures are the first run's. Each run measured its own scenes, "
+              "every point of a scene (Locus's and POV-Ray's) in that one run; a scene "
+              "measured in more than one run is taken from the first run listed.", ""]
     if info.get("locus_changed"):
         L += ["**The locus binary changed during the run; every figure comes from the copy "
               "taken at the start.**", ""]

@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """Scaling with scene size (issue #9 item 5): SPD balls and tetra from size
 s1 to beyond the default, rendered by Locus (configuration IV, --aa 4 and
---aa 0, and --aa 0 with the scanline pass forced: its visible-surface pass
-is chosen per frame, docs/renderer.md "Visibility by rays") and POV-Ray
+--aa 0; for information, --aa 4 with shadow volumes forced and --aa 0 with
+the paper's passes forced, scanline and volumes: both passes are chosen
+per frame, docs/renderer.md "Visibility by rays", "Shadows by rays") and
+POV-Ray
 (-A) at 512x512 on one thread; time per frame against primitive count on
 log-log axes, with the fitted slopes, and peak memory.
 
@@ -40,11 +42,13 @@ QUICK = {"size": 128, "levels": {"balls": [1, 2, 3], "tetra": [1, 2, 3, 4]}}
 IV = ["--method", "local", "--boxes", "eye+shadow"]
 CONFIGS = [("aa4", "Locus IV --aa 4", "locus", IV + ["--aa", "4"]),
            ("aa0", "Locus IV --aa 0", "locus", IV + ["--aa", "0"]),
-           # The paper's scanline pass forced where auto casts rays
-           # (docs/renderer.md "Visibility by rays"): information, not a
-           # target line.
-           ("scan0", "Locus IV --aa 0 --visibility scanline", "locus",
-            IV + ["--aa", "0", "--visibility", "scanline"]),
+           # The paper's passes forced where auto casts rays (docs/renderer.md
+           # "Visibility by rays", "Shadows by rays"): information, not
+           # target lines.
+           ("vol4", "Locus IV --aa 4 --shadows volumes", "locus",
+            IV + ["--aa", "4", "--shadows", "volumes"]),
+           ("scan0", "Locus IV --aa 0 --visibility scanline --shadows volumes", "locus",
+            IV + ["--aa", "0", "--visibility", "scanline", "--shadows", "volumes"]),
            ("pov_noaa", "POV-Ray -A", "povray", ["-A"])]
 UPPER = 3   # the "large end" fit uses the largest UPPER levels
 SLOPE_TARGET = 0.4   # issue #27: render time's slope over the largest UPPER levels
@@ -143,6 +147,7 @@ def run_level(kind, level, size, repeat, locus, pov, tmp):
                 row["tests_shadow_volume"] = b["stats"]["tests"]["shadow_volume"]
                 row["tests_ray_object"] = b["stats"]["tests"]["ray_object"]
                 row["visibility"] = b["stats"].get("visibility", {}).get("method", "scanline")
+                row["shadows"] = b["stats"].get("shadows", {}).get("method", "volumes")
             H.log(f"{tag} {label}: {b['cpu']:.3f} s CPU ({b['wall']:.3f} s wall), "
                   f"setup {b['prepare']:.2f} s")
         rows.append(row)
@@ -188,7 +193,7 @@ def report(out_dir, rows, info):
 
 FIELDS = ["kind", "level", "source", "primitives", "size", "config", "label", "renderer", "cpu",
           "wall", "prepare", "peak_mib", "runs", "all_cpu", "all_wall", "pixels_ray_traced",
-          "tests_shadow_volume", "tests_ray_object", "visibility", "note"]
+          "tests_shadow_volume", "tests_ray_object", "visibility", "shadows", "note"]
 
 
 def write_csv(path, rows, fit):
@@ -282,11 +287,12 @@ def write_md(path, rows, fit, info):
                  f"({x['range']}) | {x['slope_upper']:.2f} ({x['upper_range']}) |")
     for kind in sorted({r["kind"] for r in rows}, key=["balls", "tetra"].index):
         L += ["", f"## {kind}", "",
-              "| level | file | primitives | Locus --aa 4 | Locus --aa 0 (its pass) | "
-              "Locus --aa 0 scanline | POV-Ray -A | "
+              "| level | file | primitives | Locus --aa 4 (its shadows) | Locus --aa 4 volumes | "
+              "Locus --aa 0 (its pass) | Locus --aa 0 scanline + volumes | POV-Ray -A | "
               "Locus prepare --aa 4 / --aa 0 | POV-Ray parse + bounding | peak MiB: Locus --aa 4 / "
-              "--aa 0 / --aa 0 scanline / POV-Ray | Locus --aa 4 shadow-volume tests |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "--aa 4 volumes / --aa 0 / --aa 0 scanline + volumes / POV-Ray | "
+              "Locus --aa 4 shadow-volume tests |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for level in sorted({r["level"] for r in rows if r["kind"] == kind}):
             g = {r["config"]: r for r in rows if r["kind"] == kind and r["level"] == level}
             any_r = next(iter(g.values()))
@@ -298,8 +304,9 @@ def write_md(path, rows, fit, info):
                 return f"{r['cpu']:.3f} ({r['wall']:.2f})"
             a4, a0, pv = g.get("aa4", {}), g.get("aa0", {}), g.get("pov_noaa", {})
             peaks = " / ".join(f"{g[k]['peak_mib']:.0f}" if "peak_mib" in g.get(k, {}) else "—"
-                               for k in ("aa4", "aa0", "scan0", "pov_noaa"))
-            L.append(f"| {level} | {any_r['source']} | {any_r['primitives']} | {tm('aa4')} | "
+                               for k in ("aa4", "vol4", "aa0", "scan0", "pov_noaa"))
+            L.append(f"| {level} | {any_r['source']} | {any_r['primitives']} | {tm('aa4')} "
+                     f"({a4.get('shadows', '?')}) | {tm('vol4')} | "
                      f"{tm('aa0')} ({a0.get('visibility', '?')}) | {tm('scan0')} | "
                      f"{tm('pov_noaa')} | "
                      f"{sec(a4.get('prepare'))} / {sec(a0.get('prepare'))} | "
@@ -319,7 +326,8 @@ def chart(path, rows, fit, info):
     if not kinds:
         return
     fig, axes = plt.subplots(1, len(kinds), figsize=(6 * len(kinds), 4.6), squeeze=False)
-    style = {"aa4": ("C0", "o"), "aa0": ("C4", "s"), "scan0": ("C7", "x"), "pov_noaa": ("C3", "^")}
+    style = {"aa4": ("C0", "o"), "vol4": ("C9", "+"), "aa0": ("C4", "s"), "scan0": ("C7", "x"),
+             "pov_noaa": ("C3", "^")}
     for ax, kind in zip(axes[0], kinds):
         for key, label, renderer, _ in CONFIGS:
             xs, ys = series(rows, kind, key)
@@ -332,7 +340,7 @@ def chart(path, rows, fit, info):
             col, mk = style[key]
             ax.plot(xs, ys, color=col, marker=mk, label=lab, linewidth=1.3)
             px, py = series(rows, kind, key, "prepare")
-            if px and key != "scan0":  # the scanline's prepare is --aa 4's
+            if px and key not in ("scan0", "vol4"):  # information lines: render only
                 ax.plot(px, py, color=col, marker=mk, linestyle=":", markersize=3,
                         linewidth=0.8, alpha=0.7,
                         label=(f"{label}: prepare (wall)" if renderer == "locus" else
