@@ -98,7 +98,8 @@ struct Bounds {
   // mirror's rim, the floor's edge seen through a slab at grazing angles):
   // the error is bounded by this fraction of the function's range inside
   // the pixel. Ray-traced pieces are interpolated from the pixel's corner
-  // samples where those agree within kContrast = 0.05, else sampled once,
+  // samples where those agree within kContrast = 0.05 (aa 4; kContrast / (N/4)
+  // above), else sampled once,
   // or N/2 times across the piece where the corners see one material but
   // differ (pixel_samples.cpp): at aa 4, 1/4 of the range in x for one edge
   // and the trapezoid rule's 1/8 in y; a feature inside the pixel that no
