@@ -85,17 +85,19 @@ bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
 namespace {
 // Shadow volumes pay per occluder: each is built for every light and tested
 // wherever it covers a span, exactly (paper §3.2 step 2). Rays pay per
-// sample. Measured side by side at --aa 4 and 8 on 20 scenes (docs/
-// renderer.md "Shadows by rays", the table there): rays win by 2.6-4.3x at
-// equal error, or are better on the speed/accuracy curve, and use a third
-// of the memory, on the SPD big levels (balls 5, tetra 8 and 9: 128 to 512
-// primitives in view per image row at 512x512); from about 9 to 32 per row
-// (gears, lattice, balls, tree, mount, rings) rays are faster still but
-// their sampled shadow edges leave up to 40% more error at the same --aa
-// (gears), and below (the paper's scenes, tetra level 6, sombrero) the
-// volumes are faster. So rays only where the occluders outnumber the rows
-// many times over: an average occluder covers a few pixels at most.
-constexpr double kShadowRaysPerRow = 64;
+// sample. Measured side by side at --aa 4 and 8 (docs/renderer.md "Shadows
+// by rays", the tables there): on the SPD big levels (balls 5, tetra 8 and
+// 9: 128 to 512 primitives in view per image row at 512x512) rays win by
+// 2.6-4.3x at equal error or better on the speed/accuracy curve, with a
+// third of the memory; at 256x256, where balls, gears, rings, tree and
+// mount have 29 to 36 per row, rays are 1.7-3.7x faster for 2-48% more
+// error at the same --aa, and better on the curve (each one's --aa 8 by
+// rays costs about what --aa 4 by volumes does, with less error). At
+// 512x512 the same scenes (9 to 18 per row) are faster by rays too, with
+// up to 41% more error (gears), and below that (the paper's scenes, tetra
+// level 6 at 8 per row, sombrero) the volumes are faster. So rays where
+// an average row meets 24 occluders or more.
+constexpr double kShadowRaysPerRow = 24;
 }  // namespace
 
 bool shadows_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,

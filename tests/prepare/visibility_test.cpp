@@ -303,13 +303,13 @@ TEST(ShadowPass, RaysAndVolumesRenderTheSameShadows) {
 }
 
 // auto (the default): rays where the occluders in view outnumber the image's
-// rows 64 times over (docs/renderer.md "Shadows by rays"), volumes
+// rows 24 times over (docs/renderer.md "Shadows by rays"), volumes
 // otherwise; the same scene at a larger size builds volumes again, and the
 // farm's smaller cost preview builds what its frame will.
 TEST(ShadowPass, AutoCastsRaysWhereTheOccludersOutnumberTheRows) {
   Scene fine = grid_scene(60, 64);  // 7,201 primitives: 112 per row
-  Scene coarse = fine;              // 28 per row
-  coarse.camera.width = coarse.camera.height = 256;
+  Scene coarse = fine;              // 14 per row
+  coarse.camera.width = coarse.camera.height = 512;
   const Scene d = paper_scene("d_spheres_2lights.json", 64, 48);
   for (int aa : {0, 4}) {
     SCOPED_TRACE("aa " + std::to_string(aa));
@@ -336,7 +336,7 @@ TEST(ShadowPass, AutoCastsRaysWhereTheOccludersOutnumberTheRows) {
   EXPECT_EQ(frame_passes(coarse, iv(4, ShadowPass::kRays)).shadows, ShadowPass::kRays);
   auto costs = predict_row_costs(coarse, iv(4), 1);
   ASSERT_TRUE(costs.ok()) << costs.status().message();
-  EXPECT_EQ(costs->size(), 256u);
+  EXPECT_EQ(costs->size(), 512u);
 }
 
 }  // namespace
