@@ -36,8 +36,9 @@ inline constexpr Labels<Visibility, 3> kVisibilityLabels = {
 // Rays cost far less where occluders are many and small (docs/renderer.md
 // "Shadows by rays": balls level 5 at --aa 4, 2.6x faster at equal error
 // and a third of the memory); the paper's scenes are faster with volumes.
-// `auto` casts rays where the occluders outnumber what the image resolves
-// (common/prepare/visibility.h) and builds volumes otherwise.
+// `auto` casts rays where the occluders in view outnumber the image's rows
+// 24 times over (common/prepare/visibility.cpp) and builds volumes
+// otherwise.
 enum class ShadowPass { kAuto, kVolumes, kRays };
 inline constexpr Labels<ShadowPass, 3> kShadowPassLabels = {
     {{ShadowPass::kAuto, "auto"}, {ShadowPass::kVolumes, "volumes"}, {ShadowPass::kRays, "rays"}}};

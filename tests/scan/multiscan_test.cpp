@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <random>
 #include <vector>
 
@@ -472,37 +473,39 @@ TEST(Multiscan, SurfacesBetweenTwoSamplesAreFound) {
   }
 }
 
+// RMSE of `scene` at 96x96 rendered with local_aa(n), for each n, against
+// the supersampled ray tracer (--spp 16); empty if a render failed.
+std::vector<double> errors_against_supersampled(Scene scene, std::initializer_list<int> ns,
+                                                const char* name) {
+  scene.camera.width = 96;
+  scene.camera.height = 96;
+  RenderParams ref;
+  ref.method = Method::kRaytrace;
+  ref.spp = 16;
+  auto want = render_image(scene, ref);
+  if (!want.ok()) return {};
+  std::vector<double> errs;
+  for (int n : ns) {
+    auto r = render_image(scene, local_aa(n));
+    if (!r.ok()) return {};
+    double s2 = 0;
+    for (size_t k = 0; k < r->pixels.rgb.size(); ++k) {
+      const double d = r->pixels.rgb[k] - want->pixels.rgb[k];
+      s2 += d * d;
+    }
+    errs.push_back(std::sqrt(s2 / static_cast<double>(r->pixels.rgb.size())));
+    std::printf("%s 96x96: aa %2d rmse %.5f\n", name, n, errs.back());
+  }
+  return errs;
+}
+
 // Multi-scanning converges to the supersampled ray tracer on the paper's
 // scene (d): mirrors, prisms, shadows, curved silhouettes.
 TEST(Multiscan, ConvergesToSupersampledRayTracer) {
   auto scene = load_scene(LOCUS_SOURCE_DIR "/scenes/paper/d_spheres_2lights.json");
   ASSERT_TRUE(scene.ok());
-  scene->camera.width = 96;
-  scene->camera.height = 96;
-  RenderParams ref;
-  ref.method = Method::kRaytrace;
-  ref.spp = 16;
-  auto want = render_image(*scene, ref);
-  ASSERT_TRUE(want.ok());
-  auto rmse = [&](const Image& img) {
-    double s2 = 0;
-    for (int j = 0; j < 96; ++j) {
-      for (int i = 0; i < 96; ++i) {
-        for (int c = 0; c < 3; ++c) {
-          const double d = img.pixel(i, j)[c] - want->pixels.pixel(i, j)[c];
-          s2 += d * d;
-        }
-      }
-    }
-    return std::sqrt(s2 / (96 * 96 * 3));
-  };
-  std::vector<double> errs;
-  for (int n : {0, 1, 4, 16}) {
-    auto r = render_image(*scene, local_aa(n));
-    ASSERT_TRUE(r.ok());
-    errs.push_back(rmse(r->pixels));
-    std::printf("scene (d) 96x96: aa %2d rmse %.4f\n", n, errs.back());
-  }
+  const std::vector<double> errs = errors_against_supersampled(*scene, {0, 1, 4, 16}, "scene (d)");
+  ASSERT_EQ(errs.size(), 4u);
   EXPECT_LT(errs[2], 0.5 * errs[0]);
   EXPECT_LT(errs[3], errs[2]);
 }
@@ -516,28 +519,8 @@ TEST(Multiscan, ConvergesToSupersampledRayTracer) {
 TEST(Multiscan, RefractedDetailConvergesAsNGrows) {
   auto scene = load_scene(LOCUS_SHARED_DIR "/spd/def/mount.nff");
   ASSERT_TRUE(scene.ok()) << scene.status().message();
-  scene->camera.width = 96;
-  scene->camera.height = 96;
-  RenderParams ref;
-  ref.method = Method::kRaytrace;
-  ref.spp = 16;
-  auto want = render_image(*scene, ref);
-  ASSERT_TRUE(want.ok());
-  auto rmse = [&](const Image& img) {
-    double s2 = 0;
-    for (size_t k = 0; k < img.rgb.size(); ++k) {
-      const double d = img.rgb[k] - want->pixels.rgb[k];
-      s2 += d * d;
-    }
-    return std::sqrt(s2 / static_cast<double>(img.rgb.size()));
-  };
-  std::vector<double> errs;
-  for (int n : {4, 8, 16}) {
-    auto r = render_image(*scene, local_aa(n));
-    ASSERT_TRUE(r.ok());
-    errs.push_back(rmse(r->pixels));
-    std::printf("mount 96x96: aa %2d rmse %.5f\n", n, errs.back());
-  }
+  const std::vector<double> errs = errors_against_supersampled(*scene, {4, 8, 16}, "mount");
+  ASSERT_EQ(errs.size(), 3u);
   EXPECT_LT(errs[1], 0.6 * errs[0]);
   EXPECT_LT(errs[2], 0.6 * errs[1]);
 }
