@@ -45,7 +45,7 @@ glass=$src/scenes/paper/a_glass.json
   { bad "embedded farm, scenes/anim"; cat "$tmp/e.log"; }
 
 # ---- the embedded farm's token is in its workers' environment, not on their command line
-"$bin/locus" render "$glass" --frames 1-6 --size 96x72 --spp 6 --workers 2 -o "$tmp/e/t_####.png" 2>"$tmp/t.log" &
+"$bin/locus" render "$glass" --frames 1-6 --size 160x120 --aa 8 --workers 2 -o "$tmp/e/t_####.png" 2>"$tmp/t.log" &
 render=$!
 seen=
 # Until the render ends: each worker's command line, then its environment,
@@ -66,7 +66,11 @@ while [ -z "$seen" ] && kill -0 "$render" 2>/dev/null; do
   done
   sleep 0.01
 done
-wait "$render"
+# The render must succeed: a refused one (it was `--spp 6`, refused by the
+# local method) leaves its workers alive only while the farm starts and
+# stops, and the check above raced their exit.
+wait "$render" && render_rc=0 || render_rc=$?
+[ "$render_rc" = 0 ] || { bad "embedded farm token: the render failed ($render_rc)"; cat "$tmp/t.log"; }
 [ "$seen" = env ] && ok "embedded farm: random 64-hex token in the workers' LOCUS_TOKEN, not on their command line" ||
   bad "embedded farm token: '$seen'"
 
