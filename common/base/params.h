@@ -103,8 +103,9 @@ struct Stats {
   uint64_t pixels_ray_traced = 0;  // pixels where an eye, reflected or refracted ray was cast
   uint64_t spans_total = 0;        // local method: visible spans over all rows
   uint64_t spans_ray_traced = 0;   // spans whose pixels were ray traced
-  // How shadows were found: "rays" (raytrace), "volumes+rays" (II, III:
-  // spans by volumes, secondary points by rays), "volumes" (IV).
+  // How shadows were found: "rays" (raytrace; IV where ShadowPass chose
+  // rays), "volumes+rays" (II, III: spans by volumes, secondary points by
+  // rays), "volumes" (IV).
   std::string shadow_method = "rays";
   // How visible surfaces were found: "scanline" (the local method's pass,
   // paper §3.2) or "rays" (the ray tracer, or the local method where the
