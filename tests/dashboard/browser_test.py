@@ -19,6 +19,7 @@ import base64
 import io
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -77,9 +78,13 @@ def main():
         with urllib.request.urlopen(req, timeout=10) as r:
             return json.loads(r.read())
 
+    # A grant reads "lease L: band B of frame F to worker W (name), attempt A";
+    # a lease's end ("lease L timed out: band hung: leased to worker ...")
+    # also names a worker and is not a grant.
+    grant = re.compile(r"\blease \S+: band \d+ of frame \d+ to worker ")
+
     def leases():
-        return sum(1 for line in locus("events", job).stdout.splitlines()
-                   if " to worker " in line and ": band " in line)
+        return sum(1 for line in locus("events", job).stdout.splitlines() if grant.search(line))
 
     opts = webdriver.ChromeOptions()
     opts.binary_location = "/usr/bin/chromium"
