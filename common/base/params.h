@@ -33,12 +33,13 @@ inline constexpr Labels<Visibility, 3> kVisibilityLabels = {
 // How configuration IV finds the shadows of the spans it scans: the shadow
 // volumes of the paper (§3.2 step 2, §4.1), or shadow rays through the boxes
 // (no volumes are built; diffuse spans are then sampled like a mirror's).
-// Rays cost far less where occluders are many and small (docs/renderer.md
-// "Shadows by rays": balls level 5 at --aa 4, 2.6x faster at equal error
-// and a third of the memory); the paper's scenes are faster with volumes.
-// `auto` casts rays where the occluders in view outnumber the image's rows
-// 24 times over (common/prepare/visibility.cpp) and builds volumes
-// otherwise.
+// Both find the same figures on a span (rays by bisection where the
+// lights' state changes); rays cost far less where occluders and lights
+// are many (docs/renderer.md "Shadows by rays": balls level 5 at --aa 4,
+// 2.6x faster and a third of the memory); the paper's scenes are faster
+// with volumes. `auto` casts rays where the occluders in view times the
+// lights reach 12 per image row (common/prepare/visibility.cpp) and builds
+// volumes otherwise.
 enum class ShadowPass { kAuto, kVolumes, kRays };
 inline constexpr Labels<ShadowPass, 3> kShadowPassLabels = {
     {{ShadowPass::kAuto, "auto"}, {ShadowPass::kVolumes, "volumes"}, {ShadowPass::kRays, "rays"}}};

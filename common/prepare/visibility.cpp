@@ -11,6 +11,7 @@ namespace locus {
 VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& prims,
                                      const CameraFrame& cam) {
   VisibilityMeasure m;
+  m.lights = static_cast<int>(scene.lights.size());
   const double w = cam.width, h = cam.height;
   for (size_t i = 0; i < prims.bounds.size(); ++i) {
     const Aabb& b = prims.bounds[i];
@@ -83,28 +84,33 @@ bool visibility_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
 }
 
 namespace {
-// Shadow volumes pay per occluder: each is built for every light and tested
-// wherever it covers a span, exactly (paper §3.2 step 2). Rays pay per
-// sample. Measured side by side at --aa 4 and 8 (docs/renderer.md "Shadows
-// by rays", the tables there): on the SPD big levels (balls 5, tetra 8 and
-// 9: 128 to 512 primitives in view per image row at 512x512) rays win by
-// 2.6-4.3x at equal error or better on the speed/accuracy curve, with a
-// third of the memory; at 256x256, where balls, gears, rings, tree and
-// mount have 29 to 36 per row, rays are 1.7-3.7x faster for 2-48% more
-// error at the same --aa, and better on the curve (each one's --aa 8 by
-// rays costs about what --aa 4 by volumes does, with less error). At
-// 512x512 the same scenes (9 to 18 per row) are faster by rays too, with
-// up to 41% more error (gears), and below that (the paper's scenes, tetra
-// level 6 at 8 per row, sombrero) the volumes are faster. So rays where
-// an average row meets 24 occluders or more.
-constexpr double kShadowRaysPerRow = 24;
+// Shadow volumes pay per occluder and light: each occluder's volume is
+// built for every light and tested wherever it covers a span, exactly
+// (paper §3.2 step 2). Rays pay per sample: a ray to each light from each
+// pixel's piece of a span, and bisection where the lights' state changes
+// (sub_line.cpp figures_by_rays), which finds the same figures as the
+// volumes' intervals, so both give the same image to within where a shadow
+// narrower than a pixel falls between two samples. The choice is then one
+// of time alone. Measured side by side at --aa 4, one thread, on the SPD
+// scenes (levels 2 and 3) and the paper's, at 256x256 and 512x512
+// (docs/renderer.md "Shadows by rays"), the volumes' time over the rays'
+// grows with the occluders in view per row and with the lights: at about
+// 15 per row, mount (1 light) 1.02, balls and rings (3) 1.17, gears (5)
+// 1.70. Counted as occluders in view times lights per row, it passes 1
+// between 9 and 16: teapot 1.02 at 9, tetra 0.79 at 8, sombrero level 2
+// 0.82 and gears level 2 1.17 both at 11.3, mount 1.02 at 15.6; every
+// scene above 12 was faster by rays (tetra 1.08 at 16.4, teapot 1.29 at
+// 18, sombrero level 2 1.34 at 22.6), every one below 9 by volumes (the
+// paper's scenes are below 1). So rays from 12.
+constexpr double kShadowRayOccluderLightsPerRow = 12;
 }  // namespace
 
 bool shadows_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,
                      const RenderParams& params) {
   if (!configuration_iv(params)) return false;
   if (params.shadows != ShadowPass::kAuto) return params.shadows == ShadowPass::kRays;
-  return m.in_view / std::max(1, cam.height) >= kShadowRaysPerRow;
+  return m.in_view * std::max(1, m.lights) / std::max(1, cam.height) >=
+         kShadowRayOccluderLightsPerRow;
 }
 
 RenderParams frame_passes(const Scene& scene, const RenderParams& params) {

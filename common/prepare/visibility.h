@@ -37,6 +37,8 @@ struct VisibilityMeasure {
   // The primitives in view (their boxes meet the image): the occluders whose
   // volumes the scanline pass would build and test.
   double in_view = 0;
+  // The scene's lights: each occluder has a volume per light.
+  int lights = 0;
 };
 
 VisibilityMeasure measure_visibility(const Scene& scene, const PrimitiveSet& prims,

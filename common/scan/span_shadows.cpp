@@ -206,26 +206,30 @@ LightStates SpanShadows::states(double x) {
       }
       return false;
     });
-    // Through glass beyond the critical angle nothing arrives (the dark
-    // core of paper Fig. 8a): as dark as an opaque shadow, and its edge is
-    // a change of state that bisection finds.
-    if (!opaque && !crossings.empty() &&
-        segment_transmittance(ps_.scene, seg, crossings) == Color(0.0)) {
-      opaque = true;
-    }
-    const uint64_t bit = uint64_t{1} << j;
-    if (opaque) {
-      st.opaque |= bit;
-    } else if (!crossings.empty()) {
-      // Through transparent occluders: which ones (eqs. (2), (3) vary
-      // smoothly inside, and jump where the set changes).
-      st.partial |= bit;
-      for (const Crossing& c : crossings) {
-        st.transparent = (st.transparent ^ static_cast<uint64_t>(c.leaf + 1)) * 1099511628211ull;
-      }
-    }
+    add_light_state(st, j, opaque, ps_.scene, seg, crossings);
   }
   return st;
+}
+
+void add_light_state(LightStates& st, int j, bool opaque, const Scene& scene, const Ray& seg,
+                     std::vector<Crossing>& crossings) {
+  // Through glass beyond the critical angle nothing arrives (the dark
+  // core of paper Fig. 8a): as dark as an opaque shadow, and its edge is
+  // a change of state that bisection finds.
+  if (!opaque && !crossings.empty() && segment_transmittance(scene, seg, crossings) == Color(0.0)) {
+    opaque = true;
+  }
+  const uint64_t bit = uint64_t{1} << j;
+  if (opaque) {
+    st.opaque |= bit;
+  } else if (!crossings.empty()) {
+    // Through transparent occluders: which ones (eqs. (2), (3) vary
+    // smoothly inside, and jump where the set changes).
+    st.partial |= bit;
+    for (const Crossing& c : crossings) {
+      st.transparent = (st.transparent ^ static_cast<uint64_t>(c.leaf + 1)) * 1099511628211ull;
+    }
+  }
 }
 
 namespace {

@@ -27,6 +27,12 @@ struct LightStates {
   bool operator==(const LightStates&) const = default;
 };
 
+// Light j's part of `st` (j < 64) from what its shadow segment `seg` met:
+// an opaque occluder (`opaque`), the transparent surfaces of `crossings`
+// (eqs. (2), (3)), or nothing. Glass that passes nothing counts as opaque.
+void add_light_state(LightStates& st, int j, bool opaque, const Scene& scene, const Ray& seg,
+                     std::vector<Crossing>& crossings);
+
 // The shadows of the spans of one row (paper §3.2 step 2): for a visible
 // span of a flat face, each candidate occluder's volume meets the segment
 // the scan plane cuts from the face in an interval, found once per span and

@@ -110,7 +110,7 @@ inline void SubLineBuilder::add_pieces(SubLine& line) {
     } else if (shadows) {
       figures(s, *shadows);
     } else {
-      mirror(s, nullptr);  // no volumes: sampled like a mirror's span
+      figures_by_rays(s);  // no volumes: shadow rays find the states
     }
   }
 }
@@ -384,6 +384,56 @@ inline void SubLineBuilder::figures(const VisibleSegment& s, SpanShadows& shadow
   }
   end_run();
   meter_.charge_run(s.x0, s.x1);
+}
+
+// Without volumes (shadows by rays, docs/renderer.md): the span is cut into
+// figures as figures() cuts it inside an occluder's volume, each pixel's
+// piece keyed by the state of the lights at its midpoint and refined where
+// neighbours differ (paper §3.3's convergence search), the keys found by
+// shadow rays instead of intervals. A figure is then shaded once per pixel
+// (multiscan.cpp), not once per sample.
+inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
+  const ScanFace& f = scan_.faces[s.face];
+  std::vector<LightStates>& keys = keys_;
+  keys.clear();
+  const size_t begin = out_->size();
+  Piece p;
+  p.kind = Piece::kFigure;
+  p.face = s.face;
+  for_pixels(s.x0, s.x1, [&](double a, double b) {
+    p.x0 = a;
+    p.x1 = b;
+    p.lights = ray_states(f, 0.5 * (a + b));
+    out_->push_back(p);
+    keys.push_back(p.lights);
+    meter_.charge(a);
+  });
+  refine(
+      begin, keys, [&](double x) { return ray_states(f, x); },
+      [](Piece& q, const LightStates& st) { q.lights = st; },
+      [](double, const LightStates&, double, const LightStates&, double*) { return false; },
+      found_states_);
+  meter_.charge_run(s.x0, s.x1);
+}
+
+// The state of the first 64 lights at the point of face f seen at x on this
+// sub-scanline: a shadow ray to each, from the point moved off the face
+// towards the light's side (as Tracer::transmittance moves it).
+inline LightStates SubLineBuilder::ray_states(const ScanFace& f, double x) {
+  LightStates st;
+  const Ray eye = eye_ray(x);
+  const double t = (f.offset - glm::dot(f.normal, eye.origin)) / glm::dot(f.normal, eye.dir);
+  const Vec3 p = eye.origin + t * eye.dir;
+  const int lights = static_cast<int>(std::min<size_t>(ps_.scene.lights.size(), 64));
+  for (int j = 0; j < lights; ++j) {
+    const Vec3 lp = ps_.scene.lights[j].position;
+    const Vec3 origin = p + (glm::dot(lp - p, f.normal) >= 0 ? ps_.eps : -ps_.eps) * f.normal;
+    const Ray seg{origin, lp - origin};
+    crossings_.clear();
+    const bool opaque = tracer_.shadow_crossings(seg, j, crossings_);
+    add_light_state(st, j, opaque, ps_.scene, seg, crossings_);
+  }
+  return st;
 }
 
 }  // namespace locus

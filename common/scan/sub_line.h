@@ -98,6 +98,11 @@ class SubLineBuilder {
   void curved(double x0, double x1);
   void mirror(const VisibleSegment& s, SpanShadows* shadows);
   void figures(const VisibleSegment& s, SpanShadows& shadows);
+  // Shadows by rays (ShadowPass): a diffuse face's span as figures, the
+  // state of the lights from shadow rays at each pixel's piece, refined
+  // where it changes; what states() gives at x on face f.
+  void figures_by_rays(const VisibleSegment& s);
+  LightStates ray_states(const ScanFace& f, double x);
   // A traced piece's radiance (PixelSamples::colours).
   void traced_colours(Piece& p, FunctionRef<Color(double)> direct);
 
@@ -120,6 +125,7 @@ class SubLineBuilder {
   std::vector<std::pair<double, int>> found_ids_;
   std::vector<std::pair<double, LightStates>> found_states_;
   std::vector<double> guesses_;  // silhouette_guess's
+  std::vector<Crossing> crossings_;  // ray_states'
   EyeCandidates eye_;
   PixelSamples samples_;  // traced pieces' radiance; uses eye_
 };

@@ -156,10 +156,15 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
   if (ps_.volumes && ps_.volumes->search) {
     return volume_transmittance(ps_, origin, light, receiver, stats_, &last_occluder(light));
   }
-  ++stats_.rays_shadow;
   const Ray seg{origin, lp - origin};  // t in (0, 1) spans the segment
   thread_local std::vector<Crossing> crossings;
   crossings.clear();
+  if (shadow_crossings(seg, light, crossings)) return Color(0.0);
+  return segment_transmittance(ps_.scene, seg, crossings);
+}
+
+bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& crossings) {
+  ++stats_.rays_shadow;
   bool opaque = false;
   auto test = [&](int prim) {
     ++stats_.tests_ray_object;
@@ -176,7 +181,7 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
     return 1.0;
   };
   if (const int cached = last_occluder(light); cached >= 0) {
-    if (test(cached) < 0) return Color(0.0);
+    if (test(cached) < 0) return true;
     crossings.clear();  // seen again in the full search below
   }
   if (ps_.bvh_for_shadows) {
@@ -184,8 +189,7 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
   } else {
     for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()) && !opaque; ++i) test(i);
   }
-  if (opaque) return Color(0.0);
-  return segment_transmittance(ps_.scene, seg, crossings);
+  return opaque;
 }
 
 Color Tracer::trace(const Ray& ray, double tmin, int depth, double weight, const Material* medium) {

@@ -59,6 +59,12 @@ class Tracer {
   Color transmittance(const Vec3& p, const Vec3& ng, int light, int receiver = -1,
                       KnownShadows* known = nullptr);
 
+  // A shadow ray through the boxes along `seg` (t in (0, 1) from the
+  // shadow-ray origin to light `light`): its crossings with transparent
+  // surfaces appended to `crossings`; true, and the search stopped, where an
+  // opaque occluder blocks it (eq. (2)).
+  bool shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& crossings);
+
   // Radiance along a ray; depth 1 is the primary ray. `medium` is the
   // material whose body the ray travels in (nullptr outside).
   Color trace(const Ray& ray, double tmin, int depth, double weight, const Material* medium);

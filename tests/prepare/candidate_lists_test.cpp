@@ -27,6 +27,7 @@ std::shared_ptr<const PreparedScene> prepared(const std::string& spd) {
   RenderParams params;
   params.method = Method::kLocal;
   params.boxes = Boxes::kEyeShadow;
+  params.shadows = ShadowPass::kVolumes;  // the lists are the volumes'
   auto ps = prepare_scene(*scene, params);
   EXPECT_TRUE(ps.ok()) << spd;
   return *ps;
