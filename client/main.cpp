@@ -327,13 +327,20 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     spdlog::set_level(level);
     return fail(local.status());
   }
-  // The scene is read while the workers load and register.
+  // The scene is read, and the job submitted, while the workers load and
+  // register: the coordinator's cost preview (server/submission.h) runs
+  // meanwhile. The default split would count the registered workers; this
+  // farm knows how many it started.
   auto job = prepare_job(a.job, true);
-  Status ready = job.ok() ? (*local)->wait_for_workers() : job.status();
-  if (!ready.ok()) {
+  if (!job.ok()) {
     local->reset();
     spdlog::set_level(level);
-    return fail(ready);
+    return fail(job.status());
+  }
+  if (job->request.bands == 0) {
+    job->request.bands =
+        farm::default_bands(job->request.width, job->request.height,
+                            job->request.frame_last - job->request.frame_first + 1, workers);
   }
   if (!(*local)->dashboard_url().empty()) {
     std::fprintf(stderr, "locus: watch the render at %s\n", (*local)->dashboard_url().c_str());
@@ -342,9 +349,11 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
   local_creds.token = (*local)->token();
   client::FarmClient farm((*local)->address(), local_creds);
   auto submitted = farm.submit(job->request);
-  if (!submitted.ok()) {
+  Status ready = submitted.ok() ? (*local)->wait_for_workers() : submitted.status();
+  if (!ready.ok()) {
+    local->reset();
     spdlog::set_level(level);
-    return fail(submitted.status());
+    return fail(ready);
   }
   farm::JobInfo info;
   int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info);

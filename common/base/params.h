@@ -32,7 +32,7 @@ inline constexpr Labels<Visibility, 3> kVisibilityLabels = {
 
 // How configuration IV finds the shadows of the spans it scans: the shadow
 // volumes of the paper (§3.2 step 2, §4.1), or shadow rays through the boxes
-// (no volumes are built; diffuse spans are then sampled like a mirror's).
+// (no volumes are built).
 // Both find the same figures on a span (rays by bisection where the
 // lights' state changes); rays cost far less where occluders and lights
 // are many (docs/renderer.md "Shadows by rays": balls level 5 at --aa 4,
