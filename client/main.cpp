@@ -25,6 +25,7 @@
 #include "common/base/cost_map.h"
 #include "common/base/log.h"
 #include "common/farm/auth.h"
+#include "common/farm/band_split.h"
 #include "common/farm/movie.h"
 #include "common/render.h"
 #include "common/scene/animation.h"
@@ -328,19 +329,28 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     return fail(local.status());
   }
   // The scene is read, and the job submitted, while the workers load and
-  // register: the coordinator's cost preview (server/submission.h) runs
-  // meanwhile. The default split would count the registered workers; this
-  // farm knows how many it started.
+  // register. The coordinator counts the registered workers twice at
+  // submission: for the default number of bands, which this farm gives
+  // itself (it knows how many workers it started), and for whether a cost
+  // preview pays (cost_split_pays); where that answer could depend on how
+  // many have registered yet, the job waits for them.
   auto job = prepare_job(a.job, true);
   if (!job.ok()) {
     local->reset();
     spdlog::set_level(level);
     return fail(job.status());
   }
-  if (job->request.bands == 0) {
-    job->request.bands =
-        farm::default_bands(job->request.width, job->request.height,
-                            job->request.frame_last - job->request.frame_first + 1, workers);
+  farm::SubmitRequest& request = job->request;
+  if (request.bands == 0) {
+    request.bands = farm::default_bands(request.width, request.height,
+                                        request.frame_last - request.frame_first + 1, workers);
+  }
+  if (cost_split_pays(request.bands, 0) != cost_split_pays(request.bands, workers)) {
+    if (Status ready = (*local)->wait_for_workers(); !ready.ok()) {
+      local->reset();
+      spdlog::set_level(level);
+      return fail(ready);
+    }
   }
   if (!(*local)->dashboard_url().empty()) {
     std::fprintf(stderr, "locus: watch the render at %s\n", (*local)->dashboard_url().c_str());
@@ -348,7 +358,7 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
   farm::Credentials local_creds;
   local_creds.token = (*local)->token();
   client::FarmClient farm((*local)->address(), local_creds);
-  auto submitted = farm.submit(job->request);
+  auto submitted = farm.submit(request);
   Status ready = submitted.ok() ? (*local)->wait_for_workers() : submitted.status();
   if (!ready.ok()) {
     local->reset();
