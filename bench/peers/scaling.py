@@ -49,7 +49,11 @@ CONFIGS = [("aa4", "Locus IV --aa 4", "locus", IV + ["--aa", "4"]),
             IV + ["--aa", "4", "--shadows", "volumes"]),
            ("scan0", "Locus IV --aa 0 --visibility scanline --shadows volumes", "locus",
             IV + ["--aa", "0", "--visibility", "scanline", "--shadows", "volumes"]),
-           ("pov_noaa", "POV-Ray -A", "povray", ["-A"])]
+           ("pov_noaa", "POV-Ray -A", "povray", ["-A"]),
+           # POV-Ray's adaptive anti-aliasing (a point of curve.py's best
+           # curve), beside Locus's --aa 4: how an adaptive sampler's time
+           # grows with the scene's edges. Information, not a target line.
+           ("pov_am2", "POV-Ray +AM2 +A0.1 +R3", "povray", ["+AM2", "+A0.1", "+R3"])]
 UPPER = 3   # the "large end" fit uses the largest UPPER levels
 SLOPE_TARGET = 0.4   # issue #27: render time's slope over the largest UPPER levels
 PREPARE_TARGET = 2.0  # Locus prepare <= 2x POV-Ray parse + bounding
