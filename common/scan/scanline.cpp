@@ -33,10 +33,20 @@ std::optional<Crossing> hit_on_face(const PreparedScene& ps, const ScanFace& f, 
   return hit;
 }
 
+namespace {
+double face_t(const ScanFace& f, const Vec3& origin, double den) {
+  return (f.offset - glm::dot(f.normal, origin)) / den;
+}
+}  // namespace
+
+Vec3 face_point(const ScanFace& f, const Vec3& origin, const Vec3& dir) {
+  return origin + face_t(f, origin, glm::dot(f.normal, dir)) * dir;
+}
+
 bool on_face(const ScanFace& f, const Vec3& origin, const Vec3& dir, double t) {
   const double den = glm::dot(f.normal, dir);
   if (den == 0) return false;
-  const double tp = (f.offset - glm::dot(f.normal, origin)) / den;
+  const double tp = face_t(f, origin, den);
   return std::abs(tp - t) <= 1e-7 * std::max(std::abs(tp), std::abs(t));
 }
 

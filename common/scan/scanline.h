@@ -78,6 +78,10 @@ void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
 // caller then traces the ray.
 std::optional<Crossing> hit_on_face(const PreparedScene& ps, const ScanFace& f, const Ray& ray);
 
+// The point of face f's plane along origin + t dir (paper §3.2: a
+// ray-plane intersection); not finite where dir is parallel to the plane.
+Vec3 face_point(const ScanFace& f, const Vec3& origin, const Vec3& dir);
+
 // Is the hit at ray parameter t on face f's plane? A convex body's face
 // seen inside hither's sphere is not where the body's nearest crossing
 // beyond hither lies (that is another of its faces): such a sample needs a

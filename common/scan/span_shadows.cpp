@@ -195,8 +195,7 @@ LightStates SpanShadows::states(double x) {
       if (iv.prim == tested) return false;
       tested = iv.prim;
       if (!p) {
-        const Vec3 d = cam.w + b_ * cam.v + a * cam.u;
-        p = cam.from + ((f.offset - glm::dot(f.normal, cam.from)) / glm::dot(f.normal, d)) * d;
+        p = face_point(f, cam.from, cam.w + b_ * cam.v + a * cam.u);
       }
       const Vec3 origin = *p + (s_->side[j] ? ps_.eps : -ps_.eps) * f.normal;
       seg = Ray{origin, ps_.volumes->lights[j].position - origin};

@@ -417,18 +417,15 @@ inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
 }
 
 // The state of the first 64 lights at the point of face f seen at x on this
-// sub-scanline: a shadow ray to each, from the point moved off the face
-// towards the light's side (as Tracer::transmittance moves it).
+// sub-scanline: a shadow ray to each, as Tracer::transmittance casts it.
 inline LightStates SubLineBuilder::ray_states(const ScanFace& f, double x) {
   LightStates st;
   const Ray eye = eye_ray(x);
-  const double t = (f.offset - glm::dot(f.normal, eye.origin)) / glm::dot(f.normal, eye.dir);
-  const Vec3 p = eye.origin + t * eye.dir;
+  const Vec3 p = face_point(f, eye.origin, eye.dir);
   const int lights = static_cast<int>(std::min<size_t>(ps_.scene.lights.size(), 64));
   for (int j = 0; j < lights; ++j) {
-    const Vec3 lp = ps_.scene.lights[j].position;
-    const Vec3 origin = p + (glm::dot(lp - p, f.normal) >= 0 ? ps_.eps : -ps_.eps) * f.normal;
-    const Ray seg{origin, lp - origin};
+    const Vec3 origin = tracer_.shadow_origin(p, f.normal, j);
+    const Ray seg{origin, ps_.scene.lights[j].position - origin};
     crossings_.clear();
     const bool opaque = tracer_.shadow_crossings(seg, j, crossings_);
     add_light_state(st, j, opaque, ps_.scene, seg, crossings_);

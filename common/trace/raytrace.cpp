@@ -148,7 +148,7 @@ Color segment_transmittance(const Scene& scene, const Ray& seg, std::vector<Cros
 Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiver,
                             KnownShadows* known) {
   const Vec3 lp = ps_.scene.lights[light].position;
-  const Vec3 origin = offset(p, ng, lp - p);
+  const Vec3 origin = shadow_origin(p, ng, light);
   if (known) {
     if (const std::optional<Color> t = known->transmittance(p, origin, light)) return *t;
   }

@@ -59,6 +59,12 @@ class Tracer {
   Color transmittance(const Vec3& p, const Vec3& ng, int light, int receiver = -1,
                       KnownShadows* known = nullptr);
 
+  // Where a shadow ray to light `light` from p starts: p moved off its
+  // surface (outward geometric normal ng) towards the light's side.
+  Vec3 shadow_origin(const Vec3& p, const Vec3& ng, int light) const {
+    return offset(p, ng, ps_.scene.lights[light].position - p);
+  }
+
   // A shadow ray through the boxes along `seg` (t in (0, 1) from the
   // shadow-ray origin to light `light`): its crossings with transparent
   // surfaces appended to `crossings`; true, and the search stopped, where an
