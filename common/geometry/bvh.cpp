@@ -156,42 +156,6 @@ int collapse(Bvh& bvh, int ni) {
 
 }  // namespace
 
-float float_down(double x) {
-  const float f = static_cast<float>(x);
-  return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
-}
-
-float float_up(double x) {
-  const float f = static_cast<float>(x);
-  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
-}
-
-WideRay::WideRay(const Ray& r) {
-  double shift = 0.0;
-  for (int a = 0; a < 3; ++a) {
-    const double inv_d = 1.0 / r.dir[a];
-    origin[a] = static_cast<float>(r.origin[a]);
-    near_plane[a] = std::signbit(inv_d) ? 1 : 0;
-    if (std::isinf(inv_d)) {
-      // Parallel to the slabs: the distances are infinite or NaN, and their
-      // signs are those of the exact origin's (rounding is monotonic and
-      // the planes are rounded outward), so no shift.
-      inv[a] = static_cast<float>(inv_d);
-    } else if (std::abs(inv_d) > 1e30) {
-      // Nearly parallel: this axis is not tested (a NaN distance), which is
-      // conservative, rather than rounded to an infinite reciprocal.
-      inv[a] = std::numeric_limits<float>::quiet_NaN();
-    } else {
-      inv[a] = static_cast<float>(inv_d);
-      // The float origin's error along the ray.
-      shift = std::max(shift, std::abs((r.origin[a] - static_cast<double>(origin[a])) * inv_d));
-    }
-  }
-  // Twice the shift, rounded up generously; kept finite (an infinite slack
-  // would turn the test's infinite bounds into NaN).
-  slack = static_cast<float>(std::min(2.0 * 1.01 * shift + 1e-30, 1e30));
-}
-
 void build_wide(Bvh& bvh) {
   bvh.wide.clear();
   if (bvh.nodes.empty()) return;

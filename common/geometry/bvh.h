@@ -187,9 +187,50 @@ struct WideRay {
   explicit WideRay(const Ray& r);
 };
 
-// The largest float not above x, and the smallest not below.
-float float_down(double x);
-float float_up(double x);
+// Inline: one per ray walk.
+inline WideRay::WideRay(const Ray& r) {
+  double shift = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double inv_d = 1.0 / r.dir[a];
+    origin[a] = static_cast<float>(r.origin[a]);
+    near_plane[a] = std::signbit(inv_d) ? 1 : 0;
+    if (std::isinf(inv_d)) {
+      // Parallel to the slabs: the distances are infinite or NaN, and their
+      // signs are those of the exact origin's (rounding is monotonic and
+      // the planes are rounded outward), so no shift.
+      inv[a] = static_cast<float>(inv_d);
+    } else if (std::abs(inv_d) > 1e30) {
+      // Nearly parallel: this axis is not tested (a NaN distance), which is
+      // conservative, rather than rounded to an infinite reciprocal.
+      inv[a] = std::numeric_limits<float>::quiet_NaN();
+    } else {
+      inv[a] = static_cast<float>(inv_d);
+      // The float origin's error along the ray.
+      shift = std::max(shift, std::abs((r.origin[a] - static_cast<double>(origin[a])) * inv_d));
+    }
+  }
+  // Twice the shift, rounded up generously; kept finite (an infinite slack
+  // would turn the test's infinite bounds into NaN).
+  slack = static_cast<float>(std::min(2.0 * 1.01 * shift + 1e-30, 1e30));
+}
+
+// The largest float not above x, and the smallest not below (a NaN stays
+// NaN). Inline, by the float's bits: std::nextafter is a library call, and
+// the ray walk rounds its bound up each time a hit shortens it.
+inline float float_down(double x) {
+  const float f = static_cast<float>(x);
+  if (!(static_cast<double>(f) > x)) return f;
+  if (f == 0.0f) return -std::numeric_limits<float>::denorm_min();
+  const uint32_t b = std::bit_cast<uint32_t>(f);
+  return std::bit_cast<float>(f > 0.0f ? b - 1 : b + 1);
+}
+inline float float_up(double x) {
+  const float f = static_cast<float>(x);
+  if (!(static_cast<double>(f) < x)) return f;
+  if (f == 0.0f) return std::numeric_limits<float>::denorm_min();
+  const uint32_t b = std::bit_cast<uint32_t>(f);
+  return std::bit_cast<float>(f > 0.0f ? b + 1 : b - 1);
+}
 
 // Which of node n's four boxes the ray meets for some t in [tmin, tmax]
 // (bit k for child k), conservatively (WideRay); entry[k] is a lower bound

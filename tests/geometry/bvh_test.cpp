@@ -10,7 +10,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -180,6 +182,39 @@ TEST(BvhWalk, WideBoxTestNeverMissesWhatTheDoubleTestMeets) {
 
 // The span shadows' use: another node test (here a query box against the
 // nodes' boxes), the left child first.
+// float_down and float_up, inline by the float's bits, give what the
+// definition by std::nextafter gives: the nearest float on the safe side.
+TEST(BvhWalk, FloatBoundsAreTheNearestFloatsOnTheirSide) {
+  const float inf = std::numeric_limits<float>::infinity();
+  auto down = [&](double x) {
+    const float f = static_cast<float>(x);
+    return static_cast<double>(f) > x ? std::nextafter(f, -inf) : f;
+  };
+  auto up = [&](double x) {
+    const float f = static_cast<float>(x);
+    return static_cast<double>(f) < x ? std::nextafter(f, inf) : f;
+  };
+  std::vector<double> xs = {0.0, -0.0, 1.0, -1.0, 0.1, -0.1, 1e-45, -1e-45, 1e-300, -1e-300,
+                            3.4028234663852886e38, 3.4028235677973366e38, -3.4028235677973366e38,
+                            1e39, -1e39, std::numeric_limits<double>::infinity(),
+                            -std::numeric_limits<double>::infinity(),
+                            static_cast<double>(std::numeric_limits<float>::denorm_min()) * 0.5,
+                            -static_cast<double>(std::numeric_limits<float>::denorm_min()) * 1.5};
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> mant(-1.0, 1.0);
+  std::uniform_int_distribution<int> ex(-160, 140);
+  for (int i = 0; i < 20000; ++i) xs.push_back(std::ldexp(mant(rng), ex(rng)));
+  for (const double x : xs) {
+    const float d = float_down(x), u = float_up(x);
+    EXPECT_EQ(std::bit_cast<uint32_t>(d), std::bit_cast<uint32_t>(down(x))) << x;
+    EXPECT_EQ(std::bit_cast<uint32_t>(u), std::bit_cast<uint32_t>(up(x))) << x;
+    EXPECT_LE(static_cast<double>(d), x) << x;
+    EXPECT_GE(static_cast<double>(u), x) << x;
+  }
+  EXPECT_TRUE(std::isnan(float_down(std::nan(""))));
+  EXPECT_TRUE(std::isnan(float_up(std::nan(""))));
+}
+
 TEST(BvhWalk, WalkWithAnotherNodeTestVisitsExactlyTheLeavesItAccepts) {
   const uint64_t seed = 2022;
   std::mt19937_64 rng(seed);
