@@ -311,6 +311,12 @@ bool intersect_any(const PrimitiveSet& set, int prim, const Ray& ray, double tmi
       const ConePrim& s = set.cones[ref.index];
       return intersect_cone(s.c, s.axis, to_object(s.frame, ray), tmin, tmax, nullptr) > 0;
     }
+    case PrimKind::kConvex:
+    case PrimKind::kPolygon:
+    case PrimKind::kTriangle: {
+      Crossing c[4];
+      return intersect_flat(set, ref, ray, tmin, tmax, c) > 0;
+    }
     default: {
       thread_local std::vector<Crossing> scratch;
       scratch.clear();

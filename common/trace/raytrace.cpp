@@ -168,6 +168,16 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
   bool opaque = false;
   auto test = [&](int prim) {
     ++stats_.tests_ray_object;
+    if (const PrimRef& ref = ps_.prims.prims[prim];
+        ref.kind != PrimKind::kCsg &&
+        ps_.scene.materials[ps_.scene.objects[ref.object].material].t <= 0.0) {
+      // An opaque primitive (its crossings are all its object's): whether it
+      // is crossed at all decides, and no crossing is kept.
+      if (!intersect_any(ps_.prims, prim, seg, 0.0, 1.0)) return 1.0;
+      opaque = true;
+      last_occluder(light) = prim;
+      return -1.0;
+    }
     const size_t before = crossings.size();
     intersect_all(ps_.prims, prim, seg, 0.0, 1.0, crossings);
     for (size_t i = before; i < crossings.size(); ++i) {
