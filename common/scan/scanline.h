@@ -57,8 +57,14 @@ struct VisibleScratch {
   struct Range {
     double lo, hi;
   };
-  std::vector<DepthInterval> ivs;
-  std::vector<double> xs, events;
+  struct Key {
+    double xl;
+    int face, index;
+  };
+  std::vector<DepthInterval> ivs, sorted;
+  std::vector<Key> keys, keys_tmp;
+  std::vector<double> xs, events, events_tmp;
+  std::vector<int> count;
   std::vector<const DepthInterval*> active;
   std::vector<Range> stack;
 };
