@@ -128,6 +128,7 @@ class SubLineBuilder {
   std::vector<Crossing> crossings_;  // ray_states'
   EyeCandidates eye_;
   PixelSamples samples_;  // traced pieces' radiance; uses eye_
+  double sample_spacing_;  // pixels between sub-scanlines: 1 / --aa
 };
 
 }  // namespace locus
