@@ -331,7 +331,7 @@ def chart(path, rows, fit, info):
         return
     fig, axes = plt.subplots(1, len(kinds), figsize=(6 * len(kinds), 4.6), squeeze=False)
     style = {"aa4": ("C0", "o"), "vol4": ("C9", "+"), "aa0": ("C4", "s"), "scan0": ("C7", "x"),
-             "pov_noaa": ("C3", "^")}
+             "pov_noaa": ("C3", "^"), "pov_am2": ("C1", "v")}
     for ax, kind in zip(axes[0], kinds):
         for key, label, renderer, _ in CONFIGS:
             xs, ys = series(rows, kind, key)
