@@ -240,11 +240,16 @@ class NffParser {
 
   // ---- Values ----
 
-  std::optional<double> number(const Entity& e, std::string_view what) {
+  // `what` names the value in a problem; `axis` (x, y, z, r, g, b), if
+  // given, is its component. The name is written only for a problem.
+  std::optional<double> number(const Entity& e, std::string_view what_base, char axis = 0) {
+    auto what = [&] {
+      return axis ? fmt::format("{} {}", what_base, axis) : std::string(what_base);
+    };
     const std::optional<Token> t = lex_.next();
     if (!t) {
       line_ = entity_line_;
-      fail(e, fmt::format("is cut short: the file ends before its {}", what));
+      fail(e, fmt::format("is cut short: the file ends before its {}", what()));
       return std::nullopt;
     }
     line_ = t->line;
@@ -252,15 +257,15 @@ class NffParser {
     const char* end = t->text.data() + t->text.size();
     const auto [stop, ec] = std::from_chars(t->text.data(), end, x);
     if (ec == std::errc::result_out_of_range && stop == end) {
-      fail(e, fmt::format("{}: {} is out of the range of double", what, quote(t->text)));
+      fail(e, fmt::format("{}: {} is out of the range of double", what(), quote(t->text)));
       return std::nullopt;
     }
     if (ec != std::errc() || stop != end) {
-      fail(e, fmt::format("{}: expected a number, got {}", what, quote(t->text)));
+      fail(e, fmt::format("{}: expected a number, got {}", what(), quote(t->text)));
       return std::nullopt;
     }
     if (!is_finite(x)) {
-      fail(e, fmt::format("{}: must be a finite number, got {}", what, quote(t->text)));
+      fail(e, fmt::format("{}: must be a finite number, got {}", what(), quote(t->text)));
       return std::nullopt;
     }
     return x;
@@ -269,7 +274,7 @@ class NffParser {
   std::optional<Vec3> vec3(const Entity& e, std::string_view what) {
     Vec3 v;
     for (int k = 0; k < 3; ++k) {
-      const std::optional<double> x = number(e, fmt::format("{} {}", what, "xyz"[k]));
+      const std::optional<double> x = number(e, what, "xyz"[k]);
       if (!x) return std::nullopt;
       v[k] = *x;
     }
@@ -279,7 +284,7 @@ class NffParser {
   std::optional<Color> color(const Entity& e, std::string_view what) {
     Color c;
     for (int k = 0; k < 3; ++k) {
-      const std::optional<double> x = number(e, fmt::format("{} {}", what, "rgb"[k]));
+      const std::optional<double> x = number(e, what, "rgb"[k]);
       if (!x) return std::nullopt;
       c[k] = *x;
     }

@@ -46,7 +46,10 @@ void check_finite(const Vec3& v, const std::string& field, Problems& out) {
 }
 
 void check_finite_list(const std::vector<Vec3>& v, const char* field, Problems& out) {
-  for (size_t i = 0; i < v.size(); ++i) check_finite(v[i], indexed(field, i), out);
+  // The field's name is written only for a problem (not once per vertex).
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (!is_finite(v[i])) check_finite(v[i], indexed(field, i), out);
+  }
 }
 
 // A closed interval [lo, hi]; NaN fails every comparison and lands here too.
@@ -515,6 +518,22 @@ Result<std::string> read_text_file(const std::string& path) {
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) return NotFound(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
+  // Read at once where the size is known (a file), through the stream
+  // buffer otherwise (a pipe): a scene of a few hundred MB is not copied
+  // twice nor grown by doubling.
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  if (size > 0) {
+    std::string text(static_cast<size_t>(size), '\0');
+    in.seekg(0, std::ios::beg);
+    in.read(text.data(), size);
+    if (in.bad()) return NotFound(fmt::format("{}: cannot read: {}", path, std::strerror(errno)));
+    text.resize(static_cast<size_t>(in.gcount()));
+    return text;
+  }
+  in.clear();
+  in.seekg(0, std::ios::beg);
+  in.clear();
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) return NotFound(fmt::format("{}: cannot read: {}", path, std::strerror(errno)));
