@@ -284,8 +284,10 @@ inline constexpr int kBvhRayStack = 3 * kBvhWalkStack;
 // met only within the float test's slack may be visited too), the nearest
 // box entered first. `visit(prim)` returns the possibly shortened tmax, or
 // a negative value to stop the traversal; a pending box the ray enters
-// beyond tmax is dropped.
-template <typename F>
+// beyond tmax is dropped. With kNearestFirst false (a shadow ray, whose
+// answer does not depend on the order it meets occluders in), the boxes
+// met are taken in child order, without sorting them.
+template <bool kNearestFirst = true, typename F>
 void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& visit) {
   if (bvh.wide.empty()) return;
   struct Entry {
@@ -311,7 +313,9 @@ void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& 
           const int k = std::countr_zero(static_cast<unsigned>(mask));
           const Entry e{n.ref[k], n.count[k], entry[k]};
           int j = nh++;
-          for (; j > 0 && e.t < hit[j - 1].t; --j) hit[j] = hit[j - 1];
+          if constexpr (kNearestFirst) {
+            for (; j > 0 && e.t < hit[j - 1].t; --j) hit[j] = hit[j - 1];
+          }
           hit[j] = e;
         }
         LOCUS_CHECK(sp + 3 <= kBvhRayStack);

@@ -195,7 +195,7 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
     crossings.clear();  // seen again in the full search below
   }
   if (ps_.bvh_for_shadows) {
-    traverse_bvh(ps_.bvh, seg, 0.0, 1.0, test);
+    traverse_bvh<false>(ps_.bvh, seg, 0.0, 1.0, test);
   } else {
     for (int i = 0; i < static_cast<int>(ps_.prims.prims.size()) && !opaque; ++i) test(i);
   }
