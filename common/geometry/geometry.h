@@ -190,8 +190,14 @@ bool intersect_any(const PrimitiveSet& set, int prim, const Ray& ray, double tmi
 std::optional<Crossing> intersect_nearest(const PrimitiveSet& set, int prim, const Ray& ray,
                                           double tmin, double tmax);
 
-// Shading normal at a crossing: the interpolated vertex normal for meshes
-// and patches with normals, else the geometric normal (not yet flipped).
+// Does the primitive shade with interpolated vertex normals (meshes and
+// patches with normals)? Else its shading normal is the geometric one.
+inline bool has_vertex_normals(const PrimitiveSet& set, const PrimRef& ref) {
+  return ref.kind == PrimKind::kTriangle && set.triangles[ref.index].has_normals;
+}
+
+// Shading normal at a crossing: the interpolated vertex normal where
+// has_vertex_normals, else the geometric normal (not yet flipped).
 Vec3 shading_normal(const PrimitiveSet& set, const PrimRef& ref, const Crossing& c);
 
 // Object-space primitive tests, exposed for the property tests.

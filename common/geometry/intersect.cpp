@@ -408,13 +408,11 @@ std::optional<Crossing> intersect_nearest(const PrimitiveSet& set, int prim, con
 }
 
 Vec3 shading_normal(const PrimitiveSet& set, const PrimRef& ref, const Crossing& c) {
-  if (ref.kind == PrimKind::kTriangle) {
+  if (has_vertex_normals(set, ref)) {
     const TrianglePrim& tr = set.triangles[ref.index];
-    if (tr.has_normals) {
-      const Vec3 n = (1.0 - c.u - c.v) * tr.n0 + c.u * tr.n1 + c.v * tr.n2;
-      const double len = glm::length(n);
-      if (len > 0) return n / len;
-    }
+    const Vec3 n = (1.0 - c.u - c.v) * tr.n0 + c.u * tr.n1 + c.v * tr.n2;
+    const double len = glm::length(n);
+    if (len > 0) return n / len;
   }
   return c.normal;
 }

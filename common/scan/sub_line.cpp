@@ -398,7 +398,8 @@ inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
   Piece p;
   p.kind = Piece::kFigure;
   p.face = s.face;
-  auto key_at = [&](double x) { return ray_states(f, x); };
+  const uint64_t unlit = unlit_lights(f, 0.5 * (s.x0 + s.x1));
+  auto key_at = [&](double x) { return ray_states(f, x, unlit); };
   // A span narrower than the sub-scanlines' spacing h = 1/N pixel is
   // sampled once, at its middle, as supersampling at that spacing would
   // sample it: one shadow ray per light, no end probes, no bisection. A
@@ -439,33 +440,41 @@ inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
   meter_.charge_run(s.x0, s.x1);
 }
 
+// The first 64 lights that light none of face f: a light on the far side
+// of a flat face from the eye (Tracer::shade skips it before asking for its
+// shadow), or every light where the face's material has no diffuse or
+// specular term. Which side of the face's plane the eye and a light lie on
+// is the same at every point of the face, so one point (seen at x) tells.
+inline uint64_t SubLineBuilder::unlit_lights(const ScanFace& f, double x) const {
+  const int lights = static_cast<int>(std::min<size_t>(ps_.scene.lights.size(), 64));
+  const uint64_t all = lights == 64 ? ~uint64_t{0} : (uint64_t{1} << lights) - 1;
+  const PrimRef& ref = ps_.prims.prims[f.prim];
+  const Material& m = ps_.scene.materials[ps_.scene.objects[ref.object].material];
+  if (m.kd == 0 && m.ks == 0) return all;
+  if (has_vertex_normals(ps_.prims, ref)) return 0;  // the shading normal varies
+  const Ray eye = eye_ray(x);
+  const Vec3 p = face_point(f, eye.origin, eye.dir);
+  // The side the eye sees (Tracer::shade's n).
+  const Vec3 seen = glm::dot(f.normal, eye.dir) > 0 ? -f.normal : f.normal;
+  uint64_t unlit = 0;
+  for (int j = 0; j < lights; ++j) {
+    if (glm::dot(seen, ps_.scene.lights[j].position - p) <= 0) unlit |= uint64_t{1} << j;
+  }
+  return unlit;
+}
+
 // The state of the first 64 lights at the point of face f seen at x on this
-// sub-scanline: a shadow ray to each, as Tracer::transmittance casts it.
-// A light on the far side of a flat face from the eye lights none of it
-// (Tracer::shade skips it before asking for its shadow), nor does any light
-// a face whose material has no diffuse or specular term: no ray; such a
-// light counts as blocked, the same on the whole face, so it cuts no figure.
-inline LightStates SubLineBuilder::ray_states(const ScanFace& f, double x) {
+// sub-scanline: a shadow ray to each, as Tracer::transmittance casts it, but
+// to the `unlit` ones (unlit_lights), which count as blocked, the same on
+// the whole face, so they cut no figure.
+inline LightStates SubLineBuilder::ray_states(const ScanFace& f, double x, uint64_t unlit) {
   LightStates st;
+  st.opaque = unlit;
   const Ray eye = eye_ray(x);
   const Vec3 p = face_point(f, eye.origin, eye.dir);
   const int lights = static_cast<int>(std::min<size_t>(ps_.scene.lights.size(), 64));
-  const PrimRef& ref = ps_.prims.prims[f.prim];
-  const Material& m = ps_.scene.materials[ps_.scene.objects[ref.object].material];
-  if (m.kd == 0 && m.ks == 0) {
-    st.opaque = lights == 64 ? ~uint64_t{0} : (uint64_t{1} << lights) - 1;
-    return st;
-  }
-  // The side the eye sees (Tracer::shade's n), where the shading normal is
-  // the plane's.
-  const bool flat =
-      !(ref.kind == PrimKind::kTriangle && ps_.prims.triangles[ref.index].has_normals);
-  const Vec3 seen = glm::dot(f.normal, eye.dir) > 0 ? -f.normal : f.normal;
   for (int j = 0; j < lights; ++j) {
-    if (flat && glm::dot(seen, ps_.scene.lights[j].position - p) <= 0) {
-      st.opaque |= uint64_t{1} << j;
-      continue;
-    }
+    if (unlit >> j & 1) continue;
     const Vec3 origin = tracer_.shadow_origin(p, f.normal, j);
     const Ray seg{origin, ps_.scene.lights[j].position - origin};
     crossings_.clear();

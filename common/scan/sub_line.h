@@ -102,7 +102,9 @@ class SubLineBuilder {
   // state of the lights from shadow rays at each pixel's piece, refined
   // where it changes; what states() gives at x on face f.
   void figures_by_rays(const VisibleSegment& s);
-  LightStates ray_states(const ScanFace& f, double x);
+  // The lights that cannot light any of face f (their bits), seen at x.
+  uint64_t unlit_lights(const ScanFace& f, double x) const;
+  LightStates ray_states(const ScanFace& f, double x, uint64_t unlit);
   // A traced piece's radiance (PixelSamples::colours).
   void traced_colours(Piece& p, FunctionRef<Color(double)> direct);
 

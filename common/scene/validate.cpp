@@ -531,6 +531,8 @@ Result<std::string> read_text_file(const std::string& path) {
     text.resize(static_cast<size_t>(in.gcount()));
     return text;
   }
+  // Empty, or a pipe: tellg failed. Clear that so the seek back is tried,
+  // and clear again where a pipe refuses it too.
   in.clear();
   in.seekg(0, std::ios::beg);
   in.clear();

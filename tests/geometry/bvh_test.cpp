@@ -180,8 +180,6 @@ TEST(BvhWalk, WideBoxTestNeverMissesWhatTheDoubleTestMeets) {
   EXPECT_GT(misses, 100000);
 }
 
-// The span shadows' use: another node test (here a query box against the
-// nodes' boxes), the left child first.
 // float_down and float_up, inline by the float's bits, give what the
 // definition by std::nextafter gives: the nearest float on the safe side.
 TEST(BvhWalk, FloatBoundsAreTheNearestFloatsOnTheirSide) {
@@ -215,6 +213,8 @@ TEST(BvhWalk, FloatBoundsAreTheNearestFloatsOnTheirSide) {
   EXPECT_TRUE(std::isnan(float_up(std::nan(""))));
 }
 
+// The span shadows' use: another node test (here a query box against the
+// nodes' boxes), the left child first.
 TEST(BvhWalk, WalkWithAnotherNodeTestVisitsExactlyTheLeavesItAccepts) {
   const uint64_t seed = 2022;
   std::mt19937_64 rng(seed);
