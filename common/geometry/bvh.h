@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -284,7 +285,8 @@ inline constexpr int kBvhRayStack = 3 * kBvhWalkStack;
 // met only within the float test's slack may be visited too), the nearest
 // box entered first. `visit(prim)` returns the possibly shortened tmax, or
 // a negative value to stop the traversal; a pending box the ray enters
-// beyond tmax is dropped. With kNearestFirst false (a shadow ray, whose
+// beyond tmax is dropped. `visit(prim, slot)` may take the primitive's slot
+// in bvh.order too (tables kept in leaf order: leaf_prims.h). With kNearestFirst false (a shadow ray, whose
 // answer does not depend on the order it meets occluders in), the boxes
 // met are taken in child order, without sorting them.
 template <bool kNearestFirst = true, typename F>
@@ -325,7 +327,12 @@ void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& 
       }
     } else {
       for (int i = cur.ref; i < cur.ref + cur.count; ++i) {
-        const double t = visit(bvh.order[i]);
+        double t;
+        if constexpr (std::is_invocable_v<F&, int, int>) {
+          t = visit(bvh.order[i], i);  // the primitive and its slot in bvh.order
+        } else {
+          t = visit(bvh.order[i]);
+        }
         if (t < 0) return;
         if (t != tmax) {
           tmax = t;

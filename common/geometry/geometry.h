@@ -115,6 +115,56 @@ struct PolygonPrim {
 };
 inline constexpr int kPolygonBucketAbove = 8;
 
+// Where the ray meets the plane n . x = offset for t in (tmin, tmax), and
+// the point there: false where it does not (or runs parallel). The first
+// half of every polygon test (intersect_polygon, leaf_nearest).
+inline bool plane_crossing(const Vec3& n, double offset, const Ray& ray, double tmin, double tmax,
+                           double* t, Vec3* x) {
+  const double denom = glm::dot(n, ray.dir);
+  if (denom == 0.0) return false;
+  *t = (offset - glm::dot(n, ray.origin)) / denom;
+  if (!(*t > tmin && *t < tmax)) return false;
+  *x = ray.origin + *t * ray.dir;
+  return true;
+}
+
+// Moller-Trumbore: does the ray cross the triangle (p0, p0 + e1, p0 + e2)
+// for some t in (tmin, tmax)? Where it does: t and the barycentric u, v.
+inline bool triangle_crossing(const Vec3& p0, const Vec3& e1, const Vec3& e2, const Ray& ray,
+                              double tmin, double tmax, double* t, double* u, double* v) {
+  const Vec3 pv = glm::cross(ray.dir, e2);
+  const double det = glm::dot(e1, pv);
+  if (det == 0.0) return false;
+  const double inv = 1.0 / det;
+  const Vec3 tv = ray.origin - p0;
+  *u = glm::dot(tv, pv) * inv;
+  if (*u < 0.0 || *u > 1.0) return false;
+  const Vec3 qv = glm::cross(tv, e1);
+  *v = glm::dot(ray.dir, qv) * inv;
+  if (*v < 0.0 || *u + *v > 1.0) return false;
+  *t = glm::dot(e2, qv) * inv;
+  return *t > tmin && *t < tmax;
+}
+
+// Where the ray meets the sphere's surface, t0 <= t1; false where it
+// misses it.
+inline bool sphere_roots(const Vec3& center, double radius, const Ray& ray, double* t0,
+                         double* t1) {
+  const Vec3 oc = ray.origin - center;
+  return solve_quadratic(glm::dot(ray.dir, ray.dir), 2.0 * glm::dot(oc, ray.dir),
+                         glm::dot(oc, oc) - radius * radius, t0, t1);
+}
+
+// The even-odd crossing test's step for edge (a, b) and the point (px, py)
+// of the polygon's plane dropped on its two axes: true where the edge
+// crosses the line v = py right of the point (each such edge flips
+// inside/outside). Correct for concave polygons (SPD gears).
+inline bool edge_flips(const Vec2& a, const Vec2& b, double px, double py) {
+  if ((a.y > py) == (b.y > py)) return false;
+  const double xc = a.x + (py - a.y) * (b.x - a.x) / (b.y - a.y);
+  return px < xc;
+}
+
 // A triangle of a mesh or of a patch's fan; n0..n2 are vertex normals when
 // has_normals.
 struct TrianglePrim {

@@ -50,49 +50,30 @@ int intersect_convex(const ConvexPrim& p, const Ray& ray, double tmin, double tm
 
 int intersect_polygon(const PolygonPrim& p, const Ray& ray, double tmin, double tmax,
                       Crossing* out) {
-  const double denom = glm::dot(p.normal, ray.dir);
-  if (denom == 0.0) return 0;
-  const double t = (p.offset - glm::dot(p.normal, ray.origin)) / denom;
-  if (!(t > tmin && t < tmax)) return 0;
-  const Vec3 x = ray.origin + t * ray.dir;
+  double t;
+  Vec3 x;
+  if (!plane_crossing(p.normal, p.offset, ray, tmin, tmax, &t, &x)) return 0;
   const double px = x[p.axis_u], py = x[p.axis_v];
-  // Even-odd crossing test: correct for concave polygons (SPD gears).
   bool inside = false;
-  auto edge = [&](const Vec2& a, const Vec2& b) {
-    if ((a.y > py) != (b.y > py)) {
-      const double xc = a.x + (py - a.y) * (b.x - a.x) / (b.y - a.y);
-      if (px < xc) inside = !inside;
-    }
-  };
   if (!p.bucket_first.empty()) {
     // Only the edges that can straddle py (geometry.h, PolygonPrim).
     const int k = p.bucket_of(py);
     for (int e = p.bucket_first[k]; e < p.bucket_first[k + 1]; ++e)
-      edge(p.edges[e].a, p.edges[e].b);
+      inside ^= edge_flips(p.edges[e].a, p.edges[e].b, px, py);
   } else {
     const size_t n = p.pts.size();
-    for (size_t i = 0, j = n - 1; i < n; j = i++) edge(p.pts[i], p.pts[j]);
+    for (size_t i = 0, j = n - 1; i < n; j = i++) inside ^= edge_flips(p.pts[i], p.pts[j], px, py);
   }
   if (!inside) return 0;
   out[0] = Crossing{t, p.normal};
   return 1;
 }
 
-// Moller-Trumbore.
+// Moller-Trumbore (triangle_crossing).
 int intersect_triangle(const TrianglePrim& tr, const Ray& ray, double tmin, double tmax,
                        Crossing* out) {
-  const Vec3 pv = glm::cross(ray.dir, tr.e2);
-  const double det = glm::dot(tr.e1, pv);
-  if (det == 0.0) return 0;
-  const double inv = 1.0 / det;
-  const Vec3 tv = ray.origin - tr.p0;
-  const double u = glm::dot(tv, pv) * inv;
-  if (u < 0.0 || u > 1.0) return 0;
-  const Vec3 qv = glm::cross(tv, tr.e1);
-  const double v = glm::dot(ray.dir, qv) * inv;
-  if (v < 0.0 || u + v > 1.0) return 0;
-  const double t = glm::dot(tr.e2, qv) * inv;
-  if (!(t > tmin && t < tmax)) return 0;
+  double t, u, v;
+  if (!triangle_crossing(tr.p0, tr.e1, tr.e2, ray, tmin, tmax, &t, &u, &v)) return 0;
   Crossing c{t, tr.normal};
   c.u = u;
   c.v = v;
@@ -201,12 +182,8 @@ std::vector<Interval> csg_intervals(const PrimitiveSet& set, const CsgPrim& csg,
 }  // namespace
 
 int intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax, Crossing* out) {
-  const Vec3 oc = ray.origin - s.center;
   double t0, t1;
-  if (!solve_quadratic(glm::dot(ray.dir, ray.dir), 2.0 * glm::dot(oc, ray.dir),
-                       glm::dot(oc, oc) - s.radius * s.radius, &t0, &t1)) {
-    return 0;
-  }
+  if (!sphere_roots(s.center, s.radius, ray, &t0, &t1)) return 0;
   int n = 0;
   for (double t : {t0, t1}) {
     if (t > tmin && t < tmax) {
@@ -298,13 +275,8 @@ bool intersect_any(const PrimitiveSet& set, int prim, const Ray& ray, double tmi
   switch (ref.kind) {
     case PrimKind::kSphere: {
       const SpherePrim& s = set.spheres[ref.index];
-      const Ray r = to_object(s.frame, ray);
-      const Vec3 oc = r.origin - s.s.center;
       double t0, t1;
-      if (!solve_quadratic(glm::dot(r.dir, r.dir), 2.0 * glm::dot(oc, r.dir),
-                           glm::dot(oc, oc) - s.s.radius * s.s.radius, &t0, &t1)) {
-        return false;
-      }
+      if (!sphere_roots(s.s.center, s.s.radius, to_object(s.frame, ray), &t0, &t1)) return false;
       return (t0 > tmin && t0 < tmax) || (t1 > tmin && t1 < tmax);
     }
     case PrimKind::kCone: {

@@ -54,6 +54,12 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
   for (int j = 0; j < static_cast<int>(scene.lights.size()); ++j)
     emission.push_back(light_emission(scene, j));
+  stops_light.reserve(prims.prims.size());
+  for (const PrimRef& ref : prims.prims) {
+    stops_light.push_back(ref.kind != PrimKind::kCsg &&
+                          scene.materials[scene.objects[ref.object].material].t <= 0.0);
+  }
+  if (bvh_for_rays || bvh_for_shadows) leaf_prims = build_leaf_prims(prims, bvh, stops_light);
   ambient = ambient_intensity(scene);
   world_scale = scale_of_world(prims.bounds);
   // Secondary rays start this far off the surface: relative to the scene's

@@ -8,6 +8,7 @@
 #include "common/base/params.h"
 #include "common/geometry/bvh.h"
 #include "common/geometry/geometry.h"
+#include "common/geometry/leaf_prims.h"
 #include "common/prepare/scan_scene.h"
 #include "common/scene/scene.h"
 
@@ -49,6 +50,14 @@ class PreparedScene {
   bool bvh_for_rays = true;     // eye, reflected and refracted rays
   bool bvh_for_shadows = true;  // shadow rays
   std::vector<Color> emission;  // per light, resolved
+  // Per prims[i]: 1 where a shadow ray that crosses the primitive is
+  // stopped by it whatever else it crosses (eq. (2)): not CSG, and its
+  // object's material transmits nothing.
+  std::vector<uint8_t> stops_light;
+  // Small polygons, triangles and spheres in the hierarchy's leaf order,
+  // for the ray walk (leaf_prims.h); empty where there are none or no
+  // hierarchy.
+  std::vector<LeafPrim> leaf_prims;
   double ambient = 0;
   // The world's scale, once for every tolerance relative to it: the largest
   // coordinate magnitude of the primitives' boxes, at least 1e-3 (1 for an

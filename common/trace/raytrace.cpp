@@ -42,11 +42,18 @@ std::optional<SurfaceHit> Tracer::nearest_by(const Ray& ray, double tmin, double
   thread_local std::vector<SurfaceHit> band;
   band.clear();
   double nearest_t = tmax;
-  auto test = [&](int prim) {
+  // `slot`: the primitive's place in the hierarchy's leaf order, where the
+  // walk gives it; a primitive copied there is tested from leaf_prims.
+  auto test = [&](int prim, int slot = -1) {
     ++stats_.tests_ray_object;
     const double bound = std::min(tmax, nearest_t * (1.0 + kTieRel));
-    const auto c = intersect_nearest(ps_.prims, prim, ray, tmin, bound);
-    if (c) {
+    if (const LeafPrim* lp = leaf_prim(slot)) {
+      Crossing c;
+      if (leaf_nearest(*lp, ray, tmin, bound, &c)) {
+        band.push_back(SurfaceHit{c.t, prim, c});
+        if (c.t < nearest_t) nearest_t = c.t;
+      }
+    } else if (const auto c = intersect_nearest(ps_.prims, prim, ray, tmin, bound)) {
       band.push_back(SurfaceHit{c->t, prim, *c});
       if (c->t < nearest_t) nearest_t = c->t;
     }
@@ -166,11 +173,16 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
 bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& crossings) {
   ++stats_.rays_shadow;
   bool opaque = false;
-  auto test = [&](int prim) {
+  auto test = [&](int prim, int slot = -1) {
     ++stats_.tests_ray_object;
-    if (const PrimRef& ref = ps_.prims.prims[prim];
-        ref.kind != PrimKind::kCsg &&
-        ps_.scene.materials[ps_.scene.objects[ref.object].material].t <= 0.0) {
+    if (const LeafPrim* lp = leaf_prim(slot); lp && lp->stops_light) {
+      if (!leaf_any(*lp, seg, 0.0, 1.0)) return 1.0;
+      opaque = true;
+      last_occluder(light) = prim;
+      last_occluder_slot(light) = slot;
+      return -1.0;
+    }
+    if (ps_.stops_light[prim]) {
       // An opaque primitive (its crossings are all its object's): whether it
       // is crossed at all decides, and no crossing is kept.
       if (!intersect_any(ps_.prims, prim, seg, 0.0, 1.0)) return 1.0;
@@ -191,7 +203,11 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
     return 1.0;
   };
   if (const int cached = last_occluder(light); cached >= 0) {
-    if (test(cached) < 0) return true;
+    // Its slot, where the last occluder was met in a leaf (the shadow
+    // search sets last_occluder alone).
+    const int slot = last_occluder_slot(light);
+    const bool same = slot >= 0 && ps_.bvh.order[slot] == cached;
+    if (test(cached, same ? slot : -1) < 0) return true;
     crossings.clear();  // seen again in the full search below
   }
   if (ps_.bvh_for_shadows) {
