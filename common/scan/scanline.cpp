@@ -41,7 +41,8 @@ namespace {
 // their column. The result is std::sort's for any input; a sample line's
 // intervals are a few per column, so this takes linear time where
 // std::sort took most of the line's set-up (SPD tetra level 9). A column
-// holding more than kColumnSortMax items falls back to std::sort.
+// holding more than kColumnSortMax items is sorted by std::sort first (the
+// insertion then moves nothing there).
 template <class T, class X, class Less>
 void column_sort(std::vector<T>& v, std::vector<T>& tmp, std::vector<int>& count, int width,
                  X&& x_of, Less&& less) {
@@ -52,13 +53,16 @@ void column_sort(std::vector<T>& v, std::vector<T>& tmp, std::vector<int>& count
   count.assign(width + 1, 0);
   int most = 0;
   for (const T& e : v) most = std::max(most, ++count[col(e) + 1]);
-  if (most > kColumnSortMax) {
-    std::sort(v.begin(), v.end(), less);
-    return;
-  }
   for (int c = 0; c < width; ++c) count[c + 1] += count[c];
   tmp.resize(n);
   for (const T& e : v) tmp[count[col(e)]++] = e;
+  if (most > kColumnSortMax) {
+    // count[c] is now where column c ends.
+    for (int c = 0, begin = 0; c < width; begin = count[c++]) {
+      if (count[c] - begin > kColumnSortMax)
+        std::sort(tmp.begin() + begin, tmp.begin() + count[c], less);
+    }
+  }
   for (size_t i = 1; i < n; ++i) {
     const T e = tmp[i];
     size_t k = i;
