@@ -12,20 +12,12 @@
 #include "common/geometry/geometry.h"
 #include "common/scene/polyhedron.h"
 #include "common/scene/scene.h"
+#include "tests/random_unit.h"
 
 namespace locus {
 namespace {
 
 constexpr int kRays = 4000;
-
-Vec3 random_unit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g;
-  for (;;) {
-    const Vec3 v(g(rng), g(rng), g(rng));
-    const double l = glm::length(v);
-    if (l > 1e-6) return v / l;
-  }
-}
 
 // A ray from a random point on a sphere of radius 4 around the origin,
 // aimed at a random point inside the unit ball.

@@ -16,20 +16,12 @@
 #include "common/geometry/leaf_prims.h"
 #include "common/scene/polyhedron.h"
 #include "common/scene/scene.h"
+#include "tests/random_unit.h"
 
 namespace locus {
 namespace {
 
 uint64_t bits(double x) { return std::bit_cast<uint64_t>(x); }
-
-Vec3 random_unit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g;
-  for (;;) {
-    const Vec3 v(g(rng), g(rng), g(rng));
-    const double l = glm::length(v);
-    if (l > 1e-6) return v / l;
-  }
-}
 
 void add(Scene& s, Shape shape, int material, const Mat4& xf = Mat4(1.0)) {
   Object o;

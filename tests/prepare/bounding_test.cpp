@@ -20,6 +20,7 @@
 
 #include "common/geometry/geometry.h"
 #include "common/scene/polyhedron.h"
+#include "tests/random_unit.h"
 
 namespace locus {
 namespace {
@@ -124,15 +125,6 @@ double support(const Cone& c, const Mat4& m, const Vec3& n) {
   const double radial = glm::length(mo - glm::dot(mo, a) * a);
   return std::max(glm::dot(n, transform_point(m, c.base)) + c.base_radius * radial,
                   glm::dot(n, transform_point(m, c.apex)) + c.apex_radius * radial);
-}
-
-Vec3 random_unit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g;
-  for (;;) {
-    const Vec3 v(g(rng), g(rng), g(rng));
-    const double l = glm::length(v);
-    if (l > 1e-6) return v / l;
-  }
 }
 
 // A point on the body's surface, in world space. For a cone: the side, or
