@@ -285,10 +285,11 @@ inline constexpr int kBvhRayStack = 3 * kBvhWalkStack;
 // met only within the float test's slack may be visited too), the nearest
 // box entered first. `visit(prim)` returns the possibly shortened tmax, or
 // a negative value to stop the traversal; a pending box the ray enters
-// beyond tmax is dropped. `visit(prim, slot)` may take the primitive's slot
-// in bvh.order too (tables kept in leaf order: leaf_prims.h). With kNearestFirst false (a shadow ray, whose
-// answer does not depend on the order it meets occluders in), the boxes
-// met are taken in child order, without sorting them.
+// beyond tmax is dropped. `visit(prim, slot)` may take the primitive's
+// slot in bvh.order too (tables kept in leaf order: leaf_prims.h). With
+// kNearestFirst false (a shadow ray, whose answer does not depend on the
+// order it meets occluders in), the boxes met are taken in child order,
+// without sorting them.
 template <bool kNearestFirst = true, typename F>
 void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& visit) {
   if (bvh.wide.empty()) return;

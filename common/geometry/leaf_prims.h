@@ -1,11 +1,12 @@
 // The ray walk's copy of the scene's simplest primitives, laid out in the
 // hierarchy's leaf order (Bvh::order): a leaf's primitives lie side by
 // side, each in under two cache lines, where the PrimitiveSet keeps one in
-// three places (its PrimRef; its PolygonPrim, TrianglePrim or SpherePrim;
-// a polygon's vertices) and reaches them through a switch on the kind.
-// The tests are the PrimitiveSet's own arithmetic (plane_crossing and
-// edge_flips, triangle_crossing, sphere_roots), so every answer is the same
-// bit for bit (docs/renderer.md, "The ray kernel against Embree").
+// three places (its PrimRef; its PolygonPrim, TrianglePrim, SpherePrim or
+// ConePrim; a polygon's vertices) and reaches them through a switch on the
+// kind. The tests are the PrimitiveSet's own arithmetic (plane_crossing and
+// edge_flips, triangle_crossing, sphere_roots, intersect_cone), so every
+// answer is the same bit for bit (docs/renderer.md, "The ray kernel against
+// Embree").
 #pragma once
 
 #include <cstdint>
@@ -64,8 +65,8 @@ struct LeafPrim {
 // crossing in (tmin, tmax), with leaf (and a triangle's tri, u, v) set.
 // Always inlined: GCC left it a call, which cost 2-10% of render CPU on
 // SPD balls, tetra, teapot and rings (raytrace --spp 1).
-[[gnu::always_inline]] inline bool leaf_nearest(const LeafPrim& p, const Ray& ray, double tmin, double tmax,
-                         Crossing* c) {
+[[gnu::always_inline]] inline bool leaf_nearest(const LeafPrim& p, const Ray& ray, double tmin,
+                                                double tmax, Crossing* c) {
   switch (p.kind) {
     case LeafKind::kPolygon: {
       double t;
@@ -119,7 +120,8 @@ inline bool leaf_any(const LeafPrim& p, const Ray& ray, double tmin, double tmax
     if (!sphere_roots(p.sphere.center, p.sphere.radius, ray, &t0, &t1)) return false;
     return (t0 > tmin && t0 < tmax) || (t1 > tmin && t1 < tmax);
   }
-  if (p.kind == LeafKind::kCone) return intersect_cone(p.cone.c, p.cone.axis, ray, tmin, tmax, nullptr) > 0;
+  if (p.kind == LeafKind::kCone)
+    return intersect_cone(p.cone.c, p.cone.axis, ray, tmin, tmax, nullptr) > 0;
   Crossing c;
   return leaf_nearest(p, ray, tmin, tmax, &c);
 }

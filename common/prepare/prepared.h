@@ -54,9 +54,9 @@ class PreparedScene {
   // stopped by it whatever else it crosses (eq. (2)): not CSG, and its
   // object's material transmits nothing.
   std::vector<uint8_t> stops_light;
-  // Small polygons, triangles and spheres in the hierarchy's leaf order,
-  // for the ray walk (leaf_prims.h); empty where there are none or no
-  // hierarchy.
+  // Small polygons, triangles, spheres and cones in the hierarchy's leaf
+  // order, for the ray walk (leaf_prims.h); empty where there are none or
+  // no hierarchy.
   std::vector<LeafPrim> leaf_prims;
   double ambient = 0;
   // The world's scale, once for every tolerance relative to it: the largest

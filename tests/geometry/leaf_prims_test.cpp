@@ -2,18 +2,18 @@
 // (leaf_prims.h) answer exactly as the PrimitiveSet does: the same nearest
 // crossing, bit for bit (t, normal, object, triangle and its u, v), and the
 // same any-crossing answer, on random rays and cut segments.
+#include "common/geometry/leaf_prims.h"
+
 #include <gtest/gtest.h>
 
 #include <bit>
 #include <cstdint>
+#include <glm/gtc/matrix_transform.hpp>
 #include <random>
 #include <set>
 
-#include <glm/gtc/matrix_transform.hpp>
-
 #include "common/geometry/bvh.h"
 #include "common/geometry/geometry.h"
-#include "common/geometry/leaf_prims.h"
 #include "common/scene/polyhedron.h"
 #include "common/scene/scene.h"
 #include "tests/random_unit.h"
@@ -49,11 +49,13 @@ Scene mixed_scene() {
   add(s, Cone{Vec3(0, 0, 0), 0.2, Vec3(0, 0, 0.5), 0.0, false}, 0,
       glm::rotate(Mat4(1.0), 0.7, Vec3(1, 0, 0)) * glm::scale(Mat4(1.0), Vec3(1, 2, 1)));
   add(s, Polygon{{Vec3(-0.9, -0.8, 0.1), Vec3(0.7, -0.6, -0.2), Vec3(0.1, 0.8, 0.3)}}, 0);
-  add(s, Polygon{{Vec3(-0.5, -0.5, -0.6), Vec3(0.5, -0.5, -0.6), Vec3(0.6, 0.5, -0.5),
-                  Vec3(-0.5, 0.4, -0.7)}},
+  add(s,
+      Polygon{{Vec3(-0.5, -0.5, -0.6), Vec3(0.5, -0.5, -0.6), Vec3(0.6, 0.5, -0.5),
+               Vec3(-0.5, 0.4, -0.7)}},
       1);
-  add(s, Polygon{{Vec3(-0.3, 0.6, 0.6), Vec3(0.3, 0.6, 0.5), Vec3(0.5, 0.9, 0.55),
-                  Vec3(0.0, 1.0, 0.6), Vec3(-0.5, 0.9, 0.65)}},
+  add(s,
+      Polygon{{Vec3(-0.3, 0.6, 0.6), Vec3(0.3, 0.6, 0.5), Vec3(0.5, 0.9, 0.55), Vec3(0.0, 1.0, 0.6),
+               Vec3(-0.5, 0.9, 0.65)}},
       0);
   Mesh m;
   m.positions = {Vec3(-0.8, 0.3, -0.4), Vec3(0.2, 0.5, -0.9), Vec3(-0.1, -0.7, 0.8),
@@ -118,7 +120,8 @@ TEST(LeafPrims, AnswerAsThePrimitiveSetDoesBitForBit) {
         const bool hit = leaf_nearest(leaf[slot], ray, tmin, tmax, &got);
         ASSERT_EQ(hit, want.has_value()) << "ray " << i << " slot " << slot;
         const bool any = leaf_any(leaf[slot], ray, tmin, tmax);
-        ASSERT_EQ(any, intersect_any(set, prim, ray, tmin, tmax)) << "ray " << i << " slot " << slot;
+        ASSERT_EQ(any, intersect_any(set, prim, ray, tmin, tmax))
+            << "ray " << i << " slot " << slot;
         if (!hit) continue;
         ++hits;
         EXPECT_EQ(bits(got.t), bits(want->t));

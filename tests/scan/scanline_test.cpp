@@ -5,6 +5,8 @@
 // line's intervals and events take column_sort's std::sort path there;
 // with few, its insertion path only: both must give the same, right,
 // segments.
+#include "common/scan/scanline.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
@@ -12,7 +14,6 @@
 
 #include "common/prepare/prepared.h"
 #include "common/prepare/scan_scene.h"
-#include "common/scan/scanline.h"
 
 namespace locus {
 namespace {
