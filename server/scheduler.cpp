@@ -31,8 +31,6 @@ Scheduler::Scheduler(SchedulerOptions options, NowFn now)
   lease_prefix_ = buf;
 }
 
-// ---------------------------------------------------------------- jobs
-
 std::string Scheduler::add_job(JobSpec spec, const std::string& request_id,
                                const std::string& fingerprint) {
   const uint64_t seq = next_job_++;

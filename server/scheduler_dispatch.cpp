@@ -35,8 +35,6 @@ std::string pixels_problem(const BandOutput& out, int width, int rows) {
 
 }  // namespace
 
-// ---------------------------------------------------------------- dispatch
-
 bool Scheduler::quarantined(const Job& job, const std::string& worker_name) const {
   if (options_.quarantine_after <= 0) return false;
   auto it = job.worker_failures.find(worker_name);

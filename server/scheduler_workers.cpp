@@ -2,15 +2,12 @@
 // drain, disable) and the farm's counts.
 #include <spdlog/spdlog.h>
 
-
 #include "server/scheduler.h"
 #include "server/scheduler_internal.h"
 
 namespace locus::farm {
 using scheduler_detail::numbered;
 using scheduler_detail::seconds;
-
-// ---------------------------------------------------------------- workers
 
 std::string Scheduler::add_worker(const std::string& name, int threads,
                                   const std::vector<std::string>& tags, bool png_deflate) {
