@@ -60,6 +60,11 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
                           scene.materials[scene.objects[ref.object].material].t <= 0.0);
   }
   if (bvh_for_rays || bvh_for_shadows) leaf_prims = build_leaf_prims(prims, bvh, stops_light);
+  if (!leaf_prims.empty()) {
+    leaf_slot.assign(prims.prims.size(), -1);
+    for (size_t slot = 0; slot < bvh.order.size(); ++slot)
+      leaf_slot[bvh.order[slot]] = static_cast<int>(slot);
+  }
   ambient = ambient_intensity(scene);
   world_scale = scale_of_world(prims.bounds);
   // Secondary rays start this far off the surface: relative to the scene's

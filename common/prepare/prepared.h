@@ -58,6 +58,16 @@ class PreparedScene {
   // order, for the ray walk (leaf_prims.h); empty where there are none or
   // no hierarchy.
   std::vector<LeafPrim> leaf_prims;
+  // Per prims[i]: its slot in the hierarchy's leaf order (bvh.order), for
+  // the searches that meet primitives outside the walk (the shadow volumes'
+  // exact tests, the eye candidates); empty with leaf_prims.
+  std::vector<int> leaf_slot;
+  // The leaf copy of primitive `prim`, or null (none kept, or another kind).
+  const LeafPrim* leaf_prim_of(int prim) const {
+    if (leaf_slot.empty()) return nullptr;
+    const LeafPrim& lp = leaf_prims[leaf_slot[prim]];
+    return lp.kind != LeafKind::kOther ? &lp : nullptr;
+  }
   double ambient = 0;
   // The world's scale, once for every tolerance relative to it: the largest
   // coordinate magnitude of the primitives' boxes, at least 1e-3 (1 for an

@@ -81,9 +81,11 @@ std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tm
 
 std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, double tmax,
                                                 const std::vector<int>& prims) {
+  // Each primitive with its leaf slot, where leaf copies are kept.
+  auto slot_of = [&](int p) { return ps_.leaf_slot.empty() ? -1 : ps_.leaf_slot[p]; };
   if (prims.size() < 2) {
     return nearest_by(ray, tmin, tmax, [&](auto& test) {
-      for (const int p : prims) test(p);
+      for (const int p : prims) test(p, slot_of(p));
     });
   }
   // Nearest box first (the slab test's entry distance), and none whose box
@@ -110,7 +112,7 @@ std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, dou
     for (const auto& [entry, p] : order) {
       // The margin covers the rounding of the slab distances.
       if (entry > bound + 1e-9 * std::abs(bound)) break;
-      bound = test(p);
+      bound = test(p, slot_of(p));
     }
   });
 }

@@ -23,11 +23,10 @@ constexpr int kWalkAbove = 32;
 bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<Crossing>& crossings,
                 Stats& stats) {
   ++stats.tests_ray_object;
-  // An opaque sphere or cone: any crossing is the answer, and its normal
-  // is never used.
-  const PrimRef& ref = ps.prims.prims[prim];
-  if ((ref.kind == PrimKind::kSphere || ref.kind == PrimKind::kCone) &&
-      ps.scene.materials[ps.scene.objects[ref.object].material].t <= 0.0) {
+  // An opaque primitive: any crossing is the answer, and its normal is
+  // never used; from its leaf copy where it has one (leaf_prims.h).
+  if (ps.stops_light[prim]) {
+    if (const LeafPrim* lp = ps.leaf_prim_of(prim)) return leaf_any(*lp, seg, 0.0, 1.0);
     return intersect_any(ps.prims, prim, seg, 0.0, 1.0);
   }
   const size_t before = crossings.size();
