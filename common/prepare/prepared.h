@@ -62,12 +62,16 @@ class PreparedScene {
   // the searches that meet primitives outside the walk (the shadow volumes'
   // exact tests, the eye candidates); empty with leaf_prims.
   std::vector<int> leaf_slot;
-  // The leaf copy of primitive `prim`, or null (none kept, or another kind).
-  const LeafPrim* leaf_prim_of(int prim) const {
-    if (leaf_slot.empty()) return nullptr;
-    const LeafPrim& lp = leaf_prims[leaf_slot[prim]];
+  // Primitive `prim`'s slot in leaf_prims, or -1 where none are kept.
+  int leaf_slot_of(int prim) const { return leaf_slot.empty() ? -1 : leaf_slot[prim]; }
+  // The leaf copy in slot `slot`, or null (no slot, or a kind not copied).
+  const LeafPrim* leaf_prim_at(int slot) const {
+    if (slot < 0 || leaf_prims.empty()) return nullptr;
+    const LeafPrim& lp = leaf_prims[slot];
     return lp.kind != LeafKind::kOther ? &lp : nullptr;
   }
+  // The leaf copy of primitive `prim`, or null.
+  const LeafPrim* leaf_prim_of(int prim) const { return leaf_prim_at(leaf_slot_of(prim)); }
   double ambient = 0;
   // The world's scale, once for every tolerance relative to it: the largest
   // coordinate magnitude of the primitives' boxes, at least 1e-3 (1 for an

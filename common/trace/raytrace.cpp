@@ -47,7 +47,7 @@ std::optional<SurfaceHit> Tracer::nearest_by(const Ray& ray, double tmin, double
   auto test = [&](int prim, int slot = -1) {
     ++stats_.tests_ray_object;
     const double bound = std::min(tmax, nearest_t * (1.0 + kTieRel));
-    if (const LeafPrim* lp = leaf_prim(slot)) {
+    if (const LeafPrim* lp = ps_.leaf_prim_at(slot)) {
       Crossing c;
       if (leaf_nearest(*lp, ray, tmin, bound, &c)) {
         band.push_back(SurfaceHit{c.t, prim, c});
@@ -81,11 +81,9 @@ std::optional<SurfaceHit> Tracer::nearest(const Ray& ray, double tmin, double tm
 
 std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, double tmax,
                                                 const std::vector<int>& prims) {
-  // Each primitive with its leaf slot, where leaf copies are kept.
-  auto slot_of = [&](int p) { return ps_.leaf_slot.empty() ? -1 : ps_.leaf_slot[p]; };
   if (prims.size() < 2) {
     return nearest_by(ray, tmin, tmax, [&](auto& test) {
-      for (const int p : prims) test(p, slot_of(p));
+      for (const int p : prims) test(p, ps_.leaf_slot_of(p));
     });
   }
   // Nearest box first (the slab test's entry distance), and none whose box
@@ -112,7 +110,7 @@ std::optional<SurfaceHit> Tracer::nearest_among(const Ray& ray, double tmin, dou
     for (const auto& [entry, p] : order) {
       // The margin covers the rounding of the slab distances.
       if (entry > bound + 1e-9 * std::abs(bound)) break;
-      bound = test(p, slot_of(p));
+      bound = test(p, ps_.leaf_slot_of(p));
     }
   });
 }
@@ -177,11 +175,10 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
   bool opaque = false;
   auto test = [&](int prim, int slot = -1) {
     ++stats_.tests_ray_object;
-    if (const LeafPrim* lp = leaf_prim(slot); lp && lp->stops_light) {
+    if (const LeafPrim* lp = ps_.leaf_prim_at(slot); lp && lp->stops_light) {
       if (!leaf_any(*lp, seg, 0.0, 1.0)) return 1.0;
       opaque = true;
       last_occluder(light) = prim;
-      last_occluder_slot(light) = slot;
       return -1.0;
     }
     if (ps_.stops_light[prim]) {
@@ -205,11 +202,7 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
     return 1.0;
   };
   if (const int cached = last_occluder(light); cached >= 0) {
-    // Its slot, where the last occluder was met in a leaf (the shadow
-    // search sets last_occluder alone).
-    const int slot = last_occluder_slot(light);
-    const bool same = slot >= 0 && ps_.bvh.order[slot] == cached;
-    if (test(cached, same ? slot : -1) < 0) return true;
+    if (test(cached, ps_.leaf_slot_of(cached)) < 0) return true;
     crossings.clear();  // seen again in the full search below
   }
   if (ps_.bvh_for_shadows) {

@@ -43,8 +43,7 @@ class Tracer {
   Tracer(const PreparedScene& ps, Stats& stats)
       : ps_(ps),
         stats_(stats),
-        last_occluder_(ps.scene.lights.size() * kCacheLevels, -1),
-        last_occluder_slot_(last_occluder_.size(), -1) {}
+        last_occluder_(ps.scene.lights.size() * kCacheLevels, -1) {}
 
   // Nearest surface along the ray in (tmin, tmax). Ties go to the lower
   // primitive index, so every traversal order gives the same answer.
@@ -104,18 +103,7 @@ class Tracer {
   static constexpr int kCacheLevels = 4;
   int cache_level_ = 0;
   std::vector<int> last_occluder_;
-  std::vector<int> last_occluder_slot_;  // its slot in the leaf order, or -1
-  // The copy of the primitive in the hierarchy's leaf slot `slot`
-  // (leaf_prims.h), or null: no slot, or a kind not copied.
-  const LeafPrim* leaf_prim(int slot) const {
-    if (slot < 0 || ps_.leaf_prims.empty()) return nullptr;
-    const LeafPrim& lp = ps_.leaf_prims[slot];
-    return lp.kind != LeafKind::kOther ? &lp : nullptr;
-  }
   int& last_occluder(int light) { return last_occluder_[cache_level_ * ps_.scene.lights.size() + light]; }
-  int& last_occluder_slot(int light) {
-    return last_occluder_slot_[cache_level_ * ps_.scene.lights.size() + light];
-  }
 };
 
 // The ray-tracing path of render_band (--method raytrace). `cost`, if
