@@ -15,8 +15,16 @@ Target: Locus / Embree <= 1.25 on every scene.
 
 See README.md beside this file, "The ray kernel against Embree".
 
+With --probes, instead: where a ray's time goes, on four one-primitive
+scenes written here (every ray misses; every ray hits a polygon, without
+and with one light; every ray hits a sphere), 1024x1024 by default, each
+renderer's best of --repeat interleaved rounds; the differences give a
+miss, a hit of each kind and an unblocked shadow ray in ns (docs/renderer.md,
+"The ray kernel against Embree", session 27). Written to kernel-probes.md.
+
 Usage: bench/peers/kernel.py [--quick] [--sets def,s1,s2] [--scenes balls,...]
        bench/peers/kernel.py --report-only bench/results/kernel-raw.json
+       bench/peers/kernel.py --probes [--size 1024] [--repeat 5]
 Writes bench/results/kernel.{md,csv} and the raw measurements kernel-raw.json
 (--quick: a temporary directory).
 """
@@ -63,6 +71,66 @@ class Peer:
         st = json.loads(text[text.index("\n{") + 1:] if not text.startswith("{") else text)
         s = st["seconds"]
         return {"cpu": s["render_cpu"], "wall": s["render"], "prepare": s["build"], "stats": st}
+
+
+# --probes: one primitive each, the camera of every SPD scene's shape. The
+# sphere out of view keeps the hierarchy non-empty, so a miss walks it.
+PROBE_VIEW = ("v\nfrom 0 0 10\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\n"
+              "resolution 512 512\nb 0.1 0.1 0.1\n")
+PROBE_SURFACE = "f 1 0 0 1 0 0 0 0\n"
+PROBES = [
+    ("miss", "every ray misses", PROBE_SURFACE + "s 100 100 100 0.5\n"),
+    ("polygon", "every ray hits a polygon, no light",
+     PROBE_SURFACE + "p 3\n-100 -100 0\n100 -100 0\n0 100 0\n"),
+    ("polygon+light", "the same, one light (a shadow ray a pixel, none blocked)",
+     "l 0 0 20\n" + PROBE_SURFACE + "p 3\n-100 -100 0\n100 -100 0\n0 100 0\n"),
+    ("sphere", "every ray hits a sphere, no light", PROBE_SURFACE + "s 0 0 -1000 990\n"),
+]
+
+
+def probes(locus, peer, size, repeat, tmp, out_dir):
+    """The --probes table: each scene's best render CPU, both renderers
+    side by side in each round, and ns per eye ray."""
+    best = {}
+    for name, _, body in PROBES:
+        path = os.path.join(tmp, f"probe-{name}.nff")
+        with open(path, "w") as f:
+            f.write(PROBE_VIEW + body)
+    for rnd in range(repeat):
+        for name, _, _ in (PROBES if rnd % 2 == 0 else PROBES[::-1]):
+            path = os.path.join(tmp, f"probe-{name}.nff")
+            pair = [("locus", lambda: locus.timed(path, size, LOCUS_ARGS,
+                                                  os.path.join(tmp, "l.exr"))["cpu"]),
+                    ("peer", lambda: peer.timed(path, size, os.path.join(tmp, "p.exr"))["cpu"])]
+            for who, fn in (pair if rnd % 2 == 0 else pair[::-1]):
+                t = fn()
+                best[(name, who)] = min(best.get((name, who), math.inf), t)
+    rays = float(size * size)
+    ns = {k: v / rays * 1e9 for k, v in best.items()}
+    lines = [f"# Where a ray's time goes: Locus against Embree on one primitive",
+             "",
+             f"Written by `bench/peers/kernel.py --probes`; do not edit by hand. "
+             f"{datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, {size}x{size}, one thread, "
+             f"best of {repeat} interleaved rounds of render CPU (Locus `seconds.render_cpu`, "
+             f"the peer's pixel loop). Load average {H.loadavg()}.",
+             "",
+             "| scene | Locus s | Embree peer s | Locus ns/ray | peer ns/ray |",
+             "|---|---:|---:|---:|---:|"]
+    for name, label, _ in PROBES:
+        lines.append(f"| {label} | {best[(name, 'locus')]:.4f} | {best[(name, 'peer')]:.4f} | "
+                     f"{ns[(name, 'locus')]:.1f} | {ns[(name, 'peer')]:.1f} |")
+    lines += ["", "| what | Locus ns | peer ns |", "|---|---:|---:|"]
+    for label, a, b in (("a miss", "miss", None),
+                        ("a polygon hit (over a miss)", "polygon", "miss"),
+                        ("a sphere hit (over a miss)", "sphere", "miss"),
+                        ("an unblocked shadow ray", "polygon+light", "polygon")):
+        row = [ns[(a, w)] - (ns[(b, w)] if b else 0.0) for w in ("locus", "peer")]
+        lines.append(f"| {label} | {row[0]:.1f} | {row[1]:.1f} |")
+    text = "\n".join(lines) + "\n"
+    os.makedirs(out_dir, exist_ok=True)
+    with open(os.path.join(out_dir, "kernel-probes.md"), "w") as f:
+        f.write(text)
+    print(text)
 
 
 def scenes_of(sets, names):
@@ -241,12 +309,26 @@ def main():
     ap.add_argument("--out", help="output directory (default bench/results; quick: a temp dir)")
     ap.add_argument("--raw", help="save every measurement as JSON here (default: "
                     "kernel-raw.json in the output directory)")
+    ap.add_argument("--probes", action="store_true",
+                    help="where a ray's time goes: four one-primitive scenes (kernel-probes.md)")
     ap.add_argument("--report-only", metavar="RAW",
                     help="no measuring: write kernel.{md,csv} again from a saved RAW file")
     args = ap.parse_args()
     if args.report_only:
         raw = H.load_raw(args.report_only)
         report(args.out or os.path.join(H.ROOT, "bench", "results"), **raw)
+        return
+    if args.probes:
+        tmp = tempfile.mkdtemp(prefix="locus-kernel-probes-")
+        try:
+            locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
+            peer_bin = os.path.join(os.path.dirname(locus.binary), "locus-embree-whitted")
+            shutil.copy2(args.peer, peer_bin)
+            probes(locus, Peer(peer_bin, tmp), args.size or 1024, 1 if args.quick else args.repeat,
+                   tmp, args.out or (os.path.join(H.ROOT, "bench", "results") if not args.quick
+                                     else tmp))
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
         return
     names = args.scenes.split(",") if args.scenes else None
     if args.quick and not names:
