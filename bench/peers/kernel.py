@@ -73,7 +73,7 @@ class Peer:
         return {"cpu": s["render_cpu"], "wall": s["render"], "prepare": s["build"], "stats": st}
 
 
-# --probes: one primitive each, the camera of every SPD scene's shape. The
+# --probes: one primitive each, seen by a camera like the SPD scenes'. The
 # sphere out of view keeps the hierarchy non-empty, so a miss walks it.
 PROBE_VIEW = ("v\nfrom 0 0 10\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\n"
               "resolution 512 512\nb 0.1 0.1 0.1\n")
@@ -107,7 +107,7 @@ def probes(locus, peer, size, repeat, tmp, out_dir):
                 best[(name, who)] = min(best.get((name, who), math.inf), t)
     rays = float(size * size)
     ns = {k: v / rays * 1e9 for k, v in best.items()}
-    lines = [f"# Where a ray's time goes: Locus against Embree on one primitive",
+    lines = ["# Where a ray's time goes: Locus against Embree on one primitive",
              "",
              f"Written by `bench/peers/kernel.py --probes`; do not edit by hand. "
              f"{datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, {size}x{size}, one thread, "
