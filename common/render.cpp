@@ -4,11 +4,11 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <ctime>
 #include <sstream>
 #include <thread>
 #include <utility>
 
+#include "common/base/cpu_time.h"
 #include "common/base/log.h"
 #include "common/prepare/parallel.h"
 #include "common/prepare/prepared.h"
@@ -67,13 +67,8 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   auto work = [&](int id) {
     struct CpuClock {
       double& out;
-      double start = now();
-      static double now() {
-        timespec ts{};
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-        return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-      }
-      ~CpuClock() { out = now() - start; }
+      double start = thread_cpu_seconds();
+      ~CpuClock() { out = thread_cpu_seconds() - start; }
     } clock{cpu[id]};
     if (ps.scan && params.aa > 0) {
       // Multi-scanning: chunks of rows, so that inside a chunk each

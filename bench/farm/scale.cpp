@@ -42,6 +42,7 @@
 #include "bench/farm/scale_probe.h"
 #include "bench/farm/sim_worker.h"
 #include "client/farm_client.h"
+#include "common/base/cpu_time.h"
 #include "common/base/image.h"
 #include "common/farm/types.h"
 #include "common/scene/scene_io.h"
@@ -215,7 +216,7 @@ int main(int argc, char** argv) {
   // submission: with many jobs, the workers render the first ones while the
   // last are still being submitted.
   const ProcessSample before = sample(pid);
-  const double harness_before = own_cpu_seconds();
+  const double harness_before = locus::process_cpu_seconds();
   std::atomic<bool> done{false};
   long peak_rss = 0;
   int peak_fds = 0;
@@ -299,7 +300,7 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(Ms(100));
   }
   const ProcessSample after = sample(pid);
-  const double harness_cpu = own_cpu_seconds() - harness_before;
+  const double harness_cpu = locus::process_cpu_seconds() - harness_before;
   done = true;
   shared.stopping = true;
   for (auto& w : sims) w->stop();

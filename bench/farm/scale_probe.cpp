@@ -1,6 +1,5 @@
 #include "bench/farm/scale_probe.h"
 
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -20,13 +19,6 @@ double seconds_since(Clock::time_point t) {
 }
 
 // ---------------------------------------------------------------- the process
-
-double own_cpu_seconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
-         static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e6;
-}
 
 ProcessSample sample(int pid) {
   ProcessSample s;

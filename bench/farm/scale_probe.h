@@ -1,6 +1,7 @@
 // What locus-farm-scale (bench/farm/scale.cpp) measures with: the
-// coordinator's process as /proc shows it (CPU, memory, open files), this
-// process's own CPU, the store's bytes on disk, percentiles of latencies;
+// coordinator's process as /proc shows it (CPU, memory, open files), the
+// store's bytes on disk, percentiles of latencies (this process's own CPU:
+// common/base/cpu_time.h);
 // and `Timers`, the one thread that runs the simulated workers' delays,
 // retries and heartbeats at their time.
 #pragma once
@@ -23,9 +24,6 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t);
 
 // ---------------------------------------------------------------- the process
-
-// This process's CPU (user + system), all threads.
-double own_cpu_seconds();
 
 struct ProcessSample {
   double cpu_seconds = 0;  // user + system

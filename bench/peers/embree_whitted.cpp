@@ -28,8 +28,6 @@
 // loop alone: loading, Embree's device and its BVH build excluded), the
 // build's, and the rays by kind, under the keys of Locus's --stats.
 #include <embree3/rtcore.h>
-#include <sys/resource.h>
-#include <time.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -42,6 +40,7 @@
 
 #include "common/base/image.h"
 #include "common/geometry/optics.h"
+#include "common/base/cpu_time.h"
 #include "common/prepare/prepared.h"
 #include "common/scene/scene_io.h"
 #include "common/trace/raytrace.h"
@@ -55,19 +54,6 @@ constexpr double kMinWeight = 1.0 / 512.0;
 
 Color beer(const Color& q, double d) {
   return Color(std::exp(-q.x * d), std::exp(-q.y * d), std::exp(-q.z * d));
-}
-
-double cpu_seconds() {
-  rusage ru{};
-  getrusage(RUSAGE_SELF, &ru);
-  return static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-}
-
-double thread_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 // Triangles of a planar polygon given by its outline dropped on two axes:
@@ -587,7 +573,7 @@ int run(const std::string& path, const std::string& size, const std::string& out
   const CameraFrame& cam = (*ps)->camera;
   Image image(cam.width, cam.height);
   const Band band{0, cam.height};
-  const double c0 = cpu_seconds(), t0 = thread_cpu_seconds(), r0 = wall();
+  const double c0 = process_cpu_seconds(), t0 = thread_cpu_seconds(), r0 = wall();
   for (int y = 0; y < cam.height; ++y) {
     for (int x = 0; x < cam.width; ++x) {
       ++peer.stats.rays_eye;
@@ -596,7 +582,7 @@ int run(const std::string& path, const std::string& size, const std::string& out
       store_pixel(image, band, x, y, c);
     }
   }
-  const double render_cpu = cpu_seconds() - c0, render_thread = thread_cpu_seconds() - t0;
+  const double render_cpu = process_cpu_seconds() - c0, render_thread = thread_cpu_seconds() - t0;
   const double render_wall = wall() - r0;
   if (!output.empty()) {
     if (Status s = write_image(output, image); !s.ok()) {

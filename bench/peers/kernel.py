@@ -299,6 +299,16 @@ def report(out_dir, rows, excluded, info):
     print(f"geometric mean {s['gmean']:.2f}  ({s['passed']}/{s['n']} PASS)")
 
 
+def copies(args, tmp):
+    """Both renderers copied into tmp (a rebuild during the run changes
+    neither), the peer beside the copy of locus: it writes its EXRs through
+    the same plugin."""
+    locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
+    peer_bin = os.path.join(os.path.dirname(locus.binary), "locus-embree-whitted")
+    shutil.copy2(args.peer, peer_bin)
+    return locus, Peer(peer_bin, tmp)
+
+
 def main():
     ap = H.parser(__doc__, "smoke test: 128x128, def balls and teapot, one round, temp dir")
     ap.add_argument("--peer", default=os.path.join(H.ROOT, "build", "bin", "locus-embree-whitted"))
@@ -321,12 +331,10 @@ def main():
     if args.probes:
         tmp = tempfile.mkdtemp(prefix="locus-kernel-probes-")
         try:
-            locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
-            peer_bin = os.path.join(os.path.dirname(locus.binary), "locus-embree-whitted")
-            shutil.copy2(args.peer, peer_bin)
-            probes(locus, Peer(peer_bin, tmp), args.size or 1024, 1 if args.quick else args.repeat,
-                   tmp, args.out or (os.path.join(H.ROOT, "bench", "results") if not args.quick
-                                     else tmp))
+            locus, peer = copies(args, tmp)
+            probes(locus, peer, args.size or 1024, 1 if args.quick else args.repeat, tmp,
+                   args.out or (os.path.join(H.ROOT, "bench", "results") if not args.quick
+                                else tmp))
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         return
@@ -351,11 +359,7 @@ def main():
     tmp = tempfile.mkdtemp(prefix="locus-kernel-")
     excluded = {}
     try:
-        locus = H.Locus(H.copy_binary(args.locus, tmp), tmp)
-        # Beside the copy of locus: it writes its EXRs through the same plugin.
-        peer_bin = os.path.join(os.path.dirname(locus.binary), "locus-embree-whitted")
-        shutil.copy2(args.peer, peer_bin)
-        peer = Peer(peer_bin, tmp)
+        locus, peer = copies(args, tmp)
         info.update(locus=locus.sha[:12], peer=peer.sha[:12])
         H.log(f"locus {locus.sha[:12]} (HEAD {info['commit']}), peer {peer.sha[:12]}, "
               f"{len(scenes)} scenes, load {info['load_start']}")

@@ -11,14 +11,13 @@
 // Prints the best of --rounds for each. With bench/peers/kernel.py --probes'
 // one-primitive scenes it takes a hit apart: nearest on a hit minus nearest
 // on a miss is the walk's and the test's share of a hit.
-#include <time.h>
-
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <limits>
 #include <string>
 
+#include "common/base/cpu_time.h"
 #include "common/geometry/leaf_prims.h"
 #include "common/prepare/prepared.h"
 #include "common/scene/scene_io.h"
@@ -27,12 +26,6 @@
 namespace {
 
 using namespace locus;
-
-double thread_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 // Seconds of CPU for fn(ray) over every pixel centre; `sink` keeps the
 // compiler from dropping the work.
