@@ -4,7 +4,9 @@
 // misses a box the double slab test meets (slab planes, parallel rays, far
 // origins); the region walk (walk_bvh) visits exactly the leaves its node
 // test accepts; a hierarchy deeper than a walk's stack trips the
-// LOCUS_CHECK instead of writing past the array.
+// LOCUS_CHECK instead of writing past the array. The builder gives
+// primitives a leaf each where their own boxes are small against the
+// leaf's (leaf_each_pays).
 #include "common/geometry/bvh.h"
 
 #include <gtest/gtest.h>
@@ -330,6 +332,66 @@ TEST(BvhWalkDeathTest, DeeperThanTheStackTripsTheCheck) {
         return true;
       });
   EXPECT_EQ(visits, kBvhWalkStack);
+}
+
+// The leaves that hold primitive p: how many primitives share its leaf.
+int leaf_size_of(const Bvh& bvh, int p) {
+  for (const BvhNode& n : bvh.nodes) {
+    if (n.count == 0) continue;
+    for (int i = n.first; i < n.first + n.count; ++i)
+      if (bvh.order[i] == p) return n.count;
+  }
+  return 0;
+}
+
+Aabb box_of(const Vec3& lo, const Vec3& hi) {
+  Aabb b;
+  b.extend(lo);
+  b.extend(hi);
+  return b;
+}
+
+TEST(BvhBuild, ALeafEachWhereTheirOwnBoxesAreSmallerThanTheirs) {
+  // Three thin rods crossing at the origin (SPD jacks' cylinders): their
+  // centres coincide, and each box is a sliver of their common box.
+  const std::vector<Aabb> rods = {box_of(Vec3(-1, -0.05, -0.05), Vec3(1, 0.05, 0.05)),
+                                  box_of(Vec3(-0.05, -1, -0.05), Vec3(0.05, 1, 0.05)),
+                                  box_of(Vec3(-0.05, -0.05, -1), Vec3(0.05, 0.05, 1))};
+  const Bvh crossed = build_bvh(rods);
+  for (int p = 0; p < 3; ++p) EXPECT_EQ(leaf_size_of(crossed, p), 1) << "rod " << p;
+  // Three nested boxes about one centre (concentric shells): each fills
+  // most of the next, so a leaf each would cost more: one leaf.
+  const std::vector<Aabb> nested = {box_of(Vec3(-1), Vec3(1)), box_of(Vec3(-0.9), Vec3(0.9)),
+                                    box_of(Vec3(-0.95), Vec3(0.95))};
+  const Bvh shells = build_bvh(nested);
+  for (int p = 0; p < 3; ++p) EXPECT_EQ(leaf_size_of(shells, p), 3) << "shell " << p;
+  // Centres apart: a large box and two small ones inside it at opposite
+  // corners (a jack's cylinder and its balls). Any two-way split leaves
+  // one side as large as the whole, so the SAH keeps them one leaf; a leaf
+  // each costs less, the small ones being met a fraction as often.
+  const std::vector<Aabb> mixed = {box_of(Vec3(-1), Vec3(1)), box_of(Vec3(0.8), Vec3(0.9)),
+                                   box_of(Vec3(-0.9), Vec3(-0.8))};
+  const Bvh split = build_bvh(mixed);
+  for (int p = 0; p < 3; ++p) EXPECT_EQ(leaf_size_of(split, p), 1) << "box " << p;
+  // Every ray still meets each primitive it met (the walk is conservative).
+  std::mt19937_64 rng(7);
+  for (const auto* set : {&rods, &nested, &mixed}) {
+    const Bvh bvh = build_bvh(*set);
+    for (int k = 0; k < 500; ++k) {
+      const TestRay r = random_ray(rng);
+      const RayInv ri(r.ray);
+      std::vector<int> visited;
+      traverse_bvh(bvh, r.ray, 0.0, r.tmax, [&](int prim) {
+        visited.push_back(prim);
+        return r.tmax;
+      });
+      for (int p = 0; p < static_cast<int>(set->size()); ++p) {
+        if (hit_box_scalar((*set)[p], ri, 0.0, r.tmax)) {
+          EXPECT_NE(std::find(visited.begin(), visited.end(), p), visited.end()) << "ray " << k;
+        }
+      }
+    }
+  }
 }
 
 }  // namespace
