@@ -18,13 +18,17 @@ LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye,
 void outline_crossings(const ScanFace& f, double y, std::vector<double>& xs) {
   xs.clear();
   const size_t n = f.outline.size();
-  for (size_t k = 0; k < n; ++k) {
-    Vec2 p = f.outline[k], q = f.outline[(k + 1) % n];
+  for (size_t k = 0, next = 1; k < n; ++k, next = next + 1 == n ? 0 : next + 1) {
+    Vec2 p = f.outline[k], q = f.outline[next];
     if (p.y > q.y || (p.y == q.y && p.x > q.x)) std::swap(p, q);
     if (!(p.y <= y && y < q.y)) continue;
     xs.push_back(p.x + (y - p.y) * (q.x - p.x) / (q.y - p.y));
   }
-  std::sort(xs.begin(), xs.end());
+  if (xs.size() == 2) {
+    if (xs[1] < xs[0]) std::swap(xs[0], xs[1]);  // a convex outline: the usual case
+  } else {
+    std::sort(xs.begin(), xs.end());
+  }
 }
 
 std::optional<Crossing> hit_on_face(const PreparedScene& ps, const ScanFace& f, const Ray& ray) {
@@ -53,20 +57,31 @@ namespace {
 // intervals are a few per column, so this takes linear time where
 // std::sort took most of the line's set-up (SPD tetra level 9). A column
 // holding more than kColumnSortMax items is sorted by std::sort first (the
-// insertion then moves nothing there).
+// insertion then moves nothing there). Fewer items than a quarter of the
+// columns are left to std::sort: clearing and summing the columns' counts
+// cost more there (SPD tetra level 7, b_desk). Each item's column is
+// computed once (`cols`).
 template <class T, class X, class Less>
-void column_sort(std::vector<T>& v, std::vector<T>& tmp, std::vector<int>& count, int width,
-                 X&& x_of, Less&& less) {
+void column_sort(std::vector<T>& v, std::vector<T>& tmp, std::vector<int>& count,
+                 std::vector<int>& cols, int width, X&& x_of, Less&& less) {
   constexpr int kColumnSortMax = 32;
   const size_t n = v.size();
   if (n < 2) return;
-  auto col = [&](const T& e) { return clamped_floor(x_of(e), 0, width - 1); };
+  if (n * 4 < static_cast<size_t>(width)) {
+    // Few items: the columns' counts would cost more than they save.
+    std::sort(v.begin(), v.end(), less);
+    return;
+  }
   count.assign(width + 1, 0);
+  cols.resize(n);
   int most = 0;
-  for (const T& e : v) most = std::max(most, ++count[col(e) + 1]);
+  for (size_t i = 0; i < n; ++i) {
+    cols[i] = clamped_floor(x_of(v[i]), 0, width - 1);
+    most = std::max(most, ++count[cols[i] + 1]);
+  }
   for (int c = 0; c < width; ++c) count[c + 1] += count[c];
   tmp.resize(n);
-  for (const T& e : v) tmp[count[col(e)]++] = e;
+  for (size_t i = 0; i < n; ++i) tmp[count[cols[i]]++] = v[i];
   if (most > kColumnSortMax) {
     // count[c] is now where column c ends.
     for (int c = 0, begin = 0; c < width; begin = count[c++]) {
@@ -159,9 +174,19 @@ void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
   std::vector<double>& xs = scratch.xs;
   ivs.clear();
   out.clear();
-  for (int fi : faces) {
+  // The faces' y extents side by side, gathered once for the sample lines
+  // of a row (its faces come in one list): most faces of a row miss a
+  // given line where they are smaller than a pixel.
+  if (scratch.y_of != &faces || scratch.y_scene != &scan) {
+    scratch.y_of = &faces;
+    scratch.y_scene = &scan;
+    scratch.y_range.clear();
+    for (int fi : faces) scratch.y_range.push_back({scan.faces[fi].ymin, scan.faces[fi].ymax});
+  }
+  for (size_t k = 0; k < faces.size(); ++k) {
+    if (!(scratch.y_range[k].first <= y && y < scratch.y_range[k].second)) continue;
+    const int fi = faces[k];
     const ScanFace& f = scan.faces[fi];
-    if (!(f.ymin <= y && y < f.ymax)) continue;
     outline_crossings(f, y, xs);
     const LineDepth d = line_depth(f, cam, cam.from, b);
     for (size_t k = 0; k + 1 < xs.size(); k += 2) {
@@ -177,22 +202,30 @@ void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
   for (size_t k = 0; k < ivs.size(); ++k)
     keys.push_back(Key{ivs[k].xl, ivs[k].face, static_cast<int>(k)});
   column_sort(
-      keys, scratch.keys_tmp, scratch.count, cam.width, [](const Key& k) { return k.xl; },
+      keys, scratch.keys_tmp, scratch.count, scratch.cols, cam.width, [](const Key& k) { return k.xl; },
       [](const Key& a, const Key& c) { return a.xl < c.xl || (a.xl == c.xl && a.face < c.face); });
   std::vector<Interval>& sorted = scratch.sorted;
   sorted.clear();
   for (const Key& k : keys) sorted.push_back(ivs[k.index]);
   ivs.swap(sorted);
   // The events: every interval's ends and the line's, sorted, once each.
-  std::vector<double>& events = scratch.events;
-  events.assign({0.0, width});
-  for (const Interval& iv : ivs) {
-    events.push_back(iv.xl);
-    events.push_back(iv.xr);
-  }
+  // The left ends are in order already: only the right ends are sorted,
+  // then the two merged.
+  std::vector<double>& ends = scratch.ends;
+  ends.assign({0.0, width});
+  for (const Interval& iv : ivs) ends.push_back(iv.xr);
   column_sort(
-      events, scratch.events_tmp, scratch.count, cam.width, [](double x) { return x; },
+      ends, scratch.events_tmp, scratch.count, scratch.cols, cam.width, [](double x) { return x; },
       [](double a, double c) { return a < c; });
+  std::vector<double>& events = scratch.events;
+  events.resize(ivs.size() + ends.size());
+  {
+    size_t a = 0, b = 0, k = 0;
+    while (a < ivs.size() && b < ends.size())
+      events[k++] = ivs[a].xl < ends[b] ? ivs[a++].xl : ends[b++];
+    for (; a < ivs.size(); ++a) events[k++] = ivs[a].xl;
+    for (; b < ends.size(); ++b) events[k++] = ends[b];
+  }
   events.erase(std::unique(events.begin(), events.end()), events.end());
 
   auto emit = [&](double x0, double x1, int face) {

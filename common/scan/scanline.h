@@ -63,8 +63,12 @@ struct VisibleScratch {
   };
   std::vector<DepthInterval> ivs, sorted;
   std::vector<Key> keys, keys_tmp;
-  std::vector<double> xs, events, events_tmp;
-  std::vector<int> count;
+  std::vector<double> xs, ends, events, events_tmp;
+  // The y extents of the faces of the list `y_of` of `y_scene`, in its order.
+  const std::vector<int>* y_of = nullptr;
+  const void* y_scene = nullptr;
+  std::vector<std::pair<double, double>> y_range;
+  std::vector<int> count, cols;
   std::vector<const DepthInterval*> active;
   std::vector<Range> stack;
 };
