@@ -53,6 +53,16 @@ TestRay random_ray(std::mt19937_64& rng) {
   return TestRay{Ray{o, glm::normalize(target - o)}, end(rng)};
 }
 
+// The primitives the ray walk visits for r, in the order it visits them.
+std::vector<int> visited_by(const Bvh& bvh, const TestRay& r) {
+  std::vector<int> visited;
+  traverse_bvh(bvh, r.ray, 0.0, r.tmax, [&](int prim) {
+    visited.push_back(prim);
+    return r.tmax;
+  });
+  return visited;
+}
+
 // The primitives of the leaves that `leaf_meets(box)` accepts, sorted.
 template <class Meets>
 std::vector<int> brute_force_leaves(const Bvh& bvh, Meets&& leaf_meets) {
@@ -81,11 +91,7 @@ TEST(BvhWalk, TraversalVisitsTheLeavesTheRayMeets) {
   for (int k = 0; k < kRays; ++k) {
     const TestRay r = random_ray(rng);
     const RayInv ri(r.ray);
-    std::vector<int> visited;
-    traverse_bvh(bvh, r.ray, 0.0, r.tmax, [&](int prim) {
-      visited.push_back(prim);
-      return r.tmax;
-    });
+    std::vector<int> visited = visited_by(bvh, r);
     std::sort(visited.begin(), visited.end());
     ASSERT_TRUE(std::adjacent_find(visited.begin(), visited.end()) == visited.end())
         << "a primitive visited twice, seed " << seed << ", ray " << k;
@@ -380,11 +386,7 @@ TEST(BvhBuild, ALeafEachWhereTheirOwnBoxesAreSmallerThanTheirs) {
     for (int k = 0; k < 500; ++k) {
       const TestRay r = random_ray(rng);
       const RayInv ri(r.ray);
-      std::vector<int> visited;
-      traverse_bvh(bvh, r.ray, 0.0, r.tmax, [&](int prim) {
-        visited.push_back(prim);
-        return r.tmax;
-      });
+      const std::vector<int> visited = visited_by(bvh, r);
       for (int p = 0; p < static_cast<int>(set->size()); ++p) {
         if (hit_box_scalar((*set)[p], ri, 0.0, r.tmax)) {
           EXPECT_NE(std::find(visited.begin(), visited.end(), p), visited.end()) << "ray " << k;
