@@ -121,7 +121,8 @@ bool wins_tie(const ScanScene& scan, int fi, int fj) {
          (f.curved == c.curved && (f.prim < c.prim || (f.prim == c.prim && fi < fj)));
 }
 
-RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const Vec3& eye, int row) {
+RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const Vec3& eye,
+                            int row) {
   const int width = cam.width;
   RowVisibility vis;
   vis.face.assign(width, -1);
@@ -202,7 +203,8 @@ void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
   for (size_t k = 0; k < ivs.size(); ++k)
     keys.push_back(Key{ivs[k].xl, ivs[k].face, static_cast<int>(k)});
   column_sort(
-      keys, scratch.keys_tmp, scratch.count, scratch.cols, cam.width, [](const Key& k) { return k.xl; },
+      keys, scratch.keys_tmp, scratch.count, scratch.cols, cam.width,
+      [](const Key& k) { return k.xl; },
       [](const Key& a, const Key& c) { return a.xl < c.xl || (a.xl == c.xl && a.face < c.face); });
   std::vector<Interval>& sorted = scratch.sorted;
   sorted.clear();

@@ -52,7 +52,11 @@ struct DepthInterval {
 };
 
 // Buffers of visible_segments(), kept between calls. After a call, `ivs`
-// holds the intervals of every face crossing the line, sorted by xl.
+// holds the intervals of every face crossing the line, sorted by xl. The
+// faces' y extents are kept for the list last passed, known by its address
+// and its scene's: a list or scene changed in place between two calls with
+// one scratch would be read stale (the scan scene's lists are fixed for a
+// frame; a scratch lives for one band).
 struct VisibleScratch {
   struct Range {
     double lo, hi;
@@ -66,7 +70,7 @@ struct VisibleScratch {
   std::vector<double> xs, ends, events, events_tmp;
   // The y extents of the faces of the list `y_of` of `y_scene`, in its order.
   const std::vector<int>* y_of = nullptr;
-  const void* y_scene = nullptr;
+  const ScanScene* y_scene = nullptr;
   std::vector<std::pair<double, double>> y_range;
   std::vector<int> count, cols;
   std::vector<const DepthInterval*> active;
