@@ -6,13 +6,20 @@
 #include "common/prepare/prepared.h"
 
 namespace locus {
-LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b) {
+FaceDepth face_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye) {
+  return FaceDepth{glm::dot(f.normal, cam.w), glm::dot(f.normal, cam.v), glm::dot(f.normal, cam.u),
+                   f.offset - glm::dot(f.normal, eye)};
+}
+
+LineDepth line_depth(const FaceDepth& p, const CameraFrame& cam, double b) {
   // 1/s = (nw + a nu) / num with a = (2x / width - 1) tan_half aspect.
-  const double nw = glm::dot(f.normal, cam.w) + b * glm::dot(f.normal, cam.v);
-  const double nu = glm::dot(f.normal, cam.u);
-  const double num = f.offset - glm::dot(f.normal, eye);
+  const double nw = p.nw + b * p.nv;
   const double k = cam.tan_half * cam.aspect;
-  return LineDepth{(nw - k * nu) / num, 2.0 * k * nu / (cam.width * num)};
+  return LineDepth{(nw - k * p.nu) / p.num, 2.0 * k * p.nu / (cam.width * p.num)};
+}
+
+LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b) {
+  return line_depth(face_depth(f, cam, eye), cam, b);
 }
 
 void outline_crossings(const ScanFace& f, double y, std::vector<double>& xs) {
@@ -175,21 +182,27 @@ void visible_segments(const ScanScene& scan, const CameraFrame& cam, double y,
   std::vector<double>& xs = scratch.xs;
   ivs.clear();
   out.clear();
-  // The faces' y extents side by side, gathered once for the sample lines
-  // of a row (its faces come in one list): most faces of a row miss a
-  // given line where they are smaller than a pixel.
+  // The faces' y extents side by side, and the parts of their depth along
+  // a line that do not depend on the line, gathered once for the sample
+  // lines of a row (its faces come in one list): most faces of a row miss
+  // a given line where they are smaller than a pixel, and one that does
+  // not meets several.
   if (scratch.y_of != &faces || scratch.y_scene != &scan) {
     scratch.y_of = &faces;
     scratch.y_scene = &scan;
-    scratch.y_range.clear();
-    for (int fi : faces) scratch.y_range.push_back({scan.faces[fi].ymin, scan.faces[fi].ymax});
+    scratch.row_faces.clear();
+    for (int fi : faces) {
+      const ScanFace& f = scan.faces[fi];
+      scratch.row_faces.push_back({f.ymin, f.ymax, face_depth(f, cam, cam.from)});
+    }
   }
   for (size_t k = 0; k < faces.size(); ++k) {
-    if (!(scratch.y_range[k].first <= y && y < scratch.y_range[k].second)) continue;
+    const VisibleScratch::RowFace& rf = scratch.row_faces[k];
+    if (!(rf.ymin <= y && y < rf.ymax)) continue;
     const int fi = faces[k];
     const ScanFace& f = scan.faces[fi];
     outline_crossings(f, y, xs);
-    const LineDepth d = line_depth(f, cam, cam.from, b);
+    const LineDepth d = line_depth(rf.depth, cam, b);
     for (size_t k = 0; k + 1 < xs.size(); k += 2) {
       const double xl = std::max(0.0, xs[k]), xr = std::min(width, xs[k + 1]);
       if (xr > xl) ivs.push_back(Interval{xl, xr, fi, d});

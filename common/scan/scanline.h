@@ -26,6 +26,14 @@ struct LineDepth {
   double at(double x) const { return g0 + g1 * x; }
 };
 LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b);
+// line_depth in two steps, the same numbers: what does not depend on the
+// line (the face's normal against the camera's axes, its plane's offset
+// from the eye), then the line's.
+struct FaceDepth {
+  double nw, nv, nu, num;
+};
+FaceDepth face_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye);
+LineDepth line_depth(const FaceDepth& p, const CameraFrame& cam, double b);
 
 // Does face fi hide face fj where their depths are within rounding of each
 // other (coincident surfaces)? A bounding polyhedron first (its pixels are
@@ -53,10 +61,11 @@ struct DepthInterval {
 
 // Buffers of visible_segments(), kept between calls. After a call, `ivs`
 // holds the intervals of every face crossing the line, sorted by xl. The
-// faces' y extents are kept for the list last passed, known by its address
-// and its scene's: a list or scene changed in place between two calls with
-// one scratch would be read stale (the scan scene's lists are fixed for a
-// frame; a scratch lives for one band).
+// faces' y extents and depth parts are kept for the list last passed,
+// known by its address and its scene's: a list, scene or camera changed in
+// place between two calls with one scratch would be read stale (the scan
+// scene's lists and camera are fixed for a frame; a scratch lives for one
+// band).
 struct VisibleScratch {
   struct Range {
     double lo, hi;
@@ -68,10 +77,15 @@ struct VisibleScratch {
   std::vector<DepthInterval> ivs, sorted;
   std::vector<Key> keys, keys_tmp;
   std::vector<double> xs, ends, events, events_tmp;
-  // The y extents of the faces of the list `y_of` of `y_scene`, in its order.
+  // The faces of the list `y_of` of `y_scene`, in its order: their y
+  // extents and the line-independent part of their depth (face_depth).
+  struct RowFace {
+    double ymin, ymax;
+    FaceDepth depth;
+  };
   const std::vector<int>* y_of = nullptr;
   const ScanScene* y_scene = nullptr;
-  std::vector<std::pair<double, double>> y_range;
+  std::vector<RowFace> row_faces;
   std::vector<int> count, cols;
   std::vector<const DepthInterval*> active;
   std::vector<Range> stack;
