@@ -18,10 +18,6 @@ LineDepth line_depth(const FaceDepth& p, const CameraFrame& cam, double b) {
   return LineDepth{(nw - k * p.nu) / p.num, 2.0 * k * p.nu / (cam.width * p.num)};
 }
 
-LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b) {
-  return line_depth(face_depth(f, cam, eye), cam, b);
-}
-
 void outline_crossings(const ScanFace& f, double y, std::vector<double>& xs) {
   xs.clear();
   const size_t n = f.outline.size();
@@ -141,9 +137,10 @@ RowVisibility visible_faces(const ScanScene& scan, const CameraFrame& cam, const
   for (int fi : scan.rows[row]) {
     const ScanFace& f = scan.faces[fi];
     outline_crossings(f, yc, xs);
-    const double nw = glm::dot(f.normal, cam.w) + b * glm::dot(f.normal, cam.v);
-    const double nu = glm::dot(f.normal, cam.u);
-    const double num = f.offset - glm::dot(f.normal, eye);
+    const FaceDepth p = face_depth(f, cam, eye);
+    const double nw = p.nw + b * p.nv;
+    const double nu = p.nu;
+    const double num = p.num;
     for (size_t k = 0; k + 1 < xs.size(); k += 2) {
       // Pixel centres i + 0.5 in [xl, xr).
       const int i0 = clamped_ceil(xs[k] - 0.5, 0, width);

@@ -25,10 +25,9 @@ struct LineDepth {
   double g0 = 0, g1 = 0;
   double at(double x) const { return g0 + g1 * x; }
 };
-LineDepth line_depth(const ScanFace& f, const CameraFrame& cam, const Vec3& eye, double b);
-// line_depth in two steps, the same numbers: what does not depend on the
-// line (the face's normal against the camera's axes, its plane's offset
-// from the eye), then the line's.
+// In two steps: what does not depend on the line (the face's normal
+// against the camera's axes, its plane's offset from the eye; visible_faces
+// uses it too), then the line's.
 struct FaceDepth {
   double nw, nv, nu, num;
 };
