@@ -292,10 +292,11 @@ Result<farm::JobInfo> FarmClient::watch(
 
 Result<std::vector<std::string>> FarmClient::fetch(
     const std::string& job_id, const std::vector<int>& frames,
-    const std::function<std::string(int, const std::string&)>& dest) {
+    const std::function<std::string(int, const std::string&)>& dest, bool cost_maps) {
   if (!impl_->broken.ok()) return impl_->broken;
   v1::FetchResultsRequest req;
   req.set_job_id(job_id);
+  req.set_cost_maps(cost_maps);
   for (int f : frames) req.add_frames(f);
   grpc::ClientContext ctx;
   impl_->prepare(ctx, rpc::kDataCall);

@@ -56,10 +56,11 @@ class FarmClient {
   // Fetches written frames (`frames` empty: all written so far); each file
   // goes to dest(frame, file_name), written atomically. Returns the paths.
   // A file name from the coordinator that is not a plain file name is
-  // refused before `dest` sees it.
+  // refused before `dest` sees it. `cost_maps`: the frames' cost maps
+  // instead (a job submitted with one).
   Result<std::vector<std::string>> fetch(
       const std::string& job_id, const std::vector<int>& frames,
-      const std::function<std::string(int, const std::string&)>& dest);
+      const std::function<std::string(int, const std::string&)>& dest, bool cost_maps = false);
 
  private:
   class Impl;

@@ -72,6 +72,39 @@ bool parse_size(const std::string& s, int* w, int* h) {
   return *w > 0 && *h > 0;
 }
 
+void make_parent_dirs(const std::string& path) {
+  std::error_code ec;
+  const fs::path parent = fs::path(path).parent_path();
+  if (!parent.empty()) fs::create_directories(parent, ec);
+}
+
+// --cost-map, checked before anything is rendered: a format write_image
+// knows, not -o's file, a frame number field for several frames, and a
+// directory that exists (or can be made) and can be written.
+Status check_cost_map(const JobArgs& a, int frames) {
+  const std::string& path = a.cost_map;
+  std::string where = "--cost-map ";
+  where.append(path).append(": ");
+  if (output_sample_format(path) == SampleFormat::kUnsupported) {
+    return InvalidArgument(where + "unsupported image format; use .png, .exr or .tif");
+  }
+  if (fs::path(path).lexically_normal() == fs::path(a.output).lexically_normal()) {
+    return InvalidArgument(where + "the same file as -o; give the cost map a name of its own");
+  }
+  if (frames > 1 && !has_frame_field(path)) {
+    return InvalidArgument(where + std::to_string(frames) +
+                           " frames need a frame number field in the file name, e.g. "
+                           "cost_####.png");
+  }
+  make_parent_dirs(path);
+  const fs::path parent = fs::path(path).has_parent_path() ? fs::path(path).parent_path() : ".";
+  std::error_code ec;
+  if (!fs::is_directory(parent, ec) || access(parent.c_str(), W_OK) != 0) {
+    return FailedPrecondition(where + "cannot write into the directory " + parent.string());
+  }
+  return Status::Ok();
+}
+
 // A loaded, sized scene and the job around it, ready for either path.
 struct PreparedJob {
   Scene scene;
@@ -125,6 +158,13 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
     r.movie = name;
     r.fps = a.fps > 0 ? a.fps : farm::kDefaultFps;
   }
+  if (!a.cost_map.empty()) {
+    // Written here (in process, or fetched from a farm by render and
+    // submit --wait): checked before anything is rendered.
+    if (Status s = check_cost_map(a, frames); !s.ok()) return s;
+    // The farm gets the file name alone, like the frames'.
+    if (for_farm) r.cost_map = fs::path(a.cost_map).filename().string();
+  }
   if (for_farm) r.scene = scene_to_proto(job.scene);
   return job;
 }
@@ -137,11 +177,6 @@ Status write_stats(const std::string& path, const Stats& stats) {
   return Status::Ok();
 }
 
-void make_parent_dirs(const std::string& path) {
-  std::error_code ec;
-  const fs::path parent = fs::path(path).parent_path();
-  if (!parent.empty()) fs::create_directories(parent, ec);
-}
 
 // --movie of `locus render --workers 0`: the frames just written, made
 // into the movie here, as a farm's coordinator would.
@@ -162,42 +197,11 @@ Status make_movie_here(const JobArgs& a, const farm::SubmitRequest& r) {
   return Status::Ok();
 }
 
-// --cost-map, checked before anything is rendered: a format write_image
-// knows, not -o's file, a frame number field for several frames, and a
-// directory that exists (or can be made) and can be written.
-Status check_cost_map(const RenderArgs& a, int frames) {
-  const std::string& path = a.cost_map;
-  std::string where = "--cost-map ";
-  where.append(path).append(": ");
-  if (output_sample_format(path) == SampleFormat::kUnsupported) {
-    return InvalidArgument(where + "unsupported image format; use .png, .exr or .tif");
-  }
-  if (fs::path(path).lexically_normal() == fs::path(a.job.output).lexically_normal()) {
-    return InvalidArgument(where + "the same file as -o; give the cost map a name of its own");
-  }
-  if (frames > 1 && !has_frame_field(path)) {
-    return InvalidArgument(where + std::to_string(frames) +
-                           " frames need a frame number field in the file name, e.g. "
-                           "cost_####.png");
-  }
-  make_parent_dirs(path);
-  const fs::path parent = fs::path(path).has_parent_path() ? fs::path(path).parent_path() : ".";
-  std::error_code ec;
-  if (!fs::is_directory(parent, ec) || access(parent.c_str(), W_OK) != 0) {
-    return FailedPrecondition(where + "cannot write into the directory " + parent.string());
-  }
-  return Status::Ok();
-}
-
 // --workers 0: every frame rendered here, through the same frame_scene()
 // the workers use.
 int render_in_process(const RenderArgs& a) {
   auto job = prepare_job(a.job, false);
   if (!job.ok()) return fail(job.status());
-  if (!a.cost_map.empty()) {
-    const int frames = job->request.frame_last - job->request.frame_first + 1;
-    if (Status st = check_cost_map(a, frames); !st.ok()) return fail(st);
-  }
   auto params = farm::to_render_params(job->request.render, a.threads);
   if (!params.ok()) return fail(params.status());
   params->visibility = *label_value(kVisibilityLabels, a.visibility);  // checked by CLI11
@@ -212,14 +216,14 @@ int render_in_process(const RenderArgs& a) {
     Scene s = farm::frame_scene(f == r.frame_last ? std::move(job->scene) : job->scene, r.width,
                                 r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
     CostBuffer cost;
-    auto result = render_image(std::move(s), *params, a.cost_map.empty() ? nullptr : &cost);
+    auto result = render_image(std::move(s), *params, a.job.cost_map.empty() ? nullptr : &cost);
     if (!result.ok()) return fail(result.status());
     const std::string path = frame_path(a.job.output, f);
     make_parent_dirs(path);
     if (Status st = write_image(path, result->pixels); !st.ok()) return fail(st);
-    if (!a.cost_map.empty()) {
+    if (!a.job.cost_map.empty()) {
       // Display values (sRGB-tagged): the map is a picture, not radiance.
-      const std::string cost_path = frame_path(a.cost_map, f);
+      const std::string cost_path = frame_path(a.job.cost_map, f);
       if (Status st = write_image(cost_path, cost_map_image(cost), true); !st.ok()) {
         std::string message = "--cost-map: ";
         return fail(message.append(st.message()));
@@ -239,9 +243,11 @@ int render_in_process(const RenderArgs& a) {
 }
 
 // Follows a job to its end with a progress display on stderr, then fetches
-// its frames to the output pattern. Returns the process exit code.
+// its frames to the output pattern, and their cost maps to `cost_map`'s
+// (empty: none). Returns the process exit code.
 int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted,
-                     const std::string& output, bool show_progress, farm::JobInfo* final_info) {
+                     const std::string& output, bool show_progress, farm::JobInfo* final_info,
+                     const std::string& cost_map = {}) {
   client::Progress progress(stderr, isatty(STDERR_FILENO) != 0);
   auto done = farm.watch(submitted.job_id, [&](const farm::JobInfo& j) {
     if (show_progress) progress.update(j);
@@ -256,6 +262,13 @@ int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted,
   auto files = farm.fetch(done->job_id, {},
                           [&](int frame, const std::string&) { return frame_path(output, frame); });
   if (!files.ok()) return fail(files.status());
+  if (!cost_map.empty()) {
+    auto maps = farm.fetch(
+        done->job_id, {},
+        [&](int frame, const std::string&) { return frame_path(cost_map, frame); },
+        /*cost_maps=*/true);
+    if (!maps.ok()) return fail(maps.status());
+  }
   return 0;
 }
 
@@ -325,7 +338,8 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     return fail(ready);
   }
   farm::JobInfo info;
-  int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info);
+  int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info,
+                            a.job.cost_map);
   if (rc == 0) rc = follow_movie(farm, info, a.job.movie);
   if (rc != 0) (*local)->keep_logs();
   const std::string logs = (*local)->dir();
@@ -350,11 +364,6 @@ int run_render(const RenderArgs& a) {
   int workers = a.workers;
   if (workers < 0) workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (workers == 0) return render_in_process(a);
-  if (!a.cost_map.empty()) {
-    // The farm's bands carry no cost buffers yet (docs/cost-map.md).
-    spdlog::info("--cost-map: the farm does not make cost maps yet; rendering in process");
-    return render_in_process(a);
-  }
   if (a.visibility != RenderArgs{}.visibility || a.shadows != RenderArgs{}.shadows) {
     // A farm job chooses both per frame (auto); the job's settings do not
     // carry a forced choice.
@@ -402,7 +411,7 @@ int run_submit(const std::string& address, const farm::Credentials& creds, const
   }
   if (!a.wait) return 0;
   farm::JobInfo info;
-  const int rc = follow_and_fetch(farm, *submitted, a.job.output, true, &info);
+  const int rc = follow_and_fetch(farm, *submitted, a.job.output, true, &info, a.job.cost_map);
   return rc != 0 ? rc : follow_movie(farm, info, a.job.movie);
 }
 

@@ -28,6 +28,10 @@ struct JobArgs {
   // are written (common/farm/movie.h).
   std::string movie;
   int fps = 0;
+  // --cost-map: where the work went, per pixel (docs/cost-map.md); a
+  // pattern like -o's for several frames. On a farm the workers count and
+  // the coordinator writes it beside each frame; the client fetches it.
+  std::string cost_map;
 };
 
 struct RenderArgs {
@@ -37,9 +41,6 @@ struct RenderArgs {
   int workers = -1;  // -1: one per core
   bool workers_given = false;
   std::string stats;
-  // --cost-map: where the work went, per pixel (docs/cost-map.md); a
-  // pattern like -o's for several frames.
-  std::string cost_map;
   // --visibility: the local method's visible-surface pass (RenderParams);
   // anything but auto renders in process.
   std::string visibility{label_name(kVisibilityLabels, RenderParams{}.visibility)};
@@ -66,7 +67,7 @@ int fail(const Status& status);
 // "A-B" or "A" (--frames); empty: frame 1.
 Status parse_frames(const std::string& s, int* first, int* last);
 
-// `locus render`: in process (--workers 0, a cost map, a forced pass) or
+// `locus render`: in process (--workers 0, a forced pass) or
 // on an embedded local farm of `workers` worker processes.
 int run_render(const RenderArgs& a);
 // `locus validate`: the scene's problems, or a summary of it.

@@ -54,6 +54,7 @@ void print_job(const farm::JobInfo& j) {
                 j.movie_job.c_str());
   }
   if (!j.spec.notify_url.empty()) std::printf("  notify   %s\n", j.spec.notify_url.c_str());
+  if (!j.spec.cost_map.empty()) std::printf("  cost map %s\n", j.spec.cost_map.c_str());
   std::printf("  progress %lld/%lld bands, %d/%d frames written, %s elapsed\n",
               static_cast<long long>(j.bands_done), static_cast<long long>(j.spec.bands_total()),
               j.frames_done, j.spec.frames(), client::format_duration(j.seconds_elapsed).c_str());
@@ -256,11 +257,21 @@ int run_fetch(const std::string& address, const farm::Credentials& creds, const 
   client::FarmClient farm(address, creds);
   auto j = farm.job(job_id);
   if (!j.ok()) return fail(j.status());
-  auto files = farm.fetch(
-      job_id, {}, [&](int, const std::string& name) { return (fs::path(dir) / name).string(); });
+  const auto into_dir = [&](int, const std::string& name) {
+    return (fs::path(dir) / name).string();
+  };
+  auto files = farm.fetch(job_id, {}, into_dir);
   if (!files.ok()) return fail(files.status());
+  // And their cost maps, when the job makes them (docs/cost-map.md).
+  size_t maps = 0;
+  if (!j->spec.cost_map.empty()) {
+    auto m = farm.fetch(job_id, {}, into_dir, /*cost_maps=*/true);
+    if (!m.ok()) return fail(m.status());
+    maps = m->size();
+  }
   std::printf("%zu frame%s of job %s in %s", files->size(), files->size() == 1 ? "" : "s",
               job_id.c_str(), dir.c_str());
+  if (maps > 0) std::printf(" (with %zu cost map%s)", maps, maps == 1 ? "" : "s");
   if (j->state != farm::JobState::kSucceeded) {
     std::printf(" (job %s: %d of %d frames written so far)", farm::job_state_name(j->state),
                 j->frames_done, j->spec.frames());
@@ -309,6 +320,12 @@ void add_job_flags(CLI::App* cmd, JobArgs& a) {
                   "coordinator makes it, as a job of its own after this one");
   cmd->add_option("--fps", a.fps, "The movie's frames per second (default 24)")
       ->check(CLI::Range(1, farm::kMaxFps));
+  cmd->add_option(
+      "--cost-map", a.cost_map,
+      "Also write a cost map of each frame (.png, .exr, .tif): each pixel's rays and "
+      "shadow-volume tests in false colour, ray-traced spans outlined, a legend "
+      "(docs/cost-map.md); #### for several frames, like -o. On a farm the coordinator writes "
+      "it beside the frame");
 }
 
 // An option whose value is one of a label table's names.
@@ -342,11 +359,6 @@ int main(int argc, char** argv) {
                    "in process")
       ->check(CLI::Range(0, 256));
   render->add_option("--stats", ra.stats, "Write render statistics as JSON");
-  render->add_option(
-      "--cost-map", ra.cost_map,
-      "Also write a cost map (.png, .exr, .tif): each pixel's rays and shadow-volume tests in "
-      "false colour, ray-traced spans outlined, a legend (docs/cost-map.md); #### for several "
-      "frames, like -o. Renders in process");
   add_choice(render, "--visibility", ra.visibility, kVisibilityLabels,
              "local, configuration IV: how visible surfaces are found: scanline (the paper's "
              "pass), rays (an eye ray per sample) or auto (default: rays where the scene is finer "

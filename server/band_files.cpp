@@ -10,6 +10,9 @@
 #include <fstream>
 #include <sstream>
 
+#include <spdlog/spdlog.h>
+
+#include "common/base/cost_map.h"
 #include "server/syncs.h"
 
 namespace locus::farm {
@@ -20,9 +23,12 @@ namespace {
 // header and the payload. Native byte order: records never leave the
 // coordinator's machine. "LOCBAND1" is 0.13's band file: `reserved` 0 and
 // `size` the count of floats that follow; "LOCBAND2" has the encoding in
-// `reserved` and the payload's bytes in `size`.
+// `reserved` and the payload's bytes in `size`; "LOCBAND3" is LOCBAND2
+// whose payload goes on after those bytes with the band's cost counts
+// (encode_band_cost's bytes, a job with cost maps).
 constexpr char kMagic1[8] = {'L', 'O', 'C', 'B', 'A', 'N', 'D', '1'};
 constexpr char kMagic2[8] = {'L', 'O', 'C', 'B', 'A', 'N', 'D', '2'};
+constexpr char kMagic3[8] = {'L', 'O', 'C', 'B', 'A', 'N', 'D', '3'};
 struct Header {
   char magic[8];
   int32_t width;
@@ -54,23 +60,36 @@ Status fsync_path(const std::string& path, bool directory) {
 
 }  // namespace
 
-std::string pack_band(const BandPixels& rows, const EncodedBand& band) {
+std::string pack_band(const BandPixels& rows, const EncodedBand& band, std::string_view cost) {
   Header h{};
-  std::memcpy(h.magic, kMagic2, sizeof kMagic2);
+  std::memcpy(h.magic, cost.empty() ? kMagic2 : kMagic3, sizeof kMagic2);
   h.width = rows.width;
   h.y0 = rows.y0;
   h.y1 = rows.y1;
   h.reserved = static_cast<int32_t>(band.encoding);
   h.size = band.bytes.size();
-  const uint64_t sum = fnv1a(band.bytes.data(), band.bytes.size(), fnv1a(&h, sizeof h));
-  std::string record(sizeof h + band.bytes.size() + sizeof sum, '\0');
-  std::memcpy(record.data(), &h, sizeof h);
-  std::memcpy(record.data() + sizeof h, band.bytes.data(), band.bytes.size());
-  std::memcpy(record.data() + sizeof h + band.bytes.size(), &sum, sizeof sum);
+  const size_t payload = band.bytes.size() + cost.size();
+  std::string record(sizeof h + payload + sizeof(uint64_t), '\0');
+  char* p = record.data();
+  std::memcpy(p, &h, sizeof h);
+  std::memcpy(p + sizeof h, band.bytes.data(), band.bytes.size());
+  if (!cost.empty()) std::memcpy(p + sizeof h + band.bytes.size(), cost.data(), cost.size());
+  const uint64_t sum = fnv1a(p + sizeof h, payload, fnv1a(&h, sizeof h));
+  std::memcpy(p + sizeof h + payload, &sum, sizeof sum);
   return record;
 }
 
-Result<EncodedBand> unpack_record(std::string_view record, const BandPixels& rows) {
+namespace {
+
+// A checked record's parts: its encoding, its pixel bytes and its cost
+// bytes (empty: none).
+struct RecordParts {
+  BandEncoding encoding = BandEncoding::kFloat32;
+  std::string_view pixels;
+  std::string_view cost;
+};
+
+Result<RecordParts> record_parts(std::string_view record, const BandPixels& rows) {
   const auto refuse = [] {
     return Status(Code::kInternal, "not a complete band record for these rows");
   };
@@ -79,18 +98,39 @@ Result<EncodedBand> unpack_record(std::string_view record, const BandPixels& row
   std::memcpy(&h, record.data(), sizeof h);
   const bool v1 = std::memcmp(h.magic, kMagic1, sizeof kMagic1) == 0;
   const bool v2 = std::memcmp(h.magic, kMagic2, sizeof kMagic2) == 0;
-  if ((!v1 && !v2) || h.width != rows.width || h.y0 != rows.y0 || h.y1 != rows.y1) return refuse();
+  const bool v3 = std::memcmp(h.magic, kMagic3, sizeof kMagic3) == 0;
+  if ((!v1 && !v2 && !v3) || h.width != rows.width || h.y0 != rows.y0 || h.y1 != rows.y1)
+    return refuse();
   const uint64_t payload = record.size() - sizeof h - sizeof(uint64_t);
-  if (payload != (v1 ? h.size * sizeof(float) : h.size)) return refuse();
+  const uint64_t pixels = v1 ? h.size * sizeof(float) : h.size;
+  if (v3 ? pixels >= payload : pixels != payload) return refuse();
   uint64_t sum = 0;
   std::memcpy(&sum, record.data() + sizeof h + payload, sizeof sum);
   if (sum != fnv1a(record.data() + sizeof h, payload, fnv1a(&h, sizeof h))) return refuse();
+  RecordParts parts;
+  parts.encoding = v1 ? BandEncoding::kFloat32 : static_cast<BandEncoding>(h.reserved);
+  parts.pixels = record.substr(sizeof h, pixels);
+  parts.cost = record.substr(sizeof h + pixels, payload - pixels);
+  return parts;
+}
+
+}  // namespace
+
+Result<EncodedBand> unpack_record(std::string_view record, const BandPixels& rows) {
+  auto parts = record_parts(record, rows);
+  if (!parts.ok()) return parts.status();
   EncodedBand band;
-  band.encoding = v1 ? BandEncoding::kFloat32 : static_cast<BandEncoding>(h.reserved);
+  band.encoding = parts->encoding;
   band.width = rows.width;
   band.rows = rows.y1 - rows.y0;
-  band.bytes.assign(record.data() + sizeof h, payload);
+  band.bytes.assign(parts->pixels);
   return band;
+}
+
+Result<std::string> unpack_cost(std::string_view record, const BandPixels& rows) {
+  auto parts = record_parts(record, rows);
+  if (!parts.ok()) return parts.status();
+  return std::string(parts->cost);
 }
 
 Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels& rows) {
@@ -182,25 +222,77 @@ Status write_frame_file(const std::string& job_dir, const std::string& file_name
 
 Status sync_directory(const std::string& dir) { return fsync_path(dir, true); }
 
+Result<CostBuffer> stitch_cost(const FrameReady& f,
+                               const std::function<Result<std::string_view>(int band)>& record) {
+  CostBuffer cost;
+  cost.reset(f.width, 0, f.height);
+  for (int b = 0; b < f.bands; ++b) {
+    const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
+    const std::string where = "band " + std::to_string(b) + " of frame " + std::to_string(f.frame);
+    auto bytes = record(b);
+    if (!bytes.ok()) return bytes.status();
+    auto counts = unpack_cost(*bytes, {f.width, rows.y0, rows.y1});
+    if (!counts.ok()) return Status(counts.status().code(), where + ": " + counts.status().message());
+    if (counts->empty()) {
+      // A worker of an older release ignores BandTask.cost_map.
+      spdlog::warn("job {}: {} came without its cost counts; its rows of the cost map {} are empty",
+                   f.job_id, where, f.cost_file_name);
+      continue;
+    }
+    auto band = decode_band_cost(*counts, f.width, rows.y0, rows.y1);
+    if (!band.ok()) return Status(Code::kInternal, where + ": " + band.status().message());
+    std::copy(band->pixels.begin(), band->pixels.end(),
+              cost.pixels.begin() + static_cast<size_t>(rows.y0) * f.width);
+  }
+  return cost;
+}
+
 Status write_frame(const std::string& job_dir, const FrameReady& f,
                    const std::function<Result<std::string>(int band)>& record, bool sync,
                    bool sync_dir) {
+  // Each band's record is read once, in band order, and kept for the
+  // frame's steps below.
+  std::vector<std::string> records;
+  records.reserve(f.bands);
+  const auto read = [&](int b) -> Result<const std::string*> {
+    if (b < static_cast<int>(records.size())) return &records[b];
+    auto bytes = record(b);
+    if (!bytes.ok()) return bytes.status();
+    records.push_back(std::move(*bytes));
+    return &records.back();
+  };
+  // The cost map first (docs/cost-map.md "On the farm"): the frame's
+  // "written" vouches for both files.
+  if (!f.cost_file_name.empty()) {
+    auto cost = stitch_cost(f, [&](int b) -> Result<std::string_view> {
+      auto bytes = read(b);
+      if (!bytes.ok()) return bytes.status();
+      return std::string_view(**bytes);
+    });
+    if (!cost.ok()) return cost.status();
+    const Image map = cost_map_image(*cost);
+    *cost = CostBuffer{};
+    Status st = write_atomically(
+        job_dir, f.cost_file_name,
+        [&](const std::string& path) { return write_image(path, map, /*for_display=*/true); },
+        sync, /*sync_dir=*/false);
+    if (!st.ok()) return st;
+  }
   // A PNG whose bands all came as png8+deflate: joined as they are
   // (png_from_bands), nothing decoded or compressed here.
   std::vector<EncodedBand> deflated;
-  std::vector<std::string> records;  // read for the join, so not read twice
   if (output_sample_format(f.file_name) == SampleFormat::kUint8) {
     for (int b = 0; b < f.bands; ++b) {
       const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
-      auto bytes = record(b);
+      auto bytes = read(b);
       if (!bytes.ok()) return bytes.status();
-      records.push_back(std::move(*bytes));
-      auto band = unpack_record(records.back(), {f.width, rows.y0, rows.y1});
+      auto band = unpack_record(**bytes, {f.width, rows.y0, rows.y1});
       if (!band.ok() || band->encoding != BandEncoding::kPng8Deflate) break;
       deflated.push_back(std::move(*band));
     }
   }
   if (static_cast<int>(deflated.size()) == f.bands) {
+    records.clear();
     auto png = png_from_bands(f.width, f.height, deflated);
     if (!png.ok()) return png.status();
     deflated.clear();
@@ -215,6 +307,7 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
     if (b < static_cast<int>(records.size())) return std::move(records[b]);
     return record(b);
   });
+  records.clear();
   if (!image.ok()) return image.status();
   return write_frame_file(job_dir, f.file_name, *image, sync, sync_dir);
 }

@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/base/cost.h"
 #include "common/base/image.h"
 #include "common/base/status.h"
 #include "common/farm/band_codec.h"
@@ -31,12 +32,17 @@ struct BandPixels {
 };
 
 // A band's record for the store: a header with its rows and encoding, the
-// encoded bytes, the FNV-1a hash of both.
-std::string pack_band(const BandPixels& rows, const EncodedBand& band);
+// encoded bytes, the band's cost counts when it has them (encode_band_cost's
+// bytes; empty: none), the FNV-1a hash of all.
+std::string pack_band(const BandPixels& rows, const EncodedBand& band,
+                      std::string_view cost = {});
 // The encoded band of a record, checked against the expected rows and its
 // checksum: a torn, foreign or corrupted record is an error, never pixels.
 // Also reads the band files of 0.13.
 Result<EncodedBand> unpack_record(std::string_view record, const BandPixels& rows);
+// The cost counts' bytes of a record, checked as unpack_record checks it;
+// empty: the band has none (a job without cost maps, an older worker).
+Result<std::string> unpack_cost(std::string_view record, const BandPixels& rows);
 // The floats of a record (unpack_record, then decode_band).
 Result<std::vector<float>> unpack_band(std::string_view record, const BandPixels& rows);
 // What the store keeps of a result: its bytes as they came, or (a worker of
@@ -50,6 +56,11 @@ Result<std::string> read_band_file(const std::string& path);
 // One frame's image from its bands' records, `record(band)` giving each.
 Result<Image> stitch_frame(const FrameReady& frame,
                            const std::function<Result<std::string>(int band)>& record);
+// One frame's cost counts from its bands' records (unpack_cost,
+// decode_band_cost); a band without counts (an older worker) leaves its
+// rows zero, with a warning in the log.
+Result<CostBuffer> stitch_cost(const FrameReady& frame,
+                               const std::function<Result<std::string_view>(int band)>& record);
 // Writes the image as job_dir/file_name through a temporary name (the
 // extension kept, by which write_image picks the format), fsyncing file and
 // directory when `sync`.
@@ -58,7 +69,9 @@ Status write_frame_file(const std::string& job_dir, const std::string& file_name
 // The frame's file from its bands' records, as write_frame_file writes it:
 // a PNG whose bands are all png8+deflate is joined from their bytes
 // (png_from_bands: no pixel is decoded or compressed by the coordinator);
-// any other frame is stitched (stitch_frame) and encoded. With `sync` the
+// any other frame is stitched (stitch_frame) and encoded. A frame with a
+// cost map (FrameReady::cost_file_name) has it written first, from
+// stitch_cost, as the picture cost_map_image makes. With `sync` the
 // file is fsynced before its rename, and the directory after it unless
 // `sync_dir` is false (the caller syncs it once for several frames:
 // sync_directory).

@@ -806,7 +806,7 @@ Status Coordinator::watch(const std::string& job_id, const Caller& caller, Milli
 }
 
 Status Coordinator::fetch(const std::string& job_id, const Caller& caller,
-                          const std::vector<int>& frames, const ChunkSink& sink) {
+                          const std::vector<int>& frames, const ChunkSink& sink, bool cost_maps) {
   JobInfo info;
   {
     std::lock_guard lk(mu_);
@@ -814,6 +814,9 @@ Status Coordinator::fetch(const std::string& job_id, const Caller& caller,
     if (!r.ok()) return r.status();
     if (Status s = may_read(*r, caller); !s.ok()) return s;
     info = *r;
+  }
+  if (cost_maps && info.spec.cost_map.empty()) {
+    return FailedPrecondition("job " + job_id + " makes no cost maps (submit it with --cost-map)");
   }
   std::vector<int> want = frames.empty() ? info.frames_written : frames;
   std::sort(want.begin(), want.end());
@@ -827,10 +830,13 @@ Status Coordinator::fetch(const std::string& job_id, const Caller& caller,
   }
   std::vector<char> buf(kChunkBytes);
   for (int f : want) {
-    const std::string name = frame_path(info.spec.output, f);
+    const std::string name = frame_path(cost_maps ? info.spec.cost_map : info.spec.output, f);
     const fs::path path = fs::path(job_dir(job_id)) / name;
     std::ifstream in(path, std::ios::binary);
-    if (!in) return Internal(path.string() + ": cannot read the written frame");
+    if (!in) {
+      return Internal(path.string() + ": cannot read the written " +
+                      (cost_maps ? "cost map" : "frame"));
+    }
     int64_t offset = 0;
     for (;;) {
       in.read(buf.data(), buf.size());

@@ -187,9 +187,10 @@ class Coordinator {
                                      const Caller& caller = Caller::anyone());
   // The dashboard's images, read like job(): the path of a written frame's
   // file; the pixels of an accepted band of a frame not yet written
-  // (NotFound otherwise, e.g. once its frame is written).
+  // (NotFound otherwise, e.g. once its frame is written). `cost_map`: the
+  // path of the frame's cost map instead (NotFound for a job without).
   Result<std::string> frame_file(const std::string& job_id, int frame,
-                                 const Caller& caller = Caller::anyone());
+                                 const Caller& caller = Caller::anyone(), bool cost_map = false);
   Result<Image> band_image(const std::string& job_id, int frame, int band,
                            const Caller& caller = Caller::anyone());
   // `locus drain|disable|enable`: admins only (PERMISSION_DENIED). The
@@ -215,8 +216,10 @@ class Coordinator {
   Status watch(const std::string& job_id, const Caller& caller, Millis max,
                const CancelledFn& cancelled, const JobSink& sink);
   // Sends the written frame files; `frames` empty: all written so far.
+  // `cost_maps`: the frames' cost maps instead (FailedPrecondition for a
+  // job that makes none).
   Status fetch(const std::string& job_id, const Caller& caller, const std::vector<int>& frames,
-               const ChunkSink& sink);
+               const ChunkSink& sink, bool cost_maps = false);
 
   // ---- WorkerService ----
   // InvalidArgument for bad tags (check_tags).

@@ -33,13 +33,22 @@ namespace {
 // no pixels to check.
 void check_pixels(BandOutput& o) {
   if (o.handed_back || !o.error.empty()) return;
-  if (o.encoded.encoding == BandEncoding::kFloat32 && o.encoded.bytes.empty()) return;
-  if (!o.rgb.empty()) {
-    o.malformed = "both float rgb and encoded pixels";
-  } else if (Status s = check_band(o.encoded); !s.ok()) {
-    o.malformed = s.message();
+  const bool floats = o.encoded.encoding == BandEncoding::kFloat32 && o.encoded.bytes.empty();
+  if (!floats) {
+    if (!o.rgb.empty()) {
+      o.malformed = "both float rgb and encoded pixels";
+    } else if (Status s = check_band(o.encoded); !s.ok()) {
+      o.malformed = s.message();
+    }
+    o.rgb.clear();
   }
-  o.rgb.clear();
+  // The cost counts, for as many pixels as came (the scheduler checks
+  // that count against the lease).
+  if (o.malformed.empty() && !o.cost.empty()) {
+    const int64_t pixels = floats ? static_cast<int64_t>(o.rgb.size() / 3)
+                                  : static_cast<int64_t>(o.encoded.width) * o.encoded.rows;
+    if (Status s = check_band_cost(o.cost, pixels); !s.ok()) o.malformed = s.message();
+  }
 }
 
 }  // namespace
@@ -213,7 +222,7 @@ void Coordinator::complete_bands_async(std::vector<BandOutput> outputs,
   for (size_t i = 0; i < n; ++i) {
     if (!targets[i]) continue;
     const BandPixels rows{targets[i]->width, targets[i]->y0, targets[i]->y1};
-    records[i] = pack_band(rows, stored_band(outputs[i], rows));
+    records[i] = pack_band(rows, stored_band(outputs[i], rows), outputs[i].cost);
   }
   lk.lock();
   bool refusals = false;

@@ -92,7 +92,7 @@ Result<FrameDetail> Coordinator::frame_detail(const std::string& job_id, int fra
 }
 
 Result<std::string> Coordinator::frame_file(const std::string& job_id, int frame,
-                                            const Caller& caller) {
+                                            const Caller& caller, bool cost_map) {
   std::lock_guard lk(mu_);
   auto j = scheduler_.job(job_id);
   if (!j.ok()) return j.status();
@@ -101,7 +101,11 @@ Result<std::string> Coordinator::frame_file(const std::string& job_id, int frame
       j->frames_written.end()) {
     return NotFound("frame " + std::to_string(frame) + " of job " + job_id + " is not written");
   }
-  return (fs::path(job_dir(job_id)) / frame_path(j->spec.output, frame)).string();
+  if (cost_map && j->spec.cost_map.empty())
+    return NotFound("job " + job_id + " makes no cost maps");
+  return (fs::path(job_dir(job_id)) / frame_path(cost_map ? j->spec.cost_map : j->spec.output,
+                                                  frame))
+      .string();
 }
 
 Result<Image> Coordinator::band_image(const std::string& job_id, int frame, int band,

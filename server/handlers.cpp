@@ -241,8 +241,9 @@ Status Handlers::FetchResults(const v1::FetchResultsRequest& req, const farm::Ca
   if (req.frames_size() > kMaxFetchFrames)
     return InvalidArgument("frames: at most " + std::to_string(kMaxFetchFrames) + " per fetch");
   std::vector<int> frames(req.frames().begin(), req.frames().end());
-  return c_.fetch(req.job_id(), caller, frames,
-                  [&write](const farm::FileChunk& c) { return write(ToProto(c)); });
+  return c_.fetch(
+      req.job_id(), caller, frames,
+      [&write](const farm::FileChunk& c) { return write(ToProto(c)); }, req.cost_maps());
 }
 
 Status Handlers::Register(const v1::RegisterRequest& req, const std::string& peer,

@@ -506,6 +506,8 @@ HttpResponse HttpApi::route(const HttpRequest& req, const std::vector<std::strin
 // GET jobs/J/frames/F/image      the written frame as PNG (1:1)
 // GET jobs/J/frames/F/thumbnail  a box-filtered downscale, at most
 //                                thumbnail_width wide
+// GET jobs/J/frames/F/cost-map   the written frame's cost map as PNG (a job
+//                                submitted with a cost map; docs/cost-map.md)
 // GET jobs/J/frames/F/bands/B/image  an accepted band of a frame in progress
 // GET jobs/J/frames/1/movie      a movie job's movie (MP4, WebM or GIF)
 HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Caller& caller) {
@@ -527,10 +529,21 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
     r.headers.emplace_back("Cache-Control", "no-cache");
     return r;
   }
-  if (p.size() != 5 || (p[4] != "image" && p[4] != "thumbnail" && p[4] != "movie")) {
+  if (p.size() != 5 || (p[4] != "image" && p[4] != "thumbnail" && p[4] != "movie" &&
+                        p[4] != "cost-map")) {
     return error(404, "NOT_FOUND",
-                 "frames: the images are image, thumbnail and bands/B/image; a movie job's file "
-                 "is frames/1/movie");
+                 "frames: the images are image, thumbnail, cost-map and bands/B/image; a movie "
+                 "job's file is frames/1/movie");
+  }
+  if (p[4] == "cost-map") {
+    // A PNG for the browser whatever the cost map's format (the same values).
+    auto path = c_.frame_file(job, f, caller, /*cost_map=*/true);
+    if (!path.ok()) return error(path.status());
+    const fs::path png = fs::path(c_.job_dir(job)) / ".dashboard" / ("cost-" + std::to_string(f) + ".png");
+    std::lock_guard lk(images_mu_);
+    if (Status s = refresh(*path, png, [](const Image& i) -> Result<Image> { return i; }); !s.ok())
+      return error(s);
+    return png_file(png.string());
   }
   auto path = c_.frame_file(job, f, caller);
   if (!path.ok()) return error(path.status());

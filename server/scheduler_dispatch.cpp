@@ -254,6 +254,7 @@ BandLease Scheduler::make_lease(const Job& job, int job_band, const Lease& lease
   const auto worker = workers_.find(lease.worker_id);
   out.encoding = band_encoding_for(s.output,
                                    worker != workers_.end() && worker->second.info.png_deflate);
+  out.cost_map = !s.cost_map.empty();
   return out;
 }
 
@@ -480,9 +481,7 @@ Result<CompleteOutcome> Scheduler::complete_band(const BandOutput& out) {
   outcome.accepted = true;
   if (++job.frame_bands[frame] == s.bands) {
     job.frame_bands.erase(frame);
-    outcome.frame =
-        FrameReady{job.info.job_id, frame,       frame_path(s.output, frame), s.width, s.height,
-                   s.bands,         s.band_edges};
+    outcome.frame = frame_ready(job.info.job_id, s, frame);
   }
   ++version_;
   return outcome;

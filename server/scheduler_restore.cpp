@@ -139,8 +139,7 @@ std::vector<FrameReady> Scheduler::take_complete_frames(Job& job) {
   std::vector<FrameReady> ready;
   for (auto it = job.frame_bands.begin(); it != job.frame_bands.end();) {
     if (it->second == s.bands) {
-      ready.push_back(FrameReady{job.info.job_id, it->first, frame_path(s.output, it->first),
-                                 s.width, s.height, s.bands, s.band_edges});
+      ready.push_back(frame_ready(job.info.job_id, s, it->first));
       it = job.frame_bands.erase(it);
     } else {
       ++it;

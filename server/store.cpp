@@ -210,6 +210,7 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
         {"jobs", "fps", "fps INTEGER NOT NULL DEFAULT 0"},
         {"jobs", "notify_url", "notify_url TEXT NOT NULL DEFAULT ''"},
         {"jobs", "notify_pending", "notify_pending INTEGER NOT NULL DEFAULT 0"},
+        {"jobs", "cost_map", "cost_map TEXT NOT NULL DEFAULT ''"},
         // A lease's events live in its attempts row, not as two history
         // rows of text (issue #25 "compact history"): its cursors in the
         // history's sequence, its attempt number, the render time reported
@@ -289,8 +290,8 @@ Status JobStore::apply_one(const Event& e) {
                   "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
                   "spp, state, submitted_at, aa, tess_tol, band_edges, priority, frame_order, "
                   "band_timeout_ms, owner, require_tags, after_jobs, row_costs, kind, movie, fps, "
-                  "notify_url) "
-                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                  "notify_url, cost_map) "
+                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,
@@ -298,7 +299,8 @@ Status JobStore::apply_one(const Event& e) {
              std::string(label_name(kFrameOrderLabels, s.frame_order)),
              static_cast<int64_t>(s.band_timeout.count()), s.owner, words_text(s.require),
              words_text(s.after), costs_text(s.row_costs),
-             std::string(label_name(kJobKindLabels, s.kind)), s.movie, s.fps, s.notify_url);
+             std::string(label_name(kJobKindLabels, s.kind)), s.movie, s.fps, s.notify_url,
+             s.cost_map);
     if (Status st = ins.run(); !st.ok()) return st;
     if (s.kind == JobKind::kMovie) {
       return add_history(r.job_id, -1, -1,

@@ -79,7 +79,8 @@ Result<RecoveredState> JobStore::recover() {
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
       "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges, priority, "
       "frame_order, band_timeout_ms, owner, require_tags, after_jobs, band_seconds, "
-      "band_seconds_failed, band_seconds_lost, row_costs, kind, movie, fps, notify_url, notify_pending "
+      "band_seconds_failed, band_seconds_lost, row_costs, kind, movie, fps, notify_url, notify_pending, "
+      "cost_map "
       "FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();
@@ -134,6 +135,7 @@ Result<RecoveredState> JobStore::recover() {
     s.fps = static_cast<int>(jobs.integer(36));
     s.notify_url = jobs.text(37);
     j.notify_pending = jobs.integer(38) != 0;
+    s.cost_map = jobs.text(39);
     state.jobs.push_back(std::move(j));
   }
   for (RecoveredJob& j : state.jobs) {

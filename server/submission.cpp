@@ -68,38 +68,54 @@ Status check_size_and_frames(const SubmitRequest& r, const Scene& scene, const L
 }
 
 // The coordinator writes only under its data directory, so of the client's
-// pattern it keeps the file name alone.
-Result<std::string> output_file_pattern(const std::string& output, int frames) {
-  if (output.empty())
-    return InvalidArgument("output: a pattern such as out/shot_####.png is required");
+// pattern it keeps the file name alone. `what` names the setting in
+// messages ("output", "cost map"), `example` is a pattern for it.
+Result<std::string> file_pattern(const std::string& pattern, int frames, const std::string& what,
+                                 const std::string& example) {
+  if (pattern.empty())
+    return InvalidArgument(what + ": a pattern such as out/" + example + " is required");
   // Confined: the coordinator writes under its output root only, and says
   // so rather than quietly dropping what would lead elsewhere.
-  if (Status s = check_no_parent_refs(output, "output"); !s.ok()) return s;
-  if (fs::path(output).is_absolute()) {
-    return InvalidArgument("output '" + output +
-                           "': absolute paths are refused; the coordinator writes each job's "
-                           "frames under its output root, give a file name such as shot_####.png");
+  if (Status s = check_no_parent_refs(pattern, what); !s.ok()) return s;
+  const std::string quoted = what + " '" + pattern + "'";
+  if (fs::path(pattern).is_absolute()) {
+    return InvalidArgument(quoted +
+                           ": absolute paths are refused; the coordinator writes each job's "
+                           "frames under its output root, give a file name such as " +
+                           example);
   }
-  const std::string name = fs::path(output).filename().string();
+  const std::string name = fs::path(pattern).filename().string();
   if (name.empty() || name == "." || name == "..") {
-    return InvalidArgument("output '" + output +
-                           "': names no file; expected a pattern such as out/shot_####.png");
+    return InvalidArgument(quoted + ": names no file; expected a pattern such as out/" + example);
   }
   if (std::any_of(name.begin(), name.end(),
                   [](unsigned char c) { return c < 0x20 || c == 0x7f; })) {
-    return InvalidArgument("output: the file name contains control characters");
+    return InvalidArgument(what + ": the file name contains control characters");
   }
   const std::string ext = lower(fs::path(name).extension().string());
   if (ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff") {
-    return InvalidArgument("output '" + output + "': unsupported image type '" + ext +
+    return InvalidArgument(quoted + ": unsupported image type '" + ext +
                            "' (expected .png, .exr, .tif)");
   }
   if (frames > 1 && !has_frame_field(name)) {
-    return InvalidArgument(
-        "output '" + output + "': " + std::to_string(frames) +
-        " frames need a frame number field in the file name, e.g. shot_####.png");
+    return InvalidArgument(quoted + ": " + std::to_string(frames) +
+                           " frames need a frame number field in the file name, e.g. " + example);
   }
   return name;
+}
+
+// The cost maps' pattern (docs/cost-map.md "On the farm"): a file name of
+// its own beside the frames.
+Status check_cost_map(const SubmitRequest& r, JobSpec& spec) {
+  if (r.cost_map.empty()) return Status::Ok();
+  Result<std::string> name = file_pattern(r.cost_map, spec.frames(), "cost map", "cost_####.png");
+  if (!name.ok()) return name.status();
+  if (*name == spec.output) {
+    return InvalidArgument("cost map '" + r.cost_map +
+                           "': the frames' file name; give the cost maps a name of their own");
+  }
+  spec.cost_map = *name;
+  return Status::Ok();
 }
 
 // The band count asked for (0: the coordinator's default, chosen later).
@@ -198,13 +214,14 @@ Result<CheckedSubmission> check_submission(const SubmitRequest& r, const Limits&
   if (!std::isfinite(r.orbit_degrees))
     return InvalidArgument("orbit: must be a finite number of degrees");
   spec.orbit_degrees = r.orbit_degrees;
-  Result<std::string> pattern = output_file_pattern(r.output, spec.frames());
+  Result<std::string> pattern = file_pattern(r.output, spec.frames(), "output", "shot_####.png");
   if (!pattern.ok()) return pattern.status();
   spec.output = *pattern;
   if (Status s = check_bands(r.bands, spec); !s.ok()) return s;
   if (Status s = check_request_id(r.request_id); !s.ok()) return s;
   if (Status s = check_scheduling(r, spec); !s.ok()) return s;
   if (Status s = check_movie_and_notify(r, spec); !s.ok()) return s;
+  if (Status s = check_cost_map(r, spec); !s.ok()) return s;
   return job;
 }
 
@@ -222,6 +239,7 @@ std::string scheduling_fingerprint(const JobSpec& spec) {
   if (!spec.after.empty()) out += "|after " + words_text(spec.after);
   if (!spec.movie.empty()) out += "|movie " + spec.movie + " " + std::to_string(spec.fps);
   if (!spec.notify_url.empty()) out += "|notify " + spec.notify_url;
+  if (!spec.cost_map.empty()) out += "|cost-map " + spec.cost_map;
   return out;
 }
 }  // namespace

@@ -74,7 +74,10 @@ Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bo
     prepared_.push_front(Prepared{key, prepared});
     while (prepared_.size() > max_prepared_) prepared_.pop_back();
   }
-  BandResult band = render_band(*prepared, Band{t.y0, t.y1}, *params, abandon);
+  // A job with cost maps: the band's work per pixel too (docs/cost-map.md).
+  CostBuffer cost;
+  BandResult band =
+      render_band(*prepared, Band{t.y0, t.y1}, *params, abandon, t.cost_map ? &cost : nullptr);
   if (band.cancelled) {
     return Status(Code::kCancelled, "band abandoned: its lease was revoked or handed back");
   }
@@ -84,6 +87,11 @@ Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bo
   out.stats.seconds_prepare = prepare_seconds;
   // Like prepare time, tessellation is counted by the band that prepared.
   out.stats.seconds_tessellate = fresh ? prepared->seconds_tessellate : 0.0;
+  if (t.cost_map) {
+    auto bytes = encode_band_cost(cost);
+    if (!bytes.ok()) return bytes.status();
+    out.cost = std::move(*bytes);
+  }
   // Only what the job's output file keeps travels (band_codec.h).
   if (t.encoding != BandEncoding::kFloat32) {
     auto encoded = encode_band(t.encoding, t.width, t.y1 - t.y0, out.rgb);

@@ -287,6 +287,37 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
 
 namespace {
 
+// A zstd frame that must inflate to exactly `expected` bytes, into `out`.
+// The frame must say its size, and that size must be the expected one: a
+// payload claiming more is refused before anything is allocated.
+Status inflate_exactly(std::string_view bytes, size_t expected, const std::string& what,
+                       std::string& out) {
+  const unsigned long long claimed = ZSTD_getFrameContentSize(bytes.data(), bytes.size());
+  if (claimed == ZSTD_CONTENTSIZE_ERROR || claimed == ZSTD_CONTENTSIZE_UNKNOWN) {
+    return InvalidArgument(what + ": the payload is not a zstd frame with its size");
+  }
+  if (claimed != expected) {
+    std::string m = what;
+    m.append(": the zstd frame holds ").append(std::to_string(claimed));
+    m.append(" bytes, expected ").append(std::to_string(expected));
+    return InvalidArgument(m);
+  }
+  out.resize(expected);
+  // Bounded by the destination's size, whatever the frames say.
+  const size_t got = ZSTD_decompress(out.data(), out.size(), bytes.data(), bytes.size());
+  if (ZSTD_isError(got)) {
+    return InvalidArgument(what + ": corrupt or truncated zstd payload (" + ZSTD_getErrorName(got) +
+                           ")");
+  }
+  if (got != expected) {
+    std::string m = what;
+    m.append(": the zstd payload holds ").append(std::to_string(got));
+    m.append(" bytes, expected ").append(std::to_string(expected));
+    return InvalidArgument(m);
+  }
+  return Status::Ok();
+}
+
 // Every check decode_band makes, in one place. On success `inflated` holds
 // the band's bytes when they were compressed (the samples as pack() laid
 // them out, or png8+deflate's filtered rows); uncompressed float32 is
@@ -320,33 +351,7 @@ Status check_bytes(const EncodedBand& band, std::string& inflated) {
     m.append(std::to_string(expected));
     return InvalidArgument(m);
   }
-  // The frame must say its size, and that size must be the band's: a
-  // payload claiming more is refused before anything is allocated.
-  const unsigned long long claimed = ZSTD_getFrameContentSize(band.bytes.data(), band.bytes.size());
-  if (claimed == ZSTD_CONTENTSIZE_ERROR || claimed == ZSTD_CONTENTSIZE_UNKNOWN) {
-    return InvalidArgument(what + ": the payload is not a zstd frame with its size");
-  }
-  if (claimed != expected) {
-    std::string m = what;
-    m.append(": the zstd frame holds ").append(std::to_string(claimed));
-    m.append(" bytes, expected ").append(std::to_string(expected));
-    return InvalidArgument(m);
-  }
-  inflated.resize(expected);
-  // Bounded by the destination's size, whatever the frames say.
-  const size_t got =
-      ZSTD_decompress(inflated.data(), inflated.size(), band.bytes.data(), band.bytes.size());
-  if (ZSTD_isError(got)) {
-    return InvalidArgument(what + ": corrupt or truncated zstd payload (" + ZSTD_getErrorName(got) +
-                           ")");
-  }
-  if (got != expected) {
-    std::string m = what;
-    m.append(": the zstd payload holds ").append(std::to_string(got));
-    m.append(" bytes, expected ").append(std::to_string(expected));
-    return InvalidArgument(m);
-  }
-  return Status::Ok();
+  return inflate_exactly(band.bytes, expected, what, inflated);
 }
 
 }  // namespace
@@ -410,6 +415,94 @@ Result<std::string> png_from_bands(int width, int height, const std::vector<Enco
   put_be32(last, static_cast<uint32_t>(adler));
   idat.emplace_back(last);
   return png_file(width, height, PngTag::kLinear, idat);
+}
+
+namespace {
+
+// A cost buffer's planes: the five counts as little-endian uint32, each
+// field's pixels together, then a byte of flags per pixel.
+constexpr size_t kCostCounts = 5;
+constexpr size_t kCostBytesPerPixel = kCostCounts * 4 + 1;
+constexpr unsigned char kCostTraced = 1, kCostTracedSpan = 2;
+
+// Field k of a pixel (PixelCost or const PixelCost).
+template <class P>
+auto* cost_field(P& p, size_t k) {
+  decltype(&p.rays_eye) f[kCostCounts] = {&p.rays_eye, &p.rays_reflected, &p.rays_refracted, &p.rays_shadow,
+                              &p.tests_shadow_volume};
+  return f[k];
+}
+
+}  // namespace
+
+Result<std::string> encode_band_cost(const CostBuffer& cost) {
+  const size_t n = cost.pixels.size();
+  if (cost.width < 1 || cost.height() < 1 || n != static_cast<size_t>(cost.width) * cost.height())
+    return InvalidArgument("cannot encode the cost counts of a band of no pixels");
+  std::string raw(n * kCostBytesPerPixel, '\0');
+  for (size_t k = 0; k < kCostCounts; ++k) {
+    char* plane = raw.data() + k * n * 4;
+    for (size_t i = 0; i < n; ++i) {
+      const uint32_t v = *cost_field(cost.pixels[i], k);
+      for (int b = 0; b < 4; ++b) plane[i * 4 + b] = static_cast<char>((v >> (8 * b)) & 0xff);
+    }
+  }
+  char* flags = raw.data() + kCostCounts * n * 4;
+  for (size_t i = 0; i < n; ++i) {
+    flags[i] = static_cast<char>((cost.pixels[i].traced ? kCostTraced : 0) |
+                                 (cost.pixels[i].traced_span ? kCostTracedSpan : 0));
+  }
+  std::string z(ZSTD_compressBound(raw.size()), '\0');
+  const size_t got = ZSTD_compress(z.data(), z.size(), raw.data(), raw.size(), kZstdLevel);
+  if (ZSTD_isError(got)) return Internal(std::string("zstd: ") + ZSTD_getErrorName(got));
+  z.resize(got);
+  return z;
+}
+
+namespace {
+
+// Every check decode_band_cost makes but the flags': `raw` gets the planes.
+Status inflate_cost(std::string_view bytes, int64_t pixels, std::string& raw) {
+  const std::string what = "the cost counts of a band of " + std::to_string(pixels) + " pixels";
+  if (pixels < 1 || pixels > kMaxDecodedBandBytes / 12)
+    return InvalidArgument(what + ": the size is out of range");
+  return inflate_exactly(bytes, static_cast<size_t>(pixels) * kCostBytesPerPixel, what, raw);
+}
+
+}  // namespace
+
+Status check_band_cost(std::string_view bytes, int64_t pixels) {
+  std::string raw;
+  return inflate_cost(bytes, pixels, raw);
+}
+
+Result<CostBuffer> decode_band_cost(std::string_view bytes, int width, int y0, int y1) {
+  if (width < 1 || y1 <= y0) return InvalidArgument("the cost counts of a band of no pixels");
+  std::string raw;
+  if (Status s = inflate_cost(bytes, static_cast<int64_t>(width) * (y1 - y0), raw); !s.ok())
+    return s;
+  CostBuffer cost;
+  cost.reset(width, y0, y1);
+  const size_t n = cost.pixels.size();
+  const auto* u = reinterpret_cast<const unsigned char*>(raw.data());
+  for (size_t k = 0; k < kCostCounts; ++k) {
+    const unsigned char* plane = u + k * n * 4;
+    for (size_t i = 0; i < n; ++i) {
+      const unsigned char* b = plane + i * 4;
+      *cost_field(cost.pixels[i], k) = uint32_t{b[0]} | uint32_t{b[1]} << 8 |
+                                       uint32_t{b[2]} << 16 | uint32_t{b[3]} << 24;
+    }
+  }
+  const unsigned char* flags = u + kCostCounts * n * 4;
+  for (size_t i = 0; i < n; ++i) {
+    if (flags[i] & ~(kCostTraced | kCostTracedSpan)) {
+      return InvalidArgument("the cost counts of a band: pixel " + std::to_string(i) +
+                             " has unknown flags " + std::to_string(flags[i]));
+    }
+    cost.pixels[i].traced = flags[i] & kCostTraced;
+    cost.pixels[i].traced_span = flags[i] & kCostTracedSpan;
+  }
+  return cost;
 }
 
 }  // namespace locus::farm

@@ -37,8 +37,10 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "common/base/cost.h"
 #include "common/base/labels.h"
 #include "common/base/status.h"
 
@@ -105,5 +107,23 @@ Status check_band(const EncodedBand& band);
 // again. InvalidArgument when a band is of another encoding or width, or
 // the bands' rows do not add up to the height.
 Result<std::string> png_from_bands(int width, int height, const std::vector<EncodedBand>& bands);
+
+// A band's work per pixel (common/base/cost.h; docs/cost-map.md), as a
+// worker returns it with the band's pixels when the job makes cost maps
+// (CompleteBandRequest.cost) and the coordinator keeps it in the band's
+// record: the five counts of every pixel as little-endian uint32 planes
+// (all pixels' eye rays, then reflected, refracted, shadow rays, volume
+// tests), then one byte of flags a pixel (1 traced, 2 in a ray-traced
+// span), zstd-compressed. InvalidArgument for a buffer of no pixels.
+Result<std::string> encode_band_cost(const CostBuffer& cost);
+// The cost buffer of rows [y0, y1) of a `width`-pixel-wide frame from those
+// bytes. InvalidArgument naming the problem for a size out of range, a
+// payload that is not a zstd frame of exactly the size the rows need
+// (nothing larger is allocated), or unknown flags.
+Result<CostBuffer> decode_band_cost(std::string_view bytes, int width, int y0, int y1);
+// What decode_band_cost checks of the bytes' size and compression, for a
+// band of `pixels` pixels, without making the buffer (the coordinator's
+// check on arrival).
+Status check_band_cost(std::string_view bytes, int64_t pixels);
 
 }  // namespace locus::farm

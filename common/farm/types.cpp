@@ -165,4 +165,17 @@ std::string content_hash(std::string_view bytes) {
   return hex;
 }
 
+FrameReady frame_ready(const std::string& job_id, const JobSpec& spec, int frame) {
+  FrameReady f;
+  f.job_id = job_id;
+  f.frame = frame;
+  f.file_name = frame_path(spec.output, frame);
+  f.width = spec.width;
+  f.height = spec.height;
+  f.bands = spec.bands;
+  f.band_edges = spec.band_edges;
+  if (!spec.cost_map.empty()) f.cost_file_name = frame_path(spec.cost_map, frame);
+  return f;
+}
+
 }  // namespace locus::farm

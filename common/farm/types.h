@@ -152,6 +152,10 @@ struct JobSpec {
   int fps = 0;
   // POSTed the job's final status (JSON) when it ends; empty: nobody.
   std::string notify_url;
+  // The cost maps' file-name pattern ("cost_####.png", written beside the
+  // frames; docs/cost-map.md "On the farm"); empty: none. Its bands are
+  // leased with BandLease::cost_map.
+  std::string cost_map;
 
   int frames() const { return frame_last - frame_first + 1; }
   int64_t bands_total() const { return static_cast<int64_t>(frames()) * bands; }
@@ -199,6 +203,9 @@ struct BandLease {
   int frame_last = 0;
   // How the worker returns the pixels: band_encoding_for(the job's output).
   BandEncoding encoding = BandEncoding::kFloat32;
+  // Return the band's work per pixel too (BandOutput::cost): the job makes
+  // cost maps.
+  bool cost_map = false;
 };
 
 // What a worker returns for a band: its pixels (linear RGB floats, rows
@@ -217,6 +224,9 @@ struct BandOutput {
   // scheduler charges such a result as it charges pixels of the wrong size.
   std::string malformed;
   Stats stats;
+  // With BandLease::cost_map: the band's work per pixel, encode_band_cost's
+  // bytes; empty: none (not asked, or a worker of an older release).
+  std::string cost;
   std::string error;
   bool handed_back = false;  // the worker is stopping and gives the band back unrendered
   // What the worker logged for the band (BandLogCapture), kept with the job.
@@ -355,7 +365,11 @@ struct FrameReady {
   int height = 0;
   int bands = 0;
   std::vector<int> band_edges;  // as JobSpec::band_edges
+  // The frame's cost map's file name (JobSpec::cost_map); empty: none.
+  std::string cost_file_name;
 };
+// Frame `frame` of job `job_id`, whose bands are all in.
+FrameReady frame_ready(const std::string& job_id, const JobSpec& spec, int frame);
 
 // The state of the farm at one moment (Scheduler::counts()), for the
 // metrics' gauges.
@@ -387,6 +401,7 @@ struct SubmitRequest {
   std::string movie;                 // JobSpec::movie: a file name; empty: no movie
   int fps = 0;                       // of the movie; 0: kDefaultFps
   std::string notify_url;            // JobSpec::notify_url
+  std::string cost_map;              // JobSpec::cost_map: a file-name pattern; empty: none
   // The client's token for this submission, reused on retries: a second
   // submission with the same id returns the first one's job.
   std::string request_id;

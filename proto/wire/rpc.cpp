@@ -365,6 +365,7 @@ v1::JobStatus ToProto(const farm::JobInfo& j) {
   p.set_fps(j.spec.fps);
   p.set_movie_job(j.movie_job);
   p.set_notify_url(j.spec.notify_url);
+  p.set_cost_map(j.spec.cost_map);
   return p;
 }
 
@@ -404,6 +405,7 @@ farm::JobInfo FromProto(const v1::JobStatus& p) {
   j.spec.fps = p.fps();
   j.movie_job = p.movie_job();
   j.spec.notify_url = p.notify_url();
+  j.spec.cost_map = p.cost_map();
   return j;
 }
 
@@ -517,6 +519,7 @@ v1::BandTask ToProto(const farm::BandLease& t) {
   p.set_frame_first(t.frame_first);
   p.set_frame_last(t.frame_last);
   p.set_encoding(static_cast<v1::BandEncoding>(t.encoding));
+  p.set_cost_map(t.cost_map);
   return p;
 }
 
@@ -537,6 +540,7 @@ farm::BandLease FromProto(const v1::BandTask& p) {
   t.frame_first = p.frame_first();
   t.frame_last = p.frame_last();
   t.encoding = static_cast<farm::BandEncoding>(p.encoding());
+  t.cost_map = p.cost_map();
   return t;
 }
 
@@ -560,6 +564,7 @@ farm::SubmitRequest FromProto(const v1::JobSpec& p) {
   r.movie = p.movie();
   r.fps = p.fps();
   r.notify_url = p.notify_url();
+  r.cost_map = p.cost_map();
   return r;
 }
 
@@ -583,6 +588,7 @@ v1::JobSpec ToProto(const farm::SubmitRequest& r) {
   p.set_movie(r.movie);
   p.set_fps(r.fps);
   p.set_notify_url(r.notify_url);
+  p.set_cost_map(r.cost_map);
   return p;
 }
 
@@ -600,6 +606,7 @@ v1::CompleteBandRequest ToProto(farm::BandOutput&& o) {
     *p.mutable_pixels() = std::move(o.encoded.bytes);
   }
   *p.mutable_stats() = ToProto(o.stats);
+  *p.mutable_cost() = std::move(o.cost);
   p.set_error(o.error);
   p.set_handed_back(o.handed_back);
   for (const std::string& l : o.log_lines) p.add_log_lines(l);
@@ -617,6 +624,7 @@ farm::BandOutput FromProto(const v1::CompleteBandRequest& p) {
   o.encoded.rows = p.rows();
   o.encoded.bytes = p.pixels();
   o.stats = FromProto(p.stats());
+  o.cost = p.cost();
   o.error = p.error();
   o.handed_back = p.handed_back();
   o.log_lines.assign(p.log_lines().begin(), p.log_lines().end());

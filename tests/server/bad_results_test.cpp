@@ -143,6 +143,34 @@ TEST_F(BadResults, EncodedPixelsOfAnotherShapeAreRefused) {
   accept(*b_, again);
 }
 
+// Cost counts (a job with cost maps, docs/cost-map.md) that do not decode,
+// or are of another band's size: the whole result is refused as malformed,
+// naming the lease and the counts, and nothing of it is kept.
+TEST_F(BadResults, MalformedCostCountsAreRefusedWithTheirPixels) {
+  const BandLease t = take(*a_, a_job_);
+  const int pixels = t.width * (t.y1 - t.y0);
+  CostBuffer other;
+  other.reset(t.width, 0, t.y1 - t.y0 + 1);
+  for (const std::string& cost : {std::string("not zstd"), *encode_band_cost(other)}) {
+    const BandLease lease = cost == "not zstd" ? t : take(*b_, a_job_);
+    EXPECT_EQ(lease.band, t.band);
+    BandOutput out = (cost == "not zstd" ? a_ : b_)->render(lease);
+    out.cost = cost;
+    auto r = c_->complete_band(out);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
+    const std::string& why = r.status().message();
+    EXPECT_NE(why.find("lease '" + lease.lease_id + "'"), std::string::npos) << why;
+    EXPECT_NE(why.find("cost counts of a band of " + std::to_string(pixels) + " pixels"),
+              std::string::npos)
+        << why;
+    expect_nothing_stored(lease);
+  }
+  const BandLease again = take(*a_, a_job_);
+  EXPECT_EQ(again.band, t.band);
+  accept(*a_, again);
+}
+
 TEST_F(BadResults, AnotherWorkersLeaseIsRefusedAndStaysItsHolders) {
   const BandLease t = take(*a_, a_job_);
   auto r = c_->complete_band(b_->render(t));  // b returns a's band

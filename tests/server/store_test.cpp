@@ -331,9 +331,78 @@ TEST(BandFiles, PackUnpackAndRejectTornOrForeignRecords) {
   EXPECT_EQ(*decoded, *direct);
 }
 
+// A job with cost maps: the band's counts ride in its record (LOCBAND3),
+// checked by the same checksum; a record without them (LOCBAND2, a job
+// without cost maps, or an older worker) has none; stitch_cost joins a
+// frame's bands' counts, leaving a band without counts zero.
+TEST(BandFiles, CostCountsRideInTheRecordAndAreJoinedIntoTheFrames) {
+  const FrameReady f{"j0001", 2, "f_0002.exr", 4, 5, 2, {0, 2, 5}, "c_0002.png"};
+  CostBuffer want;
+  want.reset(4, 0, 5);
+  for (size_t i = 0; i < want.pixels.size(); ++i) {
+    want.pixels[i].rays_eye = static_cast<uint32_t>(i + 1);
+    want.pixels[i].tests_shadow_volume = static_cast<uint32_t>(3 * i);
+    want.pixels[i].traced = i % 3 == 0;
+    want.pixels[i].traced_span = i % 6 == 0;
+  }
+  std::map<int, std::string> records;
+  for (int b = 0; b < 2; ++b) {
+    const Band rows = band_rows(5, 2, f.band_edges, b);
+    const BandPixels px{4, rows.y0, rows.y1};
+    CostBuffer part;
+    part.reset(4, rows.y0, rows.y1);
+    std::copy(want.pixels.begin() + rows.y0 * 4, want.pixels.begin() + rows.y1 * 4,
+              part.pixels.begin());
+    const std::vector<float> rgb(static_cast<size_t>(4) * (rows.y1 - rows.y0) * 3, 0.5f);
+    records[b] = pack_band(px, float_band(px, rgb), *encode_band_cost(part));
+    // The pixels read as from any record; the counts come back as sent.
+    auto pixels = unpack_band(records[b], px);
+    ASSERT_TRUE(pixels.ok()) << pixels.status().message();
+    EXPECT_EQ(*pixels, rgb);
+    auto counts = unpack_cost(records[b], px);
+    ASSERT_TRUE(counts.ok());
+    EXPECT_EQ(*counts, *encode_band_cost(part));
+    // A flipped bit in the counts fails the checksum: neither is trusted.
+    std::string flipped = records[b];
+    flipped[flipped.size() - 12] ^= 0x10;
+    EXPECT_FALSE(unpack_band(flipped, px).ok());
+    EXPECT_FALSE(unpack_cost(flipped, px).ok());
+    // A record without counts has none.
+    auto plain = unpack_cost(pack_band(px, float_band(px, rgb)), px);
+    ASSERT_TRUE(plain.ok());
+    EXPECT_TRUE(plain->empty());
+  }
+  const auto lookup = [&](int band) -> Result<std::string_view> {
+    auto it = records.find(band);
+    if (it == records.end()) return NotFound("band " + std::to_string(band));
+    return std::string_view(it->second);
+  };
+  auto joined = stitch_cost(f, lookup);
+  ASSERT_TRUE(joined.ok()) << joined.status().message();
+  ASSERT_EQ(joined->pixels.size(), want.pixels.size());
+  for (size_t i = 0; i < want.pixels.size(); ++i) {
+    EXPECT_EQ(joined->pixels[i].rays_eye, want.pixels[i].rays_eye) << i;
+    EXPECT_EQ(joined->pixels[i].tests_shadow_volume, want.pixels[i].tests_shadow_volume) << i;
+    EXPECT_EQ(joined->pixels[i].traced_span, want.pixels[i].traced_span) << i;
+  }
+  // A band without counts (a worker of an older release): its rows zero.
+  {
+    const BandPixels px{4, 2, 5};
+    records[1] = pack_band(px, float_band(px, std::vector<float>(36, 0.5f)));
+  }
+  joined = stitch_cost(f, lookup);
+  ASSERT_TRUE(joined.ok()) << joined.status().message();
+  EXPECT_EQ(joined->pixels[7].rays_eye, 8u);
+  EXPECT_EQ(joined->pixels[8].rays_eye, 0u);
+  EXPECT_EQ(joined->totals().rays_eye, 1u + 2 + 3 + 4 + 5 + 6 + 7 + 8);
+  // A missing band is an error naming it.
+  records.erase(0);
+  EXPECT_EQ(stitch_cost(f, lookup).status().code(), Code::kNotFound);
+}
+
 TEST(BandFiles, StitchAFrameFromItsBandRecords) {
   TempDir dir;
-  const FrameReady f{"j0001", 4, "f_0004.exr", 5, 7, 3, {}};
+  const FrameReady f{"j0001", 4, "f_0004.exr", 5, 7, 3, {}, ""};
   Image expected(5, 7);
   for (size_t i = 0; i < expected.rgb.size(); ++i) expected.rgb[i] = static_cast<float>(i);
   std::map<int, std::string> records;
@@ -371,7 +440,7 @@ TEST(BandFiles, APngFrameIsJoinedFromDeflatedBandsOrElseStitched) {
   TempDir dir;
   const int width = 6, height = 9;
   const std::vector<int> edges{0, 2, 7, 9};
-  const FrameReady f{"j0001", 3, "f_0003.png", width, height, 3, edges};
+  const FrameReady f{"j0001", 3, "f_0003.png", width, height, 3, edges, ""};
   Image expected(width, height);
   for (size_t i = 0; i < expected.rgb.size(); ++i)
     expected.rgb[i] = static_cast<float>((i * 37) % 256) / 255.0f;
