@@ -267,14 +267,43 @@ function jobView(jobId, pinned) {
   const detail = el('div', {class: 'detail', id: 'band-detail',
                             text: 'Click a band for its stats and log.'});
   const events = el('pre', {id: 'events'});
+  // A job with cost maps (locus submit --cost-map; docs/cost-map.md): the
+  // shown frame's map, the work its bands' workers counted per pixel.
+  const costBox = el('div', {id: 'cost-box'});
   main.replaceChildren(head, el('h2', {text: 'Frames'}), thumbs,
                        el('div', {class: 'row'}, el('div', {}, partialTitle, partial),
                           el('div', {}, el('h2', {id: 'bandmap-title', text: 'Band map'}), mapBox),
                           detail),
+                       costBox,
                        el('h2', {text: 'Events'}), el('div', {class: 'events'}, events));
-  let after = 0, shownFrame = null, strips = {};
+  let after = 0, shownFrame = null, strips = {}, costShown = null;
   const thumbLoaded = new Set();
   const movieBox = el('div', {class: 'movie', id: 'movie'});
+
+  async function showCostMap(j, f, written) {
+    if (!j.cost_map) {
+      costBox.replaceChildren();
+      return;
+    }
+    if (written && costShown === f) return;
+    const title = el('h2', {text: `Cost map of frame ${f}`});
+    if (!written) {
+      costBox.replaceChildren(title, el('p', {class: 'muted', id: 'cost-map-wait',
+                                             text: 'The cost map is written with the frame.'}));
+      costShown = null;
+      return;
+    }
+    const img = el('img', {id: 'cost-map', class: 'costmap', alt: `cost map of frame ${f}`});
+    costBox.replaceChildren(
+        title,
+        el('div', {class: 'legend',
+                   text: 'rays and shadow-volume tests per pixel, as counted by the bands\' ' +
+                         'workers (log scale; the scale at the bottom); cyan outline: spans ' +
+                         'ray traced'}),
+        img);
+    await loadImage(img, `jobs/${q}/frames/${f}/cost-map`);
+    costShown = f;
+  }
 
   async function renderFrame(j, f) {
     const frame = await api(`jobs/${q}/frames/${f}`);
@@ -292,6 +321,7 @@ function jobView(jobId, pinned) {
       strips = {};
       shownFrame = f;
     }
+    await showCostMap(j, f, frame.written);
     const g = partial.getContext('2d');
     if (frame.written) {
       if (!strips.whole) {

@@ -251,6 +251,44 @@ TEST_F(HttpApiTest, FramesThumbnailsBandsAndTheFarmsCursor) {
 }
 
 // A raw HTTP/1.1 exchange with 127.0.0.1:port: the whole answer.
+// A job's cost maps (docs/cost-map.md "On the farm"): the frame's map as a
+// PNG for the browser, the written map's values; none for a job without,
+// nor for a frame not written, nor for another user's job.
+TEST_F(HttpApiTest, AFramesCostMapIsServedForAJobThatMakesThem) {
+  start();
+  make_api();
+  add_workers(2);
+  SubmitRequest r = request(kGlass, 48, 36, 1, 1, 3, "cm_####.png");
+  r.cost_map = "cost_####.exr";
+  const std::string job = submit(r, "ann");
+  const std::string plain = submit(request(kGlass, 16, 12, 1, 1, 1, "p_####.png"), "ann");
+  for (const std::string& j : {job, plain}) {
+    auto done = client_->watch(j, [](const JobInfo&) {});
+    ASSERT_TRUE(done.ok());
+    ASSERT_EQ(done->state, JobState::kSucceeded);
+  }
+  const rpc::HttpResponse map = call("GET", "/api/v1/jobs/" + job + "/frames/1/cost-map");
+  ASSERT_EQ(map.status, 200) << map.body;
+  EXPECT_EQ(map.content_type, "image/png");
+  auto shown = read_image(map.file);
+  auto written = read_image(coordinator_->job_dir(job) + "/cost_0001.exr");
+  ASSERT_TRUE(shown.ok() && written.ok());
+  ASSERT_EQ(shown->rgb.size(), written->rgb.size());
+  double worst = 0;
+  for (size_t i = 0; i < shown->rgb.size(); ++i)
+    worst = std::max(worst, std::abs(double{shown->rgb[i]} - written->rgb[i]));
+  EXPECT_LE(worst, 0.5 / 255 + 1e-6);  // the PNG's 8 bits of the EXR's values
+  const rpc::HttpResponse none = call("GET", "/api/v1/jobs/" + plain + "/frames/1/cost-map");
+  EXPECT_EQ(none.status, 404);
+  EXPECT_NE(none.body.find("makes no cost maps"), std::string::npos) << none.body;
+  EXPECT_EQ(call("GET", "/api/v1/jobs/" + job + "/frames/2/cost-map").status, 404);
+  EXPECT_EQ(call("GET", "/api/v1/jobs/" + job + "/frames/1/cost-map", "").status, 401);
+  // The job's status names the pattern.
+  const rpc::HttpResponse status = call("GET", "/api/v1/jobs/" + job);
+  EXPECT_NE(status.body.find("\"cost_map\":\"cost_####.exr\""), std::string::npos)
+      << status.body;
+}
+
 std::string http_exchange(int port, const std::string& request, int timeout_seconds = 5) {
   sockaddr_in a{};
   a.sin_family = AF_INET;

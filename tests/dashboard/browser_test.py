@@ -7,6 +7,8 @@ its network namespace). Checks, each printed as "ok: ..." or "FAILED: ...":
 - pausing from the job page stops new leases (checked through the CLI:
   `locus status`, `locus events`), resuming finishes the job;
 - the frame page's image equals the fetched frame exactly (both decoded);
+- a job submitted with --cost-map shows its frame's cost map on its page,
+  equal to the fetched map (max error 0); a job without shows none;
   a thumbnail is within 2/255 of a box-filtered downscale of the frame;
 - the band map has one strip per band, the timed-out band is marked, and
   the predicted cost per row is drawn beside it;
@@ -219,6 +221,32 @@ def main():
         wait_for(lambda: "Attempts" in driver.find_element(By.ID, "band-detail").text, 5)
         driver.execute_script("document.getElementById('bandmap').scrollIntoView();")
         shot("bandmap")
+
+        # ---- a job with cost maps: the job page shows the frame's map, the
+        # very picture the coordinator wrote (fetched with `locus fetch`)
+        cost_job = locus("submit", a.scene, "--size", "96x72", "--bands", "3", "-o",
+                         "cm_####.png", "--cost-map", "cmc_####.png").stdout.strip()
+        done = wait_for(lambda: "succeeded" in locus("status", cost_job).stdout, 60, 0.5)
+        check(done, f"the cost-map job {cost_job} succeeds")
+        got = os.path.join(a.work, "fetched-cost")
+        locus("fetch", cost_job, got)
+        written = os.path.join(got, "cmc_0001.png")
+        driver.get(a.url + f"/#/job/{cost_job}/1")
+        img = wait_for(lambda: driver.execute_script(
+            "const i = document.getElementById('cost-map'); return i && i.complete && "
+            "i.naturalWidth > 0 && i;"), 15)
+        if check(img and os.path.exists(written), "the job page shows the frame's cost map"):
+            want = np.asarray(Image.open(written).convert("RGB"), dtype=np.int32)
+            shown = pixels(img)
+            check(shown.shape == want.shape and int(np.abs(shown - want).max()) == 0,
+                  "the shown cost map equals the fetched one (max error 0)",
+                  f"{shown.shape} vs {want.shape}")
+            driver.execute_script("document.getElementById('cost-box').scrollIntoView();")
+            shot("costmap")
+        driver.get(a.url + f"/#/job/{job}/1")
+        wait_for(lambda: driver.find_elements(By.CSS_SELECTOR, "#bandmap .strip"), 10)
+        check(not driver.find_elements(By.ID, "cost-map"),
+              "a job without cost maps shows none")
 
         driver.get(a.url + "/#/worker/w0002")
         wait_for(lambda: driver.find_elements(By.CSS_SELECTOR, "#worker-attempts tr td"), 10)

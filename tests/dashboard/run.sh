@@ -68,9 +68,11 @@ for _ in $(seq 100); do
 done
 locus workers >/dev/null 2>&1 || { cat "$tmp/coordinator.log"; fail "the coordinator did not start"; }
 
+# Each worker's pid is its own (exec, twice: the subshell becomes `ip netns
+# exec`, which becomes the worker), so that killing the hung one kills it.
 worker() {  # worker NAME MS_PER_BAND
-  in_ns "$bin/locus-worker" --coordinator $farm --token-file "$tmp/worker.tok" --threads 1 \
-    --name "$1" --test-slow-band-ms "$2" --abandon-grace 1 >>"$tmp/workers.log" 2>&1 &
+  (exec ip netns exec $ns "$bin/locus-worker" --coordinator $farm --token-file "$tmp/worker.tok" \
+    --threads 1 --name "$1" --test-slow-band-ms "$2" --abandon-grace 1 >>"$tmp/workers.log" 2>&1) &
   pids+=($!)
 }
 # The hung worker first, so that it takes the first band.

@@ -328,6 +328,29 @@ class FarmTest(unittest.TestCase):
             self.farm.submit(SPHERES, out="x.exr", movie="x.mp4")
         self.assertEqual(e.exception.code, C.INVALID_ARGUMENT)
 
+    def test_cost_maps_are_written_beside_the_frames_and_fetched(self):
+        # One band a frame: each map is the single process's, pixel for
+        # pixel (docs/cost-map.md "On the farm").
+        job = self.farm.submit(SPHERES, frames=(1, 2), out="cm_####.png", size=(40, 30), bands=1,
+                               cost_map="maps/cmc_####.png")
+        status = self.farm.wait(job)
+        self.assertEqual(status.state, "succeeded", status.error)
+        self.assertEqual(status.cost_map, "cmc_####.png")
+        reference = self.tmpdir()
+        render_in_process(SPHERES, reference, "cm_####.png", "--size", "40x30", "--frames", "1-2",
+                          "--cost-map", os.path.join(reference, "cmc_####.png"))
+        maps = self.farm.fetch(job, self.tmpdir(), cost_maps=True)
+        self.assertSameFrames(maps, reference, ["cmc_0001.png", "cmc_0002.png"])
+        frames = self.farm.fetch(job, self.tmpdir())
+        self.assertSameFrames(frames, reference, ["cm_0001.png", "cm_0002.png"])
+        # A job without cost maps has none to fetch; a bad pattern is refused.
+        plain = self.farm.submit(SPHERES, out="pl_####.png", size=(16, 12))
+        self.farm.wait(plain)
+        self.assertFarmError(C.FAILED_PRECONDITION, self.farm.fetch, plain, self.tmpdir(),
+                             cost_maps=True)
+        self.assertFarmError(C.INVALID_ARGUMENT, self.farm.submit, SPHERES, out="x_####.png",
+                             cost_map="x_####.jpg")
+
     def test_tls_with_the_farms_ca(self):
         ca = os.path.join(TLS, "ca.pem")
         with locus.Farm(TLS_FARM, token=ANN, ca=ca) as f:

@@ -266,7 +266,8 @@ class Farm:
     def submit(self, scene, frames=(1, 1), out="frame_####.png", size=None, bands=0,
                priority=50, after=(), require=(), method=None, spp=None, aa=None, orbit=0.0,
                request_id=None, boxes=None, tess_tol=None, frame_order=None,
-               band_timeout=None, scene_name=None, movie=None, fps=None, notify_url=None):
+               band_timeout=None, scene_name=None, movie=None, fps=None, notify_url=None,
+               cost_map=None):
         """Submits a job; returns its id ("j0007").
 
         scene: a locus.v1.Scene (locus.Scene), the path of a scene file in
@@ -292,6 +293,10 @@ class Farm:
         notify_url: POSTed the job's final status as JSON when it ends (with
             a movie, when the movie is made); the farm's --notify-urls must
             allow it.
+        cost_map: a pattern like `out` ("cost_####.png"; .png, .exr, .tif)
+            for a cost map of each frame, written beside it: where the work
+            went, per pixel (docs/cost-map.md). fetch(..., cost_maps=True)
+            downloads them.
         request_id: the submission's idempotency key; default a fresh uuid4,
             sent again on every retry of this call, so the job is created
             once however many attempts reached the farm. A retry with the
@@ -310,7 +315,9 @@ class Farm:
                                  frame_order=frame_order or "", require=list(require),
                                  after=list(after),
                                  movie=os.path.basename(os.fspath(movie)) if movie else "",
-                                 fps=fps or 0, notify_url=notify_url or "")
+                                 fps=fps or 0, notify_url=notify_url or "",
+                                 cost_map=os.path.basename(os.fspath(cost_map)) if cost_map
+                                 else "")
         if size is not None:
             width, height = _size(size)
             # As the CLI does: the scene's camera gets the size too.
@@ -464,19 +471,22 @@ class Farm:
             if len(response.lines) < MAX_EVENTS_PER_CALL:
                 return out
 
-    def fetch(self, job_id, directory, frames=None):
+    def fetch(self, job_id, directory, frames=None, cost_maps=False):
         """Downloads the job's written frames (`frames`: those frame numbers;
         None: every frame written so far) into `directory`, created if
         needed, under the file names the farm gives (shot_0007.png). Each
         file is written to NAME.partial and renamed into place. Returns the
-        paths written, in the order received.
+        paths written, in the order received. `cost_maps`: the frames' cost
+        maps instead (a job submitted with cost_map; FAILED_PRECONDITION
+        for one without).
 
         A name that is not a plain file name is refused (INVALID_ARGUMENT)
         before anything is written; a frame not written yet is an error of
         the farm's (FAILED_PRECONDITION).
         """
         directory = os.fspath(directory)
-        request = locus_pb2.FetchResultsRequest(job_id=job_id, frames=list(frames or ()))
+        request = locus_pb2.FetchResultsRequest(job_id=job_id, frames=list(frames or ()),
+                                                cost_maps=cost_maps)
         call = self._stub.FetchResults(request, timeout=DATA_CALL, metadata=self._metadata)
         written = []
         out = tmp = path = None
