@@ -1,6 +1,6 @@
 # Helpers the farm's process tests share (sourced by tests/faults/run.sh,
-# tests/farm_operations.sh, tests/farm_processes.sh, tests/backup/run.sh and
-# tests/slurm/run.sh). For signal_busy, the caller defines holding_band PID:
+# tests/farm_operations.sh, tests/farm_processes.sh, tests/backup/run.sh,
+# tests/cost_map/run.sh and tests/slurm/run.sh). For signal_busy, the caller defines holding_band PID:
 # whether that worker (named host:PID) holds a lease now.
 
 # same_pixels A B: both images exist and hold the same pixels, exactly
@@ -9,6 +9,19 @@
 # compressed otherwise than a single-process render's.
 same_pixels() {
   idiff -fail 0 -warn 0 "$1" "$2" >/dev/null 2>&1
+}
+
+# listening_port OUT: the port a coordinator started with --listen HOST:0
+# prints on its stdout (OUT, the line "listening on port N"), waited for up
+# to 5 s; empty when none came.
+listening_port() {
+  local port=
+  for _ in $(seq 100); do
+    port=$(sed -n 's/^listening on port //p' "$1" 2>/dev/null)
+    [ -n "$port" ] && break
+    sleep 0.05
+  done
+  echo "$port"
 }
 
 # signal_busy SIG PID...: freezes each worker in turn and sends SIG to the

@@ -10,7 +10,7 @@
 # "N passed, M failed".
 set -uo pipefail
 bin=$1 shared=$2 src=$3
-. "$(dirname "${BASH_SOURCE[0]}")/farm_lib.sh"  # same_pixels
+. "$(dirname "${BASH_SOURCE[0]}")/farm_lib.sh"  # same_pixels, listening_port
 tmp=$(mktemp -d)
 pids=()
 cleanup() {
@@ -95,12 +95,7 @@ chmod 600 "$tmp/client.tokens" "$tmp/worker.tokens"
   --client-tokens "$tmp/client.tokens" --worker-tokens "$tmp/worker.tokens" \
   >"$tmp/coord.out" 2>"$tmp/coord.log" &
 pids+=($!)
-port=
-for _ in $(seq 100); do
-  port=$(sed -n 's/^listening on port //p' "$tmp/coord.out")
-  [ -n "$port" ] && break
-  sleep 0.05
-done
+port=$(listening_port "$tmp/coord.out")
 [ -n "$port" ] || { bad "coordinator did not start"; cat "$tmp/coord.log"; exit 1; }
 farm=127.0.0.1:$port
 wflags=(--tls-ca "$tls/ca.pem" --tls-cert "$tls/client.pem" --tls-key "$tls/client.key" --token-file "$tmp/worker.tokens")

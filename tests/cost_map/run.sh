@@ -131,12 +131,8 @@ bin=$(dirname "$locus")
 "$bin/locus-coordinator" --listen 127.0.0.1:0 --data "$tmp/farm" --insecure \
   >"$tmp/coord.out" 2>"$tmp/coord.log" &
 cpid=$!
-port=
-for _ in $(seq 100); do
-  port=$(sed -n 's/^listening on port //p' "$tmp/coord.out")
-  [ -n "$port" ] && break
-  sleep 0.05
-done
+. "$src/tests/farm_lib.sh"  # listening_port
+port=$(listening_port "$tmp/coord.out")
 farm=127.0.0.1:$port
 "$bin/locus-worker" --coordinator "$farm" 2>"$tmp/worker.log" &
 wpid=$!
