@@ -315,7 +315,8 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
   farm::SubmitRequest& request = job->request;
   if (request.bands == 0) {
     request.bands = farm::default_bands(request.width, request.height,
-                                        request.frame_last - request.frame_first + 1, workers);
+                                        request.frame_last - request.frame_first + 1, workers,
+                                        !request.cost_map.empty());
   }
   if (cost_split_pays(request.bands, 0) != cost_split_pays(request.bands, workers)) {
     if (Status ready = (*local)->wait_for_workers(); !ready.ok()) {

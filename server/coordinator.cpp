@@ -503,7 +503,8 @@ Status Coordinator::count_bands(int bands, CheckedSubmission& job) {
   JobSpec& spec = job.spec;
   spec.bands = bands > 0 ? bands
                          : default_bands(spec.width, spec.height, spec.frames(),
-                                         static_cast<int>(scheduler_.worker_count()));
+                                         static_cast<int>(scheduler_.worker_count()),
+                                         !spec.cost_map.empty());
   if (spec.bands_total() > options_.limits.max_bands) {
     return InvalidArgument(std::to_string(spec.frames()) + " frames x " +
                            std::to_string(spec.bands) + " bands: at most " +

@@ -120,7 +120,7 @@ Status check_cost_map(const SubmitRequest& r, JobSpec& spec) {
 
 // The band count asked for (0: the coordinator's default, chosen later).
 Status check_bands(int bands, const JobSpec& spec) {
-  const int least = min_bands(spec.width, spec.height);
+  const int least = min_bands(spec.width, spec.height, !spec.cost_map.empty());
   if (bands < 0 || bands > spec.height) {
     return InvalidArgument("bands " + std::to_string(bands) + ": expected 1.." +
                            std::to_string(spec.height) + " (a band is at least one row of the " +
@@ -129,7 +129,8 @@ Status check_bands(int bands, const JobSpec& spec) {
   if (bands > 0 && bands < least) {
     return InvalidArgument("bands " + std::to_string(bands) + ": a " + std::to_string(spec.width) +
                            "x" + std::to_string(spec.height) + " frame needs at least " +
-                           std::to_string(least) + " bands so that each fits in one message");
+                           std::to_string(least) + " bands so that each fits in one message" +
+                           (spec.cost_map.empty() ? "" : " with its cost counts"));
   }
   return Status::Ok();
 }
@@ -217,11 +218,12 @@ Result<CheckedSubmission> check_submission(const SubmitRequest& r, const Limits&
   Result<std::string> pattern = file_pattern(r.output, spec.frames(), "output", "shot_####.png");
   if (!pattern.ok()) return pattern.status();
   spec.output = *pattern;
+  // Before the bands: a job's cost counts travel with its pixels.
+  if (Status s = check_cost_map(r, spec); !s.ok()) return s;
   if (Status s = check_bands(r.bands, spec); !s.ok()) return s;
   if (Status s = check_request_id(r.request_id); !s.ok()) return s;
   if (Status s = check_scheduling(r, spec); !s.ok()) return s;
   if (Status s = check_movie_and_notify(r, spec); !s.ok()) return s;
-  if (Status s = check_cost_map(r, spec); !s.ok()) return s;
   return job;
 }
 

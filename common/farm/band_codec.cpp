@@ -423,6 +423,7 @@ namespace {
 // field's pixels together, then a byte of flags per pixel.
 constexpr size_t kCostCounts = 5;
 constexpr size_t kCostBytesPerPixel = kCostCounts * 4 + 1;
+static_assert(kCostBytesPerPixel == kCostCountBytes);
 constexpr unsigned char kCostTraced = 1, kCostTracedSpan = 2;
 
 // Field k of a pixel (PixelCost or const PixelCost).

@@ -116,6 +116,8 @@ Result<std::string> png_from_bands(int width, int height, const std::vector<Enco
 // tests), then one byte of flags a pixel (1 traced, 2 in a ray-traced
 // span), zstd-compressed. InvalidArgument for a buffer of no pixels.
 Result<std::string> encode_band_cost(const CostBuffer& cost);
+// The counts' bytes a pixel before zstd.
+inline constexpr int kCostCountBytes = 21;
 // The cost buffer of rows [y0, y1) of a `width`-pixel-wide frame from those
 // bytes. InvalidArgument naming the problem for a size out of range, a
 // payload that is not a zstd frame of exactly the size the rows need

@@ -103,12 +103,13 @@ Result<std::vector<int>> band_edges_from_text(const std::string& text, int heigh
   return edges;
 }
 
-int min_bands(int width, int height) {
-  const int64_t frame_bytes = static_cast<int64_t>(width) * height * 3 * 4;
+int min_bands(int width, int height, bool cost_counts) {
+  const int64_t frame_bytes =
+      static_cast<int64_t>(width) * height * (3 * 4 + (cost_counts ? kCostCountBytes : 0));
   return static_cast<int>(std::max<int64_t>(1, (frame_bytes + kMaxBandBytes - 1) / kMaxBandBytes));
 }
 
-int default_bands(int width, int height, int frames, int workers) {
+int default_bands(int width, int height, int frames, int workers, bool cost_counts) {
   // 16 bands per worker (at least 2 workers' worth, as workers may join
   // later) spread over the frames: rows differ in cost by orders of
   // magnitude (sky against glass), so many small bands keep the last band's
@@ -117,7 +118,7 @@ int default_bands(int width, int height, int frames, int workers) {
   // speed of 1 worker where 16 bands gave 1.5x.
   const int64_t target = 16 * static_cast<int64_t>(std::max(workers, 2));
   const int64_t per_frame = (target + frames - 1) / std::max(frames, 1);
-  const int64_t n = std::max<int64_t>(per_frame, min_bands(width, height));
+  const int64_t n = std::max<int64_t>(per_frame, min_bands(width, height, cost_counts));
   return static_cast<int>(std::clamp<int64_t>(n, 1, std::max(height, 1)));
 }
 

@@ -179,9 +179,12 @@ Result<std::vector<int>> band_edges_from_text(const std::string& text, int heigh
 // every worker busy with several each, fewer per frame when the frames
 // themselves give the parallelism, and at least enough that every band fits
 // in one message.
-int default_bands(int width, int height, int frames, int workers);
-// The fewest bands whose pixels each fit in kMaxBandBytes.
-int min_bands(int width, int height);
+// `cost_counts`: the bands carry their cost counts too (JobSpec::cost_map).
+int default_bands(int width, int height, int frames, int workers, bool cost_counts = false);
+// The fewest bands whose pixels each fit in kMaxBandBytes: 12 bytes a
+// pixel (the floats, the largest encoding), and with `cost_counts` the
+// counts' kCostCountBytes more, in case they do not compress.
+int min_bands(int width, int height, bool cost_counts = false);
 
 // A band leased to a worker: everything a stateless worker needs but the
 // scene, which it fetches once per hash. On the wire it is v1::BandTask,

@@ -75,6 +75,13 @@ TEST(DefaultBands, SeveralPerWorkerWithinLimits) {
   EXPECT_EQ(default_bands(64, 3, 1, 8), 3);       // never more than the rows
   EXPECT_GE(default_bands(16384, 16384, 1, 1), min_bands(16384, 16384));
   EXPECT_GT(min_bands(16384, 16384), 1);
+  // With cost counts (a job with cost maps) a band carries 21 bytes a pixel
+  // more, in case they do not compress: more bands, each still in a message.
+  EXPECT_GT(min_bands(16384, 16384, true), min_bands(16384, 16384));
+  const int n = min_bands(16384, 16384, true);
+  const int64_t rows = (16384 + n - 1) / n;  // the tallest of n bands
+  EXPECT_LE(rows * 16384 * (12 + kCostCountBytes), kMaxMessageBytes - (1 << 20));
+  EXPECT_GE(default_bands(16384, 16384, 1, 1, true), min_bands(16384, 16384, true));
 }
 
 TEST_F(SchedulerTest, FramesAreReadyWhenTheirLastBandIsIn) {
