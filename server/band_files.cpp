@@ -223,14 +223,18 @@ Status write_frame_file(const std::string& job_dir, const std::string& file_name
 Status sync_directory(const std::string& dir) { return fsync_path(dir, true); }
 
 Result<CostBuffer> stitch_cost(const FrameReady& f,
-                               const std::function<Result<std::string_view>(int band)>& record) {
+                               const std::function<Result<std::string_view>(int band)>& record,
+                               int* bands_in) {
   CostBuffer cost;
   cost.reset(f.width, 0, f.height);
+  if (bands_in) *bands_in = 0;
   for (int b = 0; b < f.bands; ++b) {
     const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
     const std::string where = "band " + std::to_string(b) + " of frame " + std::to_string(f.frame);
     auto bytes = record(b);
+    if (bands_in && !bytes.ok() && bytes.status().code() == Code::kNotFound) continue;
     if (!bytes.ok()) return bytes.status();
+    if (bands_in) ++*bands_in;
     auto counts = unpack_cost(*bytes, {f.width, rows.y0, rows.y1});
     if (!counts.ok()) return Status(counts.status().code(), where + ": " + counts.status().message());
     if (counts->empty()) {

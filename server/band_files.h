@@ -58,9 +58,12 @@ Result<Image> stitch_frame(const FrameReady& frame,
                            const std::function<Result<std::string>(int band)>& record);
 // One frame's cost counts from its bands' records (unpack_cost,
 // decode_band_cost); a band without counts (an older worker) leaves its
-// rows zero, with a warning in the log.
+// rows zero, with a warning in the log. With `bands_in`, a band whose
+// record is NotFound (not done yet) leaves its rows zero too, and
+// `bands_in` counts those that were there (a frame in progress).
 Result<CostBuffer> stitch_cost(const FrameReady& frame,
-                               const std::function<Result<std::string_view>(int band)>& record);
+                               const std::function<Result<std::string_view>(int band)>& record,
+                               int* bands_in = nullptr);
 // Writes the image as job_dir/file_name through a temporary name (the
 // extension kept, by which write_image picks the format), fsyncing file and
 // directory when `sync`.

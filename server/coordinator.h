@@ -193,6 +193,13 @@ class Coordinator {
                                  const Caller& caller = Caller::anyone(), bool cost_map = false);
   Result<Image> band_image(const std::string& job_id, int frame, int band,
                            const Caller& caller = Caller::anyone());
+  // A job with cost maps, a frame not yet written: the cost map of the
+  // bands accepted so far (their counts joined, the others' rows empty),
+  // as cost_map_image draws it; `bands_in` gets how many bands it holds.
+  // NotFound for a job without cost maps, a frame out of range, or a
+  // frame already written (its file is frame_file(..., true)).
+  Result<Image> partial_cost_map(const std::string& job_id, int frame, int* bands_in,
+                                 const Caller& caller = Caller::anyone());
   // `locus drain|disable|enable`: admins only (PERMISSION_DENIED). The
   // worker by id or name; returns its name.
   Result<std::string> drain_worker(const std::string& worker, const Caller& caller);

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <map>
 
+#include "common/base/cost_map.h"
 #include "server/band_files.h"
 #include "server/coordinator.h"
 
@@ -135,6 +136,46 @@ Result<Image> Coordinator::band_image(const std::string& job_id, int frame, int 
   Image image(rows.width, rows.y1 - rows.y0);
   image.rgb = std::move(*pixels);
   return image;
+}
+
+Result<Image> Coordinator::partial_cost_map(const std::string& job_id, int frame, int* bands_in,
+                                            const Caller& caller) {
+  FrameReady f;
+  {
+    std::lock_guard lk(mu_);
+    auto j = scheduler_.job(job_id);
+    if (!j.ok()) return j.status();
+    if (Status s = may_read(*j, caller); !s.ok()) return s;
+    const JobSpec& s = j->spec;
+    if (s.cost_map.empty()) return NotFound("job " + job_id + " makes no cost maps");
+    if (frame < s.frame_first || frame > s.frame_last) {
+      return NotFound("frame " + std::to_string(frame) + ": job " + job_id + " has frames " +
+                      std::to_string(s.frame_first) + "-" + std::to_string(s.frame_last));
+    }
+    if (std::find(j->frames_written.begin(), j->frames_written.end(), frame) !=
+        j->frames_written.end()) {
+      return NotFound("frame " + std::to_string(frame) + " of job " + job_id +
+                      " is written: its cost map is the written file");
+    }
+    f = frame_ready(job_id, s, frame);
+  }
+  // Outside the lock, through the reader connection: each band's record as
+  // it stands (a band not done has none; a frame written meanwhile has
+  // none either, and shows empty until the next look finds its file).
+  std::string held;
+  int in = 0;
+  auto cost = stitch_cost(
+      f,
+      [&](int band) -> Result<std::string_view> {
+        auto record = read_band_record(job_id, frame, band);
+        if (!record.ok()) return record.status();
+        held = std::move(*record);
+        return std::string_view(held);
+      },
+      &in);
+  if (!cost.ok()) return cost.status();
+  if (bands_in) *bands_in = in;
+  return cost_map_image(*cost);
 }
 
 Result<WorkerDetail> Coordinator::worker_detail(const std::string& worker, const Caller& caller) {

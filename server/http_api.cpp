@@ -503,11 +503,25 @@ HttpResponse HttpApi::route(const HttpRequest& req, const std::vector<std::strin
                "jobs: the actions are pause, resume, cancel, retry, requeue, priority and delete");
 }
 
+HttpResponse HttpApi::png_now(const Image& image) {
+  std::lock_guard lk(images_mu_);
+  auto bytes = encode_png(image, PngTag::kDisplay);
+  if (!bytes.ok()) return error(bytes.status());
+  HttpResponse r;
+  r.content_type = "image/png";
+  r.body = std::move(*bytes);
+  r.headers.emplace_back("Cache-Control", "no-cache");
+  return r;
+}
+
 // GET jobs/J/frames/F/image      the written frame as PNG (1:1)
 // GET jobs/J/frames/F/thumbnail  a box-filtered downscale, at most
 //                                thumbnail_width wide
-// GET jobs/J/frames/F/cost-map   the written frame's cost map as PNG (a job
-//                                submitted with a cost map; docs/cost-map.md)
+// GET jobs/J/frames/F/cost-map   the frame's cost map as PNG (a job submitted
+//                                with a cost map; docs/cost-map.md): the
+//                                written file's, or for a frame in progress
+//                                the bands accepted so far (header
+//                                X-Locus-Bands-In: how many)
 // GET jobs/J/frames/F/bands/B/image  an accepted band of a frame in progress
 // GET jobs/J/frames/1/movie      a movie job's movie (MP4, WebM or GIF)
 HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Caller& caller) {
@@ -520,14 +534,7 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
     if (!band.ok()) return error(band.status());
     auto pixels = c_.band_image(job, f, static_cast<int>(*band), caller);
     if (!pixels.ok()) return error(pixels.status());
-    std::lock_guard lk(images_mu_);
-    auto bytes = encode_png(*pixels, PngTag::kDisplay);
-    if (!bytes.ok()) return error(bytes.status());
-    HttpResponse r;
-    r.content_type = "image/png";
-    r.body = std::move(*bytes);
-    r.headers.emplace_back("Cache-Control", "no-cache");
-    return r;
+    return png_now(*pixels);
   }
   if (p.size() != 5 || (p[4] != "image" && p[4] != "thumbnail" && p[4] != "movie" &&
                         p[4] != "cost-map")) {
@@ -536,9 +543,18 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
                  "job's file is frames/1/movie");
   }
   if (p[4] == "cost-map") {
-    // A PNG for the browser whatever the cost map's format (the same values).
     auto path = c_.frame_file(job, f, caller, /*cost_map=*/true);
+    if (!path.ok() && path.status().code() == Code::kNotFound) {
+      // A frame in progress: the bands accepted so far, drawn now.
+      int in = 0;
+      auto partial = c_.partial_cost_map(job, f, &in, caller);
+      if (!partial.ok()) return error(partial.status());
+      HttpResponse r = png_now(*partial);
+      r.headers.emplace_back("X-Locus-Bands-In", std::to_string(in));
+      return r;
+    }
     if (!path.ok()) return error(path.status());
+    // A PNG for the browser whatever the cost map's format (the same values).
     const fs::path png = fs::path(c_.job_dir(job)) / ".dashboard" / ("cost-" + std::to_string(f) + ".png");
     std::lock_guard lk(images_mu_);
     if (Status s = refresh(*path, png, [](const Image& i) -> Result<Image> { return i; }); !s.ok())

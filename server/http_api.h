@@ -78,6 +78,8 @@ class HttpApi {
   HttpResponse route(const HttpRequest& request, const std::vector<std::string>& parts,
                      const farm::Caller& caller);
   HttpResponse image(const std::vector<std::string>& parts, const farm::Caller& caller);
+  // An image made for this request, as a PNG tagged for display.
+  HttpResponse png_now(const Image& image);
   bool allow(const std::string& remote);
   // The answer under `key` if made less than options_.reuse ago, else
   // `make`'s (kept when it succeeded).

@@ -280,29 +280,34 @@ function jobView(jobId, pinned) {
   const thumbLoaded = new Set();
   const movieBox = el('div', {class: 'movie', id: 'movie'});
 
-  async function showCostMap(j, f, written) {
+  // While the frame renders, the map of its bands done so far (redrawn as
+  // bands come in: its scale is of those bands); once written, the file.
+  async function showCostMap(j, f, frame) {
     if (!j.cost_map) {
       costBox.replaceChildren();
       return;
     }
-    if (written && costShown === f) return;
-    const title = el('h2', {text: `Cost map of frame ${f}`});
-    if (!written) {
-      costBox.replaceChildren(title, el('p', {class: 'muted', id: 'cost-map-wait',
-                                             text: 'The cost map is written with the frame.'}));
-      costShown = null;
-      return;
-    }
-    const img = el('img', {id: 'cost-map', class: 'costmap', alt: `cost map of frame ${f}`});
+    const done = (frame.bands || []).filter((b) => b.state === 'done').length;
+    const key = `${f}:${frame.written ? 'written' : done}`;
+    if (costShown === key) return;
+    const img = el('img', {id: 'cost-map', class: 'costmap', alt: `cost map of frame ${f}`,
+                           dataset: {written: frame.written ? '1' : '0', bands: done}});
     costBox.replaceChildren(
-        title,
+        el('h2', {text: frame.written ? `Cost map of frame ${f}`
+                                      : `Cost map of frame ${f}: ${done} of ` +
+                                        `${(frame.bands || []).length} bands so far`}),
         el('div', {class: 'legend',
                    text: 'rays and shadow-volume tests per pixel, as counted by the bands\' ' +
                          'workers (log scale; the scale at the bottom); cyan outline: spans ' +
                          'ray traced'}),
         img);
-    await loadImage(img, `jobs/${q}/frames/${f}/cost-map`);
-    costShown = f;
+    costShown = key;
+    if (done === 0 && !frame.written) return;
+    try {
+      await loadImage(img, `jobs/${q}/frames/${f}/cost-map`);
+    } catch (e) {
+      costShown = null;  // written meanwhile, or not yet readable: the next poll tries again
+    }
   }
 
   async function renderFrame(j, f) {
@@ -321,7 +326,7 @@ function jobView(jobId, pinned) {
       strips = {};
       shownFrame = f;
     }
-    await showCostMap(j, f, frame.written);
+    await showCostMap(j, f, frame);
     const g = partial.getContext('2d');
     if (frame.written) {
       if (!strips.whole) {

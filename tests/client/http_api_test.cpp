@@ -15,10 +15,12 @@
 #include <cmath>
 #include <fstream>
 
+#include "common/base/cost_map.h"
 #include "server/http_api.h"
 #include "server/http_server.h"
 #include "tests/farm_fixture.h"
 #include "tests/raw_http.h"
+#include "tests/server/coordinator_doubles.h"
 
 namespace locus::farm::testing_farm {
 namespace {
@@ -287,6 +289,55 @@ TEST_F(HttpApiTest, AFramesCostMapIsServedForAJobThatMakesThem) {
   const rpc::HttpResponse status = call("GET", "/api/v1/jobs/" + job);
   EXPECT_NE(status.body.find("\"cost_map\":\"cost_####.exr\""), std::string::npos)
       << status.body;
+}
+
+// A frame in progress of a job with cost maps: frames/F/cost-map draws the
+// bands accepted so far (their counts joined, the rest empty), says how
+// many, and once the frame is written serves the written map.
+TEST_F(HttpApiTest, AFrameInProgressShowsItsBandsCostsSoFar) {
+  start();
+  make_api();
+  SubmitRequest r = request(kGlass, 40, 30, 1, 1, 2, "ip_####.png");
+  r.cost_map = "ipc_####.png";
+  const std::string job = submit(r, "ann");
+  test_doubles::TestWorker w(*coordinator_, "w:1");
+  const auto first = w.take();
+  ASSERT_TRUE(first.has_value());
+  ASSERT_TRUE(first->cost_map);  // the lease asks for the counts
+  const BandOutput out = w.render(*first);
+  ASSERT_FALSE(out.cost.empty());
+  ASSERT_TRUE(coordinator_->complete_band(out).ok());
+  const rpc::HttpResponse partial = call("GET", "/api/v1/jobs/" + job + "/frames/1/cost-map");
+  ASSERT_EQ(partial.status, 200) << partial.body;
+  EXPECT_TRUE(has_header(partial, "X-Locus-Bands-In", "1"));
+  // The picture: the first band's own counts in its rows, nothing below.
+  CostBuffer counts;
+  counts.reset(40, 0, 30);
+  auto band = decode_band_cost(out.cost, 40, first->y0, first->y1);
+  ASSERT_TRUE(band.ok());
+  std::copy(band->pixels.begin(), band->pixels.end(),
+            counts.pixels.begin() + static_cast<size_t>(first->y0) * 40);
+  const fs::path want_png = dir_ / "want.png", got_png = dir_ / "got.png";
+  ASSERT_TRUE(write_image(want_png.string(), cost_map_image(counts), true).ok());
+  ASSERT_TRUE(write_file(got_png.string(), partial.body).ok());
+  auto want = read_image(want_png.string());
+  auto got = read_image(got_png.string());
+  ASSERT_TRUE(want.ok() && got.ok());
+  EXPECT_EQ(got->rgb, want->rgb);
+  // The second band: the frame is written, and its file is served.
+  const auto second = w.take();
+  ASSERT_TRUE(second.has_value());
+  ASSERT_TRUE(w.complete(*second));
+  for (int i = 0; i < 200 && coordinator_->job(job)->frames_done < 1; ++i)
+    std::this_thread::sleep_for(Millis(10));
+  const rpc::HttpResponse whole = call("GET", "/api/v1/jobs/" + job + "/frames/1/cost-map");
+  ASSERT_EQ(whole.status, 200) << whole.body;
+  EXPECT_FALSE(has_header(whole, "X-Locus-Bands-In", ""));
+  auto shown = read_image(whole.file);
+  auto written = read_image(coordinator_->job_dir(job) + "/ipc_0001.png");
+  ASSERT_TRUE(shown.ok() && written.ok());
+  EXPECT_EQ(shown->rgb, written->rgb);
+  EXPECT_EQ(call("GET", "/api/v1/jobs/" + job + "/frames/9/cost-map").status, 404);
 }
 
 std::string http_exchange(int port, const std::string& request, int timeout_seconds = 5) {

@@ -7,8 +7,10 @@ its network namespace). Checks, each printed as "ok: ..." or "FAILED: ...":
 - pausing from the job page stops new leases (checked through the CLI:
   `locus status`, `locus events`), resuming finishes the job;
 - the frame page's image equals the fetched frame exactly (both decoded);
-- a job submitted with --cost-map shows its frame's cost map on its page,
-  equal to the fetched map (max error 0); a job without shows none;
+- a job submitted with --cost-map shows, while its frame renders (paused),
+  the map of the bands done so far, equal to the one the API draws of them,
+  and once written the frame's cost map, equal to the fetched map (max
+  error 0); a job without shows none;
   a thumbnail is within 2/255 of a box-filtered downscale of the frame;
 - the band map has one strip per band, the timed-out band is marked, and
   the predicted cost per row is drawn beside it;
@@ -222,10 +224,41 @@ def main():
         driver.execute_script("document.getElementById('bandmap').scrollIntoView();")
         shot("bandmap")
 
-        # ---- a job with cost maps: the job page shows the frame's map, the
+        # ---- a job with cost maps: while its frame renders, the job page
+        # shows the map of the bands done so far (paused there, so that it
+        # holds still: the image the API draws for them); once written, the
         # very picture the coordinator wrote (fetched with `locus fetch`)
-        cost_job = locus("submit", a.scene, "--size", "96x72", "--bands", "3", "-o",
+        cost_job = locus("submit", a.scene, "--size", "96x72", "--bands", "12", "-o",
                          "cm_####.png", "--cost-map", "cmc_####.png").stdout.strip()
+        # (int64 fields are strings in proto3's JSON)
+        some = wait_for(lambda: int(api(f"jobs/{cost_job}")["bands_done"]) >= 2, 20, 0.02)
+        locus("pause", cost_job)
+        wait_for(lambda: int(api(f"jobs/{cost_job}")["bands_running"]) == 0, 20)
+        status = api(f"jobs/{cost_job}")
+        in_progress = some and int(status["frames_done"]) == 0
+        check(in_progress, f"the cost-map job paused with its frame in progress "
+                           f"({status['bands_done']} of 12 bands)")
+        if in_progress:
+            driver.get(a.url + f"/#/job/{cost_job}/1")
+            img = wait_for(lambda: driver.execute_script(
+                "const i = document.getElementById('cost-map'); return i && i.complete && "
+                "i.naturalWidth > 0 && i.dataset.written === '0' && i;"), 15)
+            req = urllib.request.Request(a.url + f"/api/v1/jobs/{cost_job}/frames/1/cost-map",
+                                         headers={"Authorization": "Bearer " + ann})
+            with urllib.request.urlopen(req, timeout=10) as r:
+                bands_in = r.headers.get("X-Locus-Bands-In")
+                drawn = np.asarray(Image.open(io.BytesIO(r.read())).convert("RGB"), dtype=np.int32)
+            ok = img is not None and bands_in == str(int(status["bands_done"]))
+            if check(ok, f"the page shows the map of the bands done so far ({bands_in} in)"):
+                shown = pixels(img)
+                check(shown.shape == drawn.shape and int(np.abs(shown - drawn).max()) == 0 and
+                      drawn[:, :, :].max() > 0,
+                      "it is the map the API draws of them (max error 0), not blank")
+                heading = driver.find_element(By.CSS_SELECTOR, "#cost-box h2").text
+                check(f"{int(status['bands_done'])} of 12 bands" in heading, "its title says how many",
+                      heading)
+                shot("costmap-in-progress")
+        locus("resume", cost_job)
         done = wait_for(lambda: "succeeded" in locus("status", cost_job).stdout, 60, 0.5)
         check(done, f"the cost-map job {cost_job} succeeds")
         got = os.path.join(a.work, "fetched-cost")
@@ -234,7 +267,7 @@ def main():
         driver.get(a.url + f"/#/job/{cost_job}/1")
         img = wait_for(lambda: driver.execute_script(
             "const i = document.getElementById('cost-map'); return i && i.complete && "
-            "i.naturalWidth > 0 && i;"), 15)
+            "i.naturalWidth > 0 && i.dataset.written === '1' && i;"), 15)
         if check(img and os.path.exists(written), "the job page shows the frame's cost map"):
             want = np.asarray(Image.open(written).convert("RGB"), dtype=np.int32)
             shown = pixels(img)
