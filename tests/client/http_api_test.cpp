@@ -252,7 +252,6 @@ TEST_F(HttpApiTest, FramesThumbnailsBandsAndTheFarmsCursor) {
   EXPECT_NE(w.body.find(job), std::string::npos);
 }
 
-// A raw HTTP/1.1 exchange with 127.0.0.1:port: the whole answer.
 // A job's cost maps (docs/cost-map.md "On the farm"): the frame's map as a
 // PNG for the browser, the written map's values; none for a job without,
 // nor for a frame not written, nor for another user's job.
@@ -340,6 +339,7 @@ TEST_F(HttpApiTest, AFrameInProgressShowsItsBandsCostsSoFar) {
   EXPECT_EQ(call("GET", "/api/v1/jobs/" + job + "/frames/9/cost-map").status, 404);
 }
 
+// A raw HTTP/1.1 exchange with 127.0.0.1:port: the whole answer.
 std::string http_exchange(int port, const std::string& request, int timeout_seconds = 5) {
   sockaddr_in a{};
   a.sin_family = AF_INET;
