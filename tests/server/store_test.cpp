@@ -18,6 +18,7 @@
 #include <set>
 #include <thread>
 
+#include "common/base/cost_map.h"
 #include "common/base/image.h"
 #include "common/render.h"
 #include "common/scene/animation.h"
@@ -598,6 +599,59 @@ TEST(CoordinatorRestart, ResumesWithoutRenderingABandTwiceOrLosingOne) {
   expect_frames_identical(b, end, r);
   b.shutdown();
   expect_each_band_once(dir.path, end);
+}
+
+// A job with cost maps across a crash: the bands accepted before it keep
+// their counts in their records (LOCBAND3), so the frame's map, written
+// after the restart, is the picture of every band's own counts.
+TEST(CoordinatorRestart, CostCountsOfBandsDoneBeforeACrashReachTheMap) {
+  TempDir dir;
+  SubmitRequest r = spheres(1, 1, 3);
+  r.cost_map = "c_####.png";
+  std::string job;
+  CostBuffer counts;
+  counts.reset(r.width, 0, r.height);
+  const auto keep = [&](const BandLease& t, const BandOutput& out) {
+    auto band = decode_band_cost(out.cost, t.width, t.y0, t.y1);
+    ASSERT_TRUE(band.ok()) << band.status().message();
+    std::copy(band->pixels.begin(), band->pixels.end(),
+              counts.pixels.begin() + static_cast<size_t>(t.y0) * t.width);
+  };
+  {
+    Coordinator a(options(dir.path));
+    ASSERT_TRUE(a.start().ok());
+    auto submitted = a.submit(r);
+    ASSERT_TRUE(submitted.ok()) << submitted.status().message();
+    job = submitted->job_id;
+    TestWorker w(a, "first:1");
+    for (int i = 0; i < 2; ++i) {
+      auto t = w.take();
+      ASSERT_TRUE(t && t->cost_map);
+      const BandOutput out = w.render(*t);
+      keep(*t, out);
+      auto done = a.complete_band(out);
+      ASSERT_TRUE(done.ok() && done->accepted);
+    }
+    a.crash_for_test();
+  }
+  Coordinator b(options(dir.path));
+  ASSERT_TRUE(b.start().ok());
+  TestWorker w(b, "second:2");
+  auto t = w.take();
+  ASSERT_TRUE(t && t->cost_map);
+  const BandOutput out = w.render(*t);
+  keep(*t, out);
+  ASSERT_TRUE(b.complete_band(out).ok());
+  const JobInfo end = wait_for_end(b, job);
+  ASSERT_EQ(end.state, JobState::kSucceeded) << end.error;
+  const fs::path want = dir.path / "want.png";
+  ASSERT_TRUE(write_image(want.string(), cost_map_image(counts), true).ok());
+  auto map = read_image(b.job_dir(job) + "/c_0001.png");
+  auto expected = read_image(want.string());
+  ASSERT_TRUE(map.ok() && expected.ok());
+  EXPECT_EQ(map->rgb, expected->rgb);
+  EXPECT_GT(counts.totals().rays_eye, 0u);
+  b.shutdown();
 }
 
 TEST(CoordinatorRestart, CrashAtRandomMomentsLosesAndDuplicatesNothing) {
