@@ -177,7 +177,6 @@ Status write_stats(const std::string& path, const Stats& stats) {
   return Status::Ok();
 }
 
-
 // --movie of `locus render --workers 0`: the frames just written, made
 // into the movie here, as a farm's coordinator would.
 Status make_movie_here(const JobArgs& a, const farm::SubmitRequest& r) {

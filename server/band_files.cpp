@@ -1,6 +1,7 @@
 #include "server/band_files.h"
 
 #include <fcntl.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -9,8 +10,6 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-
-#include <spdlog/spdlog.h>
 
 #include "common/base/cost_map.h"
 #include "server/syncs.h"
@@ -236,7 +235,8 @@ Result<CostBuffer> stitch_cost(const FrameReady& f,
     if (!bytes.ok()) return bytes.status();
     if (bands_in) ++*bands_in;
     auto counts = unpack_cost(*bytes, {f.width, rows.y0, rows.y1});
-    if (!counts.ok()) return Status(counts.status().code(), where + ": " + counts.status().message());
+    if (!counts.ok())
+      return Status(counts.status().code(), where + ": " + counts.status().message());
     if (counts->empty()) {
       // A worker of an older release ignores BandTask.cost_map.
       spdlog::warn("job {}: {} came without its cost counts; its rows of the cost map {} are empty",
@@ -278,8 +278,8 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
     *cost = CostBuffer{};
     Status st = write_atomically(
         job_dir, f.cost_file_name,
-        [&](const std::string& path) { return write_image(path, map, /*for_display=*/true); },
-        sync, /*sync_dir=*/false);
+        [&](const std::string& path) { return write_image(path, map, /*for_display=*/true); }, sync,
+        /*sync_dir=*/false);
     if (!st.ok()) return st;
   }
   // A PNG whose bands all came as png8+deflate: joined as they are

@@ -34,8 +34,7 @@ struct BandPixels {
 // A band's record for the store: a header with its rows and encoding, the
 // encoded bytes, the band's cost counts when it has them (encode_band_cost's
 // bytes; empty: none), the FNV-1a hash of all.
-std::string pack_band(const BandPixels& rows, const EncodedBand& band,
-                      std::string_view cost = {});
+std::string pack_band(const BandPixels& rows, const EncodedBand& band, std::string_view cost = {});
 // The encoded band of a record, checked against the expected rows and its
 // checksum: a torn, foreign or corrupted record is an error, never pixels.
 // Also reads the band files of 0.13.

@@ -104,8 +104,8 @@ Result<std::string> Coordinator::frame_file(const std::string& job_id, int frame
   }
   if (cost_map && j->spec.cost_map.empty())
     return NotFound("job " + job_id + " makes no cost maps");
-  return (fs::path(job_dir(job_id)) / frame_path(cost_map ? j->spec.cost_map : j->spec.output,
-                                                  frame))
+  return (fs::path(job_dir(job_id)) /
+          frame_path(cost_map ? j->spec.cost_map : j->spec.output, frame))
       .string();
 }
 

@@ -536,8 +536,8 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
     if (!pixels.ok()) return error(pixels.status());
     return png_now(*pixels);
   }
-  if (p.size() != 5 || (p[4] != "image" && p[4] != "thumbnail" && p[4] != "movie" &&
-                        p[4] != "cost-map")) {
+  if (p.size() != 5 ||
+      (p[4] != "image" && p[4] != "thumbnail" && p[4] != "movie" && p[4] != "cost-map")) {
     return error(404, "NOT_FOUND",
                  "frames: the images are image, thumbnail, cost-map and bands/B/image; a movie "
                  "job's file is frames/1/movie");
@@ -555,7 +555,8 @@ HttpResponse HttpApi::image(const std::vector<std::string>& p, const farm::Calle
     }
     if (!path.ok()) return error(path.status());
     // A PNG for the browser whatever the cost map's format (the same values).
-    const fs::path png = fs::path(c_.job_dir(job)) / ".dashboard" / ("cost-" + std::to_string(f) + ".png");
+    const fs::path png =
+        fs::path(c_.job_dir(job)) / ".dashboard" / ("cost-" + std::to_string(f) + ".png");
     std::lock_guard lk(images_mu_);
     if (Status s = refresh(*path, png, [](const Image& i) -> Result<Image> { return i; }); !s.ok())
       return error(s);

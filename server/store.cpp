@@ -285,13 +285,14 @@ Status JobStore::apply_one(const Event& e) {
   if (const auto* a = std::get_if<event::JobAdded>(&e)) {
     const JobRecord& r = a->job;
     const JobSpec& s = r.spec;
-    Statement ins(*this,
-                  "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
-                  "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
-                  "spp, state, submitted_at, aa, tess_tol, band_edges, priority, frame_order, "
-                  "band_timeout_ms, owner, require_tags, after_jobs, row_costs, kind, movie, fps, "
-                  "notify_url, cost_map) "
-                  "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    Statement ins(
+        *this,
+        "INSERT INTO jobs(seq, id, request_id, fingerprint, scene_hash, scene_name, "
+        "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, "
+        "spp, state, submitted_at, aa, tess_tol, band_edges, priority, frame_order, "
+        "band_timeout_ms, owner, require_tags, after_jobs, row_costs, kind, movie, fps, "
+        "notify_url, cost_map) "
+        "VALUES(?,?,NULLIF(?, ''),?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     ins.bind(r.seq, r.job_id, r.request_id, r.fingerprint, s.scene_hash, s.scene_name, s.width,
              s.height, s.frame_first, s.frame_last, s.bands, s.output, s.orbit_degrees,
              s.render.method, s.render.boxes, s.render.spp, job_state_name(JobState::kQueued), now,

@@ -79,8 +79,8 @@ Result<RecoveredState> JobStore::recover() {
       "width, height, frame_first, frame_last, bands, output, orbit, method, boxes, spp, "
       "state, error, submitted_at, finished_at, stats, aa, tess_tol, band_edges, priority, "
       "frame_order, band_timeout_ms, owner, require_tags, after_jobs, band_seconds, "
-      "band_seconds_failed, band_seconds_lost, row_costs, kind, movie, fps, notify_url, notify_pending, "
-      "cost_map "
+      "band_seconds_failed, band_seconds_lost, row_costs, kind, movie, fps, notify_url, "
+      "notify_pending, cost_map "
       "FROM jobs ORDER BY seq");
   for (;;) {
     const int rc = jobs.step();

@@ -429,8 +429,8 @@ constexpr unsigned char kCostTraced = 1, kCostTracedSpan = 2;
 // Field k of a pixel (PixelCost or const PixelCost).
 template <class P>
 auto* cost_field(P& p, size_t k) {
-  decltype(&p.rays_eye) f[kCostCounts] = {&p.rays_eye, &p.rays_reflected, &p.rays_refracted, &p.rays_shadow,
-                              &p.tests_shadow_volume};
+  decltype(&p.rays_eye) f[kCostCounts] = {&p.rays_eye, &p.rays_reflected, &p.rays_refracted,
+                                          &p.rays_shadow, &p.tests_shadow_volume};
   return f[k];
 }
 
@@ -465,7 +465,9 @@ namespace {
 // Every check decode_band_cost makes but the flags': `raw` gets the planes.
 Status inflate_cost(std::string_view bytes, int64_t pixels, std::string& raw) {
   const std::string what = "the cost counts of a band of " + std::to_string(pixels) + " pixels";
-  if (pixels < 1 || pixels > kMaxDecodedBandBytes / 12)
+  // At most kMaxDecodedBandBytes inflated, as for pixels (a job with cost
+  // maps has bands small enough: min_bands).
+  if (pixels < 1 || pixels > kMaxDecodedBandBytes / static_cast<int64_t>(kCostBytesPerPixel))
     return InvalidArgument(what + ": the size is out of range");
   return inflate_exactly(bytes, static_cast<size_t>(pixels) * kCostBytesPerPixel, what, raw);
 }
@@ -490,8 +492,8 @@ Result<CostBuffer> decode_band_cost(std::string_view bytes, int width, int y0, i
     const unsigned char* plane = u + k * n * 4;
     for (size_t i = 0; i < n; ++i) {
       const unsigned char* b = plane + i * 4;
-      *cost_field(cost.pixels[i], k) = uint32_t{b[0]} | uint32_t{b[1]} << 8 |
-                                       uint32_t{b[2]} << 16 | uint32_t{b[3]} << 24;
+      *cost_field(cost.pixels[i], k) =
+          uint32_t{b[0]} | uint32_t{b[1]} << 8 | uint32_t{b[2]} << 16 | uint32_t{b[3]} << 24;
     }
   }
   const unsigned char* flags = u + kCostCounts * n * 4;

@@ -96,8 +96,7 @@ TEST_F(FarmTest, CostMapsAreTheBandsOwnCountsJoined) {
   const JobInfo single = run(one);
   ASSERT_EQ(single.state, JobState::kSucceeded) << single.error;
   auto fetched = client_->fetch(
-      single.job_id, {}, [&](int, const std::string& name) { return (got / name).string(); },
-      true);
+      single.job_id, {}, [&](int, const std::string& name) { return (got / name).string(); }, true);
   ASSERT_TRUE(fetched.ok()) << fetched.status().message();
   auto scene = load_scene(kD);
   ASSERT_TRUE(scene.ok());
@@ -112,8 +111,7 @@ TEST_F(FarmTest, CostMapsAreTheBandsOwnCountsJoined) {
   // A job without cost maps has none to fetch, and says why.
   const JobInfo plain = run(request(kD, 32, 24, 1, 1, 2, "p_####.png"));
   auto none = client_->fetch(
-      plain.job_id, {}, [&](int, const std::string& name) { return (got / name).string(); },
-      true);
+      plain.job_id, {}, [&](int, const std::string& name) { return (got / name).string(); }, true);
   ASSERT_FALSE(none.ok());
   EXPECT_NE(none.status().message().find("makes no cost maps"), std::string::npos)
       << none.status().message();
@@ -128,8 +126,7 @@ TEST_F(FarmTest, BadCostMapPatternsAreRefusedAtSubmit) {
     auto job = client_->submit(r);
     ASSERT_FALSE(job.ok()) << pattern;
     EXPECT_EQ(job.status().code(), Code::kInvalidArgument);
-    EXPECT_NE(job.status().message().find("cost map"), std::string::npos)
-        << job.status().message();
+    EXPECT_NE(job.status().message().find("cost map"), std::string::npos) << job.status().message();
     EXPECT_NE(job.status().message().find(words), std::string::npos) << job.status().message();
   };
   refused("../c_####.png", 1, "..");

@@ -6,6 +6,8 @@
 // numbers, wrong methods, other origins); the limits; the images (the frame
 // as written, a box-filtered thumbnail, a band of a frame in progress); the
 // farm's cursor; the security headers.
+#include "server/http_api.h"
+
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -16,7 +18,6 @@
 #include <fstream>
 
 #include "common/base/cost_map.h"
-#include "server/http_api.h"
 #include "server/http_server.h"
 #include "tests/farm_fixture.h"
 #include "tests/raw_http.h"
@@ -286,8 +287,7 @@ TEST_F(HttpApiTest, AFramesCostMapIsServedForAJobThatMakesThem) {
   EXPECT_EQ(call("GET", "/api/v1/jobs/" + job + "/frames/1/cost-map", "").status, 401);
   // The job's status names the pattern.
   const rpc::HttpResponse status = call("GET", "/api/v1/jobs/" + job);
-  EXPECT_NE(status.body.find("\"cost_map\":\"cost_####.exr\""), std::string::npos)
-      << status.body;
+  EXPECT_NE(status.body.find("\"cost_map\":\"cost_####.exr\""), std::string::npos) << status.body;
 }
 
 // A frame in progress of a job with cost maps: frames/F/cost-map draws the
