@@ -7,11 +7,11 @@ its network namespace). Checks, each printed as "ok: ..." or "FAILED: ...":
 - pausing from the job page stops new leases (checked through the CLI:
   `locus status`, `locus events`), resuming finishes the job;
 - the frame page's image equals the fetched frame exactly (both decoded);
-- a job submitted with --cost-map shows, while its frame renders (paused),
-  the map of the bands done so far, equal to the one the API draws of them,
-  and once written the frame's cost map, equal to the fetched map (max
-  error 0); a job without shows none;
   a thumbnail is within 2/255 of a box-filtered downscale of the frame;
+- a job submitted with --cost-map shows, while its frame of 24 bands
+  renders (paused), the map of the bands done so far, equal to the one the
+  API draws of them, and once written the frame's cost map, equal to the
+  fetched map (max error 0); a job without shows none;
 - the band map has one strip per band, the timed-out band is marked, and
   the predicted cost per row is drawn beside it;
 - without a token the page asks for one and shows no job data, and the API
@@ -228,7 +228,7 @@ def main():
         # shows the map of the bands done so far (paused there, so that it
         # holds still: the image the API draws for them); once written, the
         # very picture the coordinator wrote (fetched with `locus fetch`)
-        cost_job = locus("submit", a.scene, "--size", "96x72", "--bands", "12", "-o",
+        cost_job = locus("submit", a.scene, "--size", "96x72", "--bands", "24", "-o",
                          "cm_####.png", "--cost-map", "cmc_####.png").stdout.strip()
         # (int64 fields are strings in proto3's JSON)
         some = wait_for(lambda: int(api(f"jobs/{cost_job}")["bands_done"]) >= 2, 20, 0.02)
@@ -237,7 +237,7 @@ def main():
         status = api(f"jobs/{cost_job}")
         in_progress = some and int(status["frames_done"]) == 0
         check(in_progress, f"the cost-map job paused with its frame in progress "
-                           f"({status['bands_done']} of 12 bands)")
+                           f"({status['bands_done']} of 24 bands)")
         if in_progress:
             driver.get(a.url + f"/#/job/{cost_job}/1")
             img = wait_for(lambda: driver.execute_script(
@@ -255,7 +255,7 @@ def main():
                       drawn[:, :, :].max() > 0,
                       "it is the map the API draws of them (max error 0), not blank")
                 heading = driver.find_element(By.CSS_SELECTOR, "#cost-box h2").text
-                check(f"{int(status['bands_done'])} of 12 bands" in heading, "its title says how many",
+                check(f"{int(status['bands_done'])} of 24 bands" in heading, "its title says how many",
                       heading)
                 shot("costmap-in-progress")
         locus("resume", cost_job)
