@@ -238,9 +238,12 @@ Result<CostBuffer> stitch_cost(const FrameReady& f,
     if (!counts.ok())
       return Status(counts.status().code(), where + ": " + counts.status().message());
     if (counts->empty()) {
-      // A worker of an older release ignores BandTask.cost_map.
-      spdlog::warn("job {}: {} came without its cost counts; its rows of the cost map {} are empty",
-                   f.job_id, where, f.cost_file_name);
+      // A worker of an older release ignores BandTask.cost_map. Said once,
+      // when the frame's map is written, not at every look at a frame in
+      // progress.
+      if (!bands_in)
+        spdlog::warn("job {}: {} came without cost counts; its rows of {} are empty", f.job_id,
+                     where, f.cost_file_name);
       continue;
     }
     auto band = decode_band_cost(*counts, f.width, rows.y0, rows.y1);
