@@ -233,7 +233,17 @@ def main():
         # (int64 fields are strings in proto3's JSON)
         some = wait_for(lambda: int(api(f"jobs/{cost_job}")["bands_done"]) >= 2, 20, 0.02)
         locus("pause", cost_job)
-        wait_for(lambda: int(api(f"jobs/{cost_job}")["bands_running"]) == 0, 20)
+        # Settled: no lease left, and the count of bands done the same for
+        # a second (a result in flight when the job paused is still kept).
+        last = {"done": -1}
+
+        def settled():
+            j = api(f"jobs/{cost_job}")
+            done = int(j["bands_done"])
+            steady = int(j["bands_running"]) == 0 and done == last["done"]
+            last["done"] = done
+            return steady
+        wait_for(settled, 20, 1.0)
         status = api(f"jobs/{cost_job}")
         in_progress = some and int(status["frames_done"]) == 0
         check(in_progress, f"the cost-map job paused with its frame in progress "
