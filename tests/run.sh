@@ -45,7 +45,7 @@ asan_files+=";wire/farm_security_test.cpp;wire/health_test.cpp;fuzz_corpus_test.
 asan_files+=";server/scheduler_test.cpp;server/store_test.cpp;server/metrics_test.cpp;server/operations_test.cpp"
 asan_files+=";server/movie_test.cpp;server/bad_results_test.cpp;server/upgrade_test.cpp"
 asan_files+=";prepare/tessellate_test.cpp;render_test.cpp;client/http_api_test.cpp;farm/band_codec_test.cpp"
-asan_files+=";farm/band_cost_codec_test.cpp"
+asan_files+=";farm/band_cost_codec_test.cpp;server/band_files_test.cpp"
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON \
   "-DLOCUS_TEST_FILES=$asan_files" >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
