@@ -5,6 +5,7 @@
 #include <cmath>
 #include <utility>
 
+#include "common/prepare/hidden_faces.h"
 #include "common/prepare/parallel.h"
 #include "common/prepare/scan_scene.h"
 #include "common/prepare/shadow_volume.h"
@@ -59,17 +60,20 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
     stops_light.push_back(ref.kind != PrimKind::kCsg &&
                           scene.materials[scene.objects[ref.object].material].t <= 0.0);
   }
-  if (bvh_for_rays || bvh_for_shadows) leaf_prims = build_leaf_prims(prims, bvh, stops_light);
+  world_scale = scale_of_world(prims.bounds);
+  // Secondary rays start this far off the surface: relative to the scene's
+  // size, far above double rounding, far below any feature of SPD scenes.
+  eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
+  culls = ray_culls(prims, closed_convex_solids(prims), camera, scan_near_depth(camera, eps),
+                    scene.lights, stops_light);
+  if (bvh_for_rays || bvh_for_shadows)
+    leaf_prims = build_leaf_prims(prims, bvh, stops_light, culls);
   if (!leaf_prims.empty()) {
     leaf_slot.assign(prims.prims.size(), -1);
     for (size_t slot = 0; slot < bvh.order.size(); ++slot)
       leaf_slot[bvh.order[slot]] = static_cast<int>(slot);
   }
   ambient = ambient_intensity(scene);
-  world_scale = scale_of_world(prims.bounds);
-  // Secondary rays start this far off the surface: relative to the scene's
-  // size, far above double rounding, far below any feature of SPD scenes.
-  eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
   if (params.method == Method::kLocal) {
     const VisibilityMeasure measure = measure_visibility(scene, prims, camera);
     by_rays = visibility_by_rays(measure, camera, params);

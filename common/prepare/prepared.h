@@ -54,6 +54,9 @@ class PreparedScene {
   // stopped by it whatever else it crosses (eq. (2)): not CSG, and its
   // object's material transmits nothing.
   std::vector<uint8_t> stops_light;
+  // Per prims[i]: which rays may skip it, a back face of a closed convex
+  // solid (ray_culls, hidden_faces.h: kCullEye, cull_light(j)).
+  std::vector<uint8_t> culls;
   // Small polygons, triangles, spheres and cones in the hierarchy's leaf
   // order, for the ray walk (leaf_prims.h); empty where there are none or
   // no hierarchy.

@@ -5,6 +5,7 @@
 #include <iterator>
 
 #include "common/prepare/bounding.h"
+#include "common/prepare/hidden_faces.h"
 #include "common/prepare/parallel.h"
 #include "common/prepare/prepared.h"
 
@@ -137,12 +138,14 @@ void bucket_rows(ScanScene& scan, int height, bool multiscan) {
 
 }  // namespace
 
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads) {
+double scan_near_depth(const CameraFrame& cam, double eps) {
+  return std::max(1e-12, 1e-6 * std::max(cam.hither, eps));
+}
+
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads,
+                           bool hide_back_faces) {
   const CameraFrame& cam = ps.camera;
-  // Anything nearer than the near plane is clipped away; the near plane is
-  // far in front of hither's sphere so nothing visible is lost (pixels whose
-  // surface lies within hither are traced instead, see local_rows).
-  const double z_near = std::max(1e-12, 1e-6 * std::max(cam.hither, ps.eps));
+  const double z_near = scan_near_depth(cam, ps.eps);
   const Projector pr{cam, z_near};
   const PrimitiveSet& set = ps.prims;
   const int n = static_cast<int>(set.prims.size());
@@ -160,6 +163,8 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads)
       const PrimRef& ref = set.prims[i];
       switch (ref.kind) {
         case PrimKind::kPolygon: {
+          // Back faces of closed solids are never the nearest (hidden_faces.h).
+          if (hide_back_faces && (ps.culls[i] & kCullEye)) break;
           const PolygonPrim& p = set.polygons[ref.index];
           faces.add(polygon_outline(p), p.normal, p.offset, i, false);
           break;
@@ -171,7 +176,9 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads)
         }
         case PrimKind::kConvex: {
           const ConvexPrim& cv = set.convexes[ref.index];
+          const bool hides = hide_back_faces && convex_hides_back_faces(cv, cam, z_near);
           for (size_t k = 0; k < cv.faces.size(); ++k) {
+            if (hides && faces_away(cv.normals[k], cv.offsets[k], cam.from)) continue;
             faces.add(cv.faces[k], cv.normals[k], cv.offsets[k], i, false);
           }
           break;

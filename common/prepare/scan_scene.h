@@ -12,6 +12,7 @@
 namespace locus {
 
 class PreparedScene;
+struct CameraFrame;
 
 // A face as the scanline pass sees it: its plane (world space) for depth,
 // and its outline projected to image coordinates (x right, y down, pixels).
@@ -43,10 +44,17 @@ struct ScanScene {
   bool any_near_hither = false;
 };
 
+// The depth of the near plane the faces are clipped at: far in front of
+// hither's sphere, so nothing visible is lost (pixels whose surface lies
+// within hither are traced instead, see local_rows).
+double scan_near_depth(const CameraFrame& cam, double eps);
+
 // On up to `threads` threads (parallel_for, common/prepare/parallel.h):
 // the primitives' faces by chunks, joined in primitive order, so the scan
-// scene is the same, bit for bit, for any count.
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1);
+// scene is the same, bit for bit, for any count. The back faces of closed
+// solids (hidden_faces.h) are left out unless `hide_back_faces` is false.
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1,
+                           bool hide_back_faces = true);
 
 // No faces, every pixel traced (Visibility::kRays): the rows' passes find
 // an eye ray per sample, as inside a curved body's span.

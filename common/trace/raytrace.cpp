@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "common/geometry/optics.h"
+#include "common/prepare/hidden_faces.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/trace/shadow_search.h"
 
@@ -42,20 +43,26 @@ std::optional<SurfaceHit> Tracer::nearest_by(const Ray& ray, double tmin, double
   thread_local std::vector<SurfaceHit> band;
   band.clear();
   double nearest_t = tmax;
+  // A ray from the eye point skips the faces closed solids turn away from
+  // it (hidden_faces.h): they are never its nearest crossing.
+  const uint8_t cull = ray.origin == ps_.camera.from ? kCullEye : 0;
   // `slot`: the primitive's place in the hierarchy's leaf order, where the
   // walk gives it; a primitive copied there is tested from leaf_prims.
   auto test = [&](int prim, int slot = -1) {
-    ++stats_.tests_ray_object;
-    const double bound = std::min(tmax, nearest_t * (1.0 + kTieRel));
-    if (const LeafPrim* lp = ps_.leaf_prim_at(slot)) {
-      Crossing c;
-      if (leaf_nearest(*lp, ray, tmin, bound, &c)) {
-        band.push_back(SurfaceHit{c.t, prim, c});
-        if (c.t < nearest_t) nearest_t = c.t;
+    const LeafPrim* lp = ps_.leaf_prim_at(slot);
+    if (!(lp && (lp->cull & cull))) {
+      ++stats_.tests_ray_object;
+      const double bound = std::min(tmax, nearest_t * (1.0 + kTieRel));
+      if (lp) {
+        Crossing c;
+        if (leaf_nearest(*lp, ray, tmin, bound, &c)) {
+          band.push_back(SurfaceHit{c.t, prim, c});
+          if (c.t < nearest_t) nearest_t = c.t;
+        }
+      } else if (const auto c = intersect_nearest(ps_.prims, prim, ray, tmin, bound)) {
+        band.push_back(SurfaceHit{c->t, prim, *c});
+        if (c->t < nearest_t) nearest_t = c->t;
       }
-    } else if (const auto c = intersect_nearest(ps_.prims, prim, ray, tmin, bound)) {
-      band.push_back(SurfaceHit{c->t, prim, *c});
-      if (c->t < nearest_t) nearest_t = c->t;
     }
     return std::min(tmax, next_up(nearest_t * (1.0 + kTieRel)));
   };
@@ -173,9 +180,14 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
 bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& crossings) {
   ++stats_.rays_shadow;
   bool opaque = false;
+  // The faces an opaque closed solid turns away from the light never stop
+  // it alone (hidden_faces.h).
+  const uint8_t cull = light < kCullLights ? cull_light(light) : 0;
   auto test = [&](int prim, int slot = -1) {
+    const LeafPrim* lp = ps_.leaf_prim_at(slot);
+    if (lp && (lp->cull & cull)) return 1.0;
     ++stats_.tests_ray_object;
-    if (const LeafPrim* lp = ps_.leaf_prim_at(slot); lp && lp->stops_light) {
+    if (lp && lp->stops_light) {
       if (!leaf_any(*lp, seg, 0.0, 1.0)) return 1.0;
       opaque = true;
       last_occluder(light) = prim;
