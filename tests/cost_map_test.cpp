@@ -19,6 +19,7 @@
 #include "common/render.h"
 #include "common/scene/scene_io.h"
 #include "common/trace/raytrace.h"
+#include "tests/render_compare.h"
 
 namespace locus {
 namespace {
@@ -40,14 +41,7 @@ std::vector<std::pair<std::string, Scene>> mirror_and_glass(int w, int h) {
   return scenes;
 }
 
-RenderParams local_params(int aa) {
-  RenderParams p;
-  p.method = Method::kLocal;
-  p.boxes = Boxes::kEyeShadow;
-  p.aa = aa;
-  p.threads = 2;
-  return p;
-}
+RenderParams local_params(int aa) { return testing_util::config_iv_params(aa, 2); }
 
 RenderParams raytrace_params() {
   RenderParams p;

@@ -23,6 +23,17 @@
 namespace locus {
 namespace testing_util {
 
+// Configuration IV (--method local --boxes eye+shadow) with `aa`
+// sub-scanlines per row, on `threads` threads.
+inline RenderParams config_iv_params(int aa, int threads) {
+  RenderParams p;
+  p.method = Method::kLocal;
+  p.boxes = Boxes::kEyeShadow;
+  p.aa = aa;
+  p.threads = threads;
+  return p;
+}
+
 // Distance from pixel centre (x, y) to the nearest projected face edge of
 // the scanline pass.
 // Renders the scene at 64 x 50 whole and split into 2, 3, 7 and 50 bands;

@@ -18,6 +18,7 @@
 #include "common/render.h"
 #include "common/scan/scanline.h"
 #include "common/scene/scene_io.h"
+#include "tests/render_compare.h"
 
 namespace locus {
 namespace {
@@ -212,14 +213,7 @@ struct WithAndWithout {
   }
 };
 
-RenderParams config_iv(int aa) {
-  RenderParams p;
-  p.method = Method::kLocal;
-  p.boxes = Boxes::kEyeShadow;
-  p.aa = aa;
-  p.threads = 1;
-  return p;
-}
+RenderParams config_iv(int aa) { return testing_util::config_iv_params(aa, 1); }
 
 TEST(ClosedSolids, SpdTetraHidesHalfItsFacesAndTheVisibleSegmentsAreUnchanged) {
   auto scene = load_scene(LOCUS_SHARED_DIR "/spd/def/tetra.nff");
