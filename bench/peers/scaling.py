@@ -76,7 +76,7 @@ def main():
     ap.add_argument("--max-level", default="",
                     help="e.g. balls=4,tetra=8: leave out the larger levels")
     ap.add_argument("--size", type=int)
-    ap.add_argument("--repeat", type=int, default=3, help="best of N runs (default 3)")
+    ap.add_argument("--repeat", type=int, default=5, help="best of N rounds (default 5)")
     ap.add_argument("--out", help="output directory (default bench/results; quick: a temp dir)")
     ap.add_argument("--raw", help="save every measurement as JSON here")
     ap.add_argument("--report-only", metavar="RAW", help="write the outputs again from RAW")
@@ -102,10 +102,8 @@ def main():
         pov = H.PovRay(tmp)
         info.update(locus=locus.sha[:12], pov=pov.version)
         for kind in kinds:
-            for level in plan["levels"][kind]:
-                if kind in caps and level > caps[kind]:
-                    continue
-                rows += run_level(kind, level, size, repeat, locus, pov, tmp)
+            levels = [lv for lv in plan["levels"][kind] if not (kind in caps and lv > caps[kind])]
+            rows += run_kind(kind, levels, size, repeat, locus, pov, tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     info.update(load_end=H.loadavg(), minutes=(time.time() - started) / 60.0)
@@ -116,45 +114,54 @@ def main():
     report(out_dir, **raw)
 
 
-def run_level(kind, level, size, repeat, locus, pov, tmp):
-    path, source = scene_file(kind, level, tmp)
-    prims = H.count_primitives(path)
-    pfile = os.path.join(tmp, f"{kind}{level}.pov")
-    with open(pfile, "w") as f:
-        f.write(H.povscene.nff_to_pov(path))
-    tag = f"{kind} level {level} ({prims} primitives)"
-    runs = {key: [] for key, *_ in CONFIGS}
-    notes = {}
+def run_kind(kind, levels, size, repeat, locus, pov, tmp):
+    """Every level of one kind, all in the same rounds (each level's every
+    configuration once per round): a slope is a ratio between levels, so
+    the levels are measured side by side, as the configurations are, and a
+    drift of the host's speed over the minutes of a run moves them alike."""
+    setups = []
+    for level in levels:
+        path, source = scene_file(kind, level, tmp)
+        prims = H.count_primitives(path)
+        pfile = os.path.join(tmp, f"{kind}{level}.pov")
+        with open(pfile, "w") as f:
+            f.write(H.povscene.nff_to_pov(path))
+        setups.append({"level": level, "path": path, "source": source, "prims": prims,
+                       "pfile": pfile, "tag": f"{kind} level {level} ({prims} primitives)",
+                       "runs": {key: [] for key, *_ in CONFIGS}, "notes": {}})
     for _ in range(repeat):
-        for key, label, renderer, a in CONFIGS:
-            if key in notes:
-                continue
-            try:
-                if renderer == "locus":
-                    r = locus.timed(path, size, a, os.path.join(tmp, "s.exr"))
-                else:
-                    r = pov.timed(pfile, size, a, os.path.join(tmp, "s.png"))
-                runs[key].append(r)
-            except RuntimeError as e:
-                notes[key] = str(e)
-                H.log(f"{tag} {label}: FAILED: {e}")
+        for s in setups:
+            for key, label, renderer, a in CONFIGS:
+                if key in s["notes"]:
+                    continue
+                try:
+                    if renderer == "locus":
+                        r = locus.timed(s["path"], size, a, os.path.join(tmp, "s.exr"))
+                    else:
+                        r = pov.timed(s["pfile"], size, a, os.path.join(tmp, "s.png"))
+                    s["runs"][key].append(r)
+                except RuntimeError as e:
+                    s["notes"][key] = str(e)
+                    H.log(f"{s['tag']} {label}: FAILED: {e}")
     rows = []
-    for key, label, renderer, _ in CONFIGS:
-        row = {"kind": kind, "level": level, "source": source, "primitives": prims,
-               "size": size, "config": key, "label": label, "renderer": renderer}
-        if key in notes:
-            row["note"] = notes[key]
-        else:
-            b = H.summarize(row, runs[key])
-            if b.get("stats"):
-                row["pixels_ray_traced"] = b["stats"]["pixels"]["ray_traced"]
-                row["tests_shadow_volume"] = b["stats"]["tests"]["shadow_volume"]
-                row["tests_ray_object"] = b["stats"]["tests"]["ray_object"]
-                row["visibility"] = b["stats"].get("visibility", {}).get("method", "scanline")
-                row["shadows"] = b["stats"].get("shadows", {}).get("method", "volumes")
-            H.log(f"{tag} {label}: {b['cpu']:.3f} s CPU ({b['wall']:.3f} s wall), "
-                  f"setup {b['prepare']:.2f} s")
-        rows.append(row)
+    for s in setups:
+        for key, label, renderer, _ in CONFIGS:
+            row = {"kind": kind, "level": s["level"], "source": s["source"],
+                   "primitives": s["prims"], "size": size, "config": key, "label": label,
+                   "renderer": renderer}
+            if key in s["notes"]:
+                row["note"] = s["notes"][key]
+            else:
+                b = H.summarize(row, s["runs"][key])
+                if b.get("stats"):
+                    row["pixels_ray_traced"] = b["stats"]["pixels"]["ray_traced"]
+                    row["tests_shadow_volume"] = b["stats"]["tests"]["shadow_volume"]
+                    row["tests_ray_object"] = b["stats"]["tests"]["ray_object"]
+                    row["visibility"] = b["stats"].get("visibility", {}).get("method", "scanline")
+                    row["shadows"] = b["stats"].get("shadows", {}).get("method", "volumes")
+                H.log(f"{s['tag']} {label}: {b['cpu']:.3f} s CPU ({b['wall']:.3f} s wall), "
+                      f"setup {b['prepare']:.2f} s")
+            rows.append(row)
     return rows
 
 
@@ -278,7 +285,8 @@ def write_md(path, rows, fit, info):
          f"{info['minutes']:.0f} min. SPD balls and tetra at {size}x{size}, one thread, ray "
          "depth 5; time per frame is the render's **CPU time** (Locus `seconds.render_cpu`, "
          "POV-Ray's trace CPU-seconds), best of "
-         f"{info['repeat']} runs in rounds; wall times and setup (Locus `seconds.prepare`, "
+         f"{info['repeat']} runs in rounds (each round runs every level of a kind once, "
+         "side by side); wall times and setup (Locus `seconds.prepare`, "
          "POV-Ray parse + bounding, both wall) beside it. Levels 1, 2 and the default are "
          "`../shared/spd/{s1,s2,def}`, the others are written by `spdgen.py` (the same "
          "generator reproduces the shared files exactly). Peak memory is each process's "
