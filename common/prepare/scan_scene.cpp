@@ -142,8 +142,7 @@ double scan_near_depth(const CameraFrame& cam, double eps) {
   return std::max(1e-12, 1e-6 * std::max(cam.hither, eps));
 }
 
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads,
-                           bool hide_back_faces) {
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads) {
   const CameraFrame& cam = ps.camera;
   const double z_near = scan_near_depth(cam, ps.eps);
   const Projector pr{cam, z_near};
@@ -164,7 +163,7 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads,
       switch (ref.kind) {
         case PrimKind::kPolygon: {
           // Back faces of closed solids are never the nearest (hidden_faces.h).
-          if (hide_back_faces && (ps.culls[i] & kCullEye)) break;
+          if (ps.culls[i] & kCullEye) break;
           const PolygonPrim& p = set.polygons[ref.index];
           faces.add(polygon_outline(p), p.normal, p.offset, i, false);
           break;
@@ -176,7 +175,7 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads,
         }
         case PrimKind::kConvex: {
           const ConvexPrim& cv = set.convexes[ref.index];
-          const bool hides = hide_back_faces && convex_hides_back_faces(cv, cam, z_near);
+          const bool hides = convex_hides_back_faces(cv, cam, z_near);
           for (size_t k = 0; k < cv.faces.size(); ++k) {
             if (hides && faces_away(cv.normals[k], cv.offsets[k], cam.from)) continue;
             faces.add(cv.faces[k], cv.normals[k], cv.offsets[k], i, false);

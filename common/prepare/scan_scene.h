@@ -51,10 +51,10 @@ double scan_near_depth(const CameraFrame& cam, double eps);
 
 // On up to `threads` threads (parallel_for, common/prepare/parallel.h):
 // the primitives' faces by chunks, joined in primitive order, so the scan
-// scene is the same, bit for bit, for any count. The back faces of closed
-// solids (hidden_faces.h) are left out unless `hide_back_faces` is false.
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1,
-                           bool hide_back_faces = true);
+// scene is the same, bit for bit, for any count. The faces closed solids
+// turn away from the eye are left out (PreparedScene::culls, and the
+// polyhedra's own; hidden_faces.h).
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1);
 
 // No faces, every pixel traced (Visibility::kRays): the rows' passes find
 // an eye ray per sample, as inside a curved body's span.

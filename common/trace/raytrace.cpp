@@ -50,7 +50,7 @@ std::optional<SurfaceHit> Tracer::nearest_by(const Ray& ray, double tmin, double
   // walk gives it; a primitive copied there is tested from leaf_prims.
   auto test = [&](int prim, int slot = -1) {
     const LeafPrim* lp = ps_.leaf_prim_at(slot);
-    if (!(lp && (lp->cull & cull))) {
+    if (!((lp ? lp->cull : ps_.culls[prim]) & cull)) {
       ++stats_.tests_ray_object;
       const double bound = std::min(tmax, nearest_t * (1.0 + kTieRel));
       if (lp) {
@@ -185,7 +185,7 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
   const uint8_t cull = light < kCullLights ? cull_light(light) : 0;
   auto test = [&](int prim, int slot = -1) {
     const LeafPrim* lp = ps_.leaf_prim_at(slot);
-    if (lp && (lp->cull & cull)) return 1.0;
+    if ((lp ? lp->cull : ps_.culls[prim]) & cull) return 1.0;
     ++stats_.tests_ray_object;
     if (lp && lp->stops_light) {
       if (!leaf_any(*lp, seg, 0.0, 1.0)) return 1.0;

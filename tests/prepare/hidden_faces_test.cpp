@@ -209,7 +209,7 @@ struct WithAndWithout {
     plain->culls.assign(plain->culls.size(), 0);
     for (LeafPrim& lp : plain->leaf_prims) lp.cull = 0;
     if (plain->scan && !plain->by_rays)
-      plain->scan = std::make_unique<ScanScene>(build_scan_scene(*plain, p.aa > 0, 1, false));
+      plain->scan = std::make_unique<ScanScene>(build_scan_scene(*plain, p.aa > 0, 1));
   }
 };
 
