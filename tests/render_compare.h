@@ -117,6 +117,16 @@ inline Object quad(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d, i
   return o;
 }
 
+// The largest difference of any channel of any pixel of two images of one size.
+inline double max_difference(const Image& x, const Image& y) {
+  double m = 0;
+  for (int j = 0; j < x.height; ++j)
+    for (int i = 0; i < x.width; ++i)
+      for (int c = 0; c < 3; ++c)
+        m = std::max(m, static_cast<double>(std::abs(x.pixel(i, j)[c] - y.pixel(i, j)[c])));
+  return m;
+}
+
 inline int max_diff8(const float* a, const float* b) {
   int diff = 0;
   for (int c = 0; c < 3; ++c) diff = std::max(diff, std::abs(quantize8(a[c]) - quantize8(b[c])));

@@ -46,12 +46,13 @@ asan_files+=";server/scheduler_test.cpp;server/store_test.cpp;server/metrics_tes
 asan_files+=";server/movie_test.cpp;server/bad_results_test.cpp;server/upgrade_test.cpp"
 asan_files+=";prepare/tessellate_test.cpp;render_test.cpp;client/http_api_test.cpp;farm/band_codec_test.cpp"
 asan_files+=";farm/band_cost_codec_test.cpp;server/band_files_test.cpp;prepare/hidden_faces_test.cpp"
+asan_files+=";geometry/bvh_test.cpp;trace/wide_walk_test.cpp"
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON \
   "-DLOCUS_TEST_FILES=$asan_files" >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
 phase asan-tests
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*:MovieJob*:MovieChecks*:NotifyUrls*:BandCodec*:BandCostCodec*:BadResults*:StoreV013*:ClosedSolids*'
+  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*:MovieJob*:MovieChecks*:NotifyUrls*:BandCodec*:BandCostCodec*:BadResults*:StoreV013*:ClosedSolids*:BvhWalk.*:BvhBuild.*:WideWalk.*'
 # libFuzzer targets (clang, ASan+UBSan): the NFF loader, the JSON scene
 # loader and the coordinator's request handling, each FUZZ_SECONDS (30) on
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and

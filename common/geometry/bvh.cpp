@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <numeric>
+#include <string_view>
 
 namespace locus {
 namespace {
@@ -17,7 +19,8 @@ static_assert(kMaxDepth + 1 <= kBvhWalkStack, "walk_bvh's stack must hold the de
 // A wide node's children lie at least one binary level below it, so the
 // 4-wide tree is at most kMaxDepth + 1 levels deep, each leaving at most 3
 // children pending in traverse_bvh.
-static_assert(3 * (kMaxDepth + 1) <= kBvhRayStack, "traverse_bvh's stack must hold the deepest path");
+static_assert(3 * (kMaxDepth + 1) <= kBvhRayStackN<4> && 7 * (kMaxDepth + 1) <= kBvhRayStackN<8>,
+              "traverse_bvh's stack must hold the deepest path");
 constexpr int kLeafMax = 4;
 
 struct BuildCtx {
@@ -144,9 +147,10 @@ int build_node(BuildCtx& ctx, int begin, int end, int depth, bool singles = fals
 }
 
 // A wide node of empty slots (lo = +inf, hi = -inf: no ray meets them).
-BvhWideNode empty_wide_node() {
-  BvhWideNode w;
-  for (int k = 0; k < 4; ++k) {
+template <int W>
+BvhWideNodeN<W> empty_wide_node() {
+  BvhWideNodeN<W> w;
+  for (int k = 0; k < W; ++k) {
     for (int a = 0; a < 3; ++a) {
       w.planes[a][0][k] = std::numeric_limits<float>::infinity();
       w.planes[a][1][k] = -std::numeric_limits<float>::infinity();
@@ -158,7 +162,8 @@ BvhWideNode empty_wide_node() {
 }
 
 // Child slot k: `box` rounded outward to float, and the child.
-void set_slot(BvhWideNode& w, int k, const Aabb& box, int ref, int count) {
+template <int W>
+void set_slot(BvhWideNodeN<W>& w, int k, const Aabb& box, int ref, int count) {
   for (int a = 0; a < 3; ++a) {
     w.planes[a][0][k] = float_down(box.lo[a]);
     w.planes[a][1][k] = float_up(box.hi[a]);
@@ -167,13 +172,14 @@ void set_slot(BvhWideNode& w, int k, const Aabb& box, int ref, int count) {
   w.count[k] = count;
 }
 
-// Collapses binary inner node ni into a wide node: its children, the inner
-// child of largest area replaced by its two children while there are fewer
-// than 4. Returns the wide node's index.
-int collapse(Bvh& bvh, int ni) {
-  int child[4] = {ni + 1, bvh.nodes[ni].first, -1, -1};
+// Collapses binary inner node ni into a wide node of `out`: its children,
+// the inner child of largest area replaced by its two children while there
+// are fewer than W. Returns the wide node's index.
+template <int W>
+int collapse(const Bvh& bvh, std::vector<BvhWideNodeN<W>>& out, int ni) {
+  int child[W] = {ni + 1, bvh.nodes[ni].first};
   int n = 2;
-  while (n < 4) {
+  while (n < W) {
     int widest = -1;
     double widest_area = -1.0;
     for (int k = 0; k < n; ++k) {
@@ -185,30 +191,50 @@ int collapse(Bvh& bvh, int ni) {
     child[widest] = w + 1;
     child[n++] = bvh.nodes[w].first;
   }
-  const int id = static_cast<int>(bvh.wide.size());
-  bvh.wide.push_back(empty_wide_node());
+  const int id = static_cast<int>(out.size());
+  out.push_back(empty_wide_node<W>());
   for (int k = 0; k < n; ++k) {
     const BvhNode& c = bvh.nodes[child[k]];
-    const int ref = c.count > 0 ? c.first : collapse(bvh, child[k]);  // may move bvh.wide
-    set_slot(bvh.wide[id], k, c.box, ref, c.count);
+    const int ref = c.count > 0 ? c.first : collapse(bvh, out, child[k]);  // may move out
+    set_slot(out[id], k, c.box, ref, c.count);
   }
   return id;
 }
 
-}  // namespace
-
-void build_wide(Bvh& bvh) {
-  bvh.wide.clear();
+template <int W>
+void build_wide_n(const Bvh& bvh, std::vector<BvhWideNodeN<W>>& out) {
+  out.clear();
   if (bvh.nodes.empty()) return;
   const BvhNode& root = bvh.nodes[0];
   if (root.count > 0) {
     // A root leaf: one wide node holding it.
-    bvh.wide.push_back(empty_wide_node());
-    set_slot(bvh.wide[0], 0, root.box, root.first, root.count);
+    out.push_back(empty_wide_node<W>());
+    set_slot(out[0], 0, root.box, root.first, root.count);
     return;
   }
-  bvh.wide.reserve(bvh.nodes.size() / 2 + 1);
-  collapse(bvh, 0);
+  out.reserve(bvh.nodes.size() / (W / 2) + 1);
+  collapse(bvh, out, 0);
+}
+
+}  // namespace
+
+void build_wide(Bvh& bvh) { build_wide_n(bvh, bvh.wide); }
+
+void build_wide8(Bvh& bvh) { build_wide_n(bvh, bvh.wide8); }
+
+bool wide8_walk_available() {
+#if LOCUS_WIDE8
+  // LOCUS_KERNEL_WIDTH=4 keeps the 4-wide walk (bench/peers/kernel.py
+  // measures the two side by side).
+  static const bool yes = [] {
+    const char* w = std::getenv("LOCUS_KERNEL_WIDTH");
+    if (w && std::string_view(w) == "4") return false;
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return yes;
+#else
+  return false;
+#endif
 }
 
 Bvh build_bvh(const std::vector<Aabb>& bounds) {
@@ -234,6 +260,7 @@ Bvh build_bvh(const std::vector<Aabb>& bounds) {
   bvh.nodes.reserve(2 * bounds.size());
   build_node(ctx, 0, static_cast<int>(bounds.size()), 0);
   build_wide(bvh);
+  if (wide8_walk_available()) build_wide8(bvh);
   return bvh;
 }
 

@@ -17,6 +17,15 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+// The 8-wide walk: AVX2 code in an SSE2 build, run where the processor has
+// AVX2 (wide8_walk_available). GCC on x86-64 (the target pragma below);
+// elsewhere the 4-wide walk alone.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(LOCUS_NO_WIDE8)
+#define LOCUS_WIDE8 1
+#include <immintrin.h>
+#else
+#define LOCUS_WIDE8 0
+#endif
 
 #include "common/base/check.h"
 #include "common/geometry/geometry.h"
@@ -36,25 +45,39 @@ struct BvhNode {
 // first index into Bvh::order, as BvhNode), 0 an inner node (`ref[k]` its
 // index in Bvh::wide), -1 an empty slot, whose box (lo = +inf, hi = -inf)
 // no ray meets.
-struct BvhWideNode {
-  alignas(16) float planes[3][2][4];  // [axis][0: lo, 1: hi][child]
-  int ref[4];
-  int count[4];
+// BvhWideNodeN<8> is the same with 8 children, for the AVX2 walk.
+template <int W>
+struct BvhWideNodeN {
+  static constexpr int kWidth = W;
+  alignas(4 * W) float planes[3][2][W];  // [axis][0: lo, 1: hi][child]
+  int ref[W];
+  int count[W];
 };
+using BvhWideNode = BvhWideNodeN<4>;
+using BvhWideNode8 = BvhWideNodeN<8>;
 
 struct Bvh {
   std::vector<BvhNode> nodes;  // the binary tree: the hierarchy of boxes of §4.1
   std::vector<int> order;      // primitive indices, leaves refer to ranges
   std::vector<BvhWideNode> wide;  // the same leaves, 4-wide, for rays; wide[0] the root
+  // The same leaves 8-wide, where the processor has AVX2 (wide8_walk_available):
+  // traverse_bvh walks this one when it is there.
+  std::vector<BvhWideNode8> wide8;
 };
 
-// Builds the binary tree and its 4-wide form.
+// Builds the binary tree and its 4-wide form, and its 8-wide form where
+// the processor has AVX2.
 Bvh build_bvh(const std::vector<Aabb>& bounds);
 
 // Fills bvh.wide from bvh.nodes: each inner node takes the children of its
 // largest inner children until it has 4 (build_bvh calls it; tests that
 // build a tree by hand call it themselves).
 void build_wide(Bvh& bvh);
+// The same, 8-wide, into bvh.wide8 (whatever the processor).
+void build_wide8(Bvh& bvh);
+// Whether this processor runs the 8-wide walk (AVX2), and the build was
+// made for x86-64.
+bool wide8_walk_available();
 
 // Precomputed reciprocal direction for slab tests.
 struct RayInv {
@@ -294,11 +317,106 @@ inline int wide_hits(const BvhWideNode& n, const WideRay& r, float tmin, float t
 #endif
 }
 
-// The ray walk's stack: an entered node leaves at most 3 children pending,
-// and the 4-wide tree is no deeper than the binary one (bvh.cpp).
-inline constexpr int kBvhRayStack = 3 * kBvhWalkStack;
+// The ray walk's stack: an entered node leaves at most W - 1 children
+// pending, and a wide tree is no deeper than the binary one (bvh.cpp).
+template <int W>
+inline constexpr int kBvhRayStackN = (W - 1) * kBvhWalkStack;
+inline constexpr int kBvhRayStack = kBvhRayStackN<4>;
 
-// The one ray walk, over the 4-wide tree (the ray tracer's nearest hit and
+// The per-width parts of the ray walk (bvh_walk.inc): the lanes of a
+// node's box test, the ray in them, and the test. WideOps<8> is AVX2 code
+// (below); WideOps<4> is SSE2, or the plain loop.
+template <int W>
+struct WideOps;
+
+template <>
+struct WideOps<4> {
+#if defined(__SSE2__)
+  using Lanes = __m128;
+  static Lanes set1(float x) { return _mm_set1_ps(x); }
+  struct RayLanes {
+    const WideRay& wr;
+    explicit RayLanes(const WideRay& r) : wr(r) {}
+  };
+  static int hits(const BvhWideNode& n, const RayLanes& r, Lanes lo, Lanes hi, float entry[4]) {
+    return wide_hits4(n, r.wr, lo, hi, entry);
+  }
+#else
+  using Lanes = float;
+  static Lanes set1(float x) { return x; }
+  struct RayLanes {
+    const WideRay& wr;
+    explicit RayLanes(const WideRay& r) : wr(r) {}
+  };
+  static int hits(const BvhWideNode& n, const RayLanes& r, Lanes lo, Lanes hi, float entry[4]) {
+    return wide_hits(n, r.wr, lo, hi, entry);
+  }
+#endif
+};
+
+// The walk itself, once, compiled twice: here for the 4-wide tree, and
+// below, in namespace avx2, as AVX2 code for the 8-wide one.
+#include "common/geometry/bvh_walk.inc"
+
+#if LOCUS_WIDE8
+#pragma GCC push_options
+#pragma GCC target("avx2")
+// The 8-wide box test: wide_hits4's arithmetic in eight lanes (VMAXPS and
+// VMINPS return the second operand on NaN, as MAXPS and MINPS do). No FMA:
+// the target is AVX2 alone, so nothing here or inlined here is contracted,
+// and every primitive test gives the 4-wide walk's answers bit for bit.
+template <>
+struct WideOps<8> {
+  using Lanes = __m256;
+  static Lanes set1(float x) { return _mm256_set1_ps(x); }
+  struct RayLanes {
+    __m256 origin[3], inv[3], slack;
+    const int* near_plane;
+    explicit RayLanes(const WideRay& r) : near_plane(r.near_plane) {
+      for (int a = 0; a < 3; ++a) {
+        origin[a] = _mm256_set1_ps(r.origin[a]);
+        inv[a] = _mm256_set1_ps(r.inv[a]);
+      }
+      slack = _mm256_set1_ps(r.slack);
+    }
+  };
+  static int hits(const BvhWideNode8& n, const RayLanes& r, Lanes lo, Lanes hi, float entry[8]) {
+    for (int a = 0; a < 3; ++a) {
+      const __m256 tn = _mm256_mul_ps(
+          _mm256_sub_ps(_mm256_load_ps(n.planes[a][r.near_plane[a]]), r.origin[a]), r.inv[a]);
+      const __m256 tf = _mm256_mul_ps(
+          _mm256_sub_ps(_mm256_load_ps(n.planes[a][1 - r.near_plane[a]]), r.origin[a]), r.inv[a]);
+      lo = _mm256_max_ps(tn, lo);
+      hi = _mm256_min_ps(tf, hi);
+    }
+    const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+    const __m256 rel = _mm256_set1_ps(WideRay::kWideRel);
+    lo = _mm256_sub_ps(lo, _mm256_add_ps(_mm256_mul_ps(_mm256_and_ps(lo, abs_mask), rel), r.slack));
+    hi = _mm256_add_ps(hi, _mm256_mul_ps(_mm256_and_ps(hi, abs_mask), rel));
+    _mm256_storeu_ps(entry, lo);
+    return _mm256_movemask_ps(_mm256_cmp_ps(lo, hi, _CMP_LE_OQ));
+  }
+};
+// wide_hits for an 8-wide node (the walk keeps its bounds in lanes; tests
+// call this one). AVX2 code: call it only where wide8_walk_available().
+inline int wide_hits(const BvhWideNode8& n, const WideRay& r, float tmin, float tmax,
+                     float entry[8]) {
+  return WideOps<8>::hits(n, WideOps<8>::RayLanes(r), _mm256_set1_ps(tmin), _mm256_set1_ps(tmax),
+                          entry);
+}
+namespace avx2 {
+#include "common/geometry/bvh_walk.inc"
+// Out of line: a call from the callers' SSE2 code into AVX2 code.
+template <bool kNearestFirst, typename F>
+[[gnu::noinline]] void walk_wide8(const Bvh& bvh, const Ray& ray, double tmin, double tmax,
+                                  F& visit) {
+  avx2::walk_wide<8, kNearestFirst>(bvh.wide8.data(), bvh.order.data(), ray, tmin, tmax, visit);
+}
+}  // namespace avx2
+#pragma GCC pop_options
+#endif
+
+// The one ray walk, over the wide tree (the ray tracer's nearest hit and
 // shadow rays, the shadow search's segments): visits the primitives of the
 // leaves whose boxes the ray meets in [tmin, tmax] (conservatively: a leaf
 // met only within the float test's slack may be visited too), the nearest
@@ -308,91 +426,21 @@ inline constexpr int kBvhRayStack = 3 * kBvhWalkStack;
 // slot in bvh.order too (tables kept in leaf order: leaf_prims.h). With
 // kNearestFirst false (a shadow ray, whose answer does not depend on the
 // order it meets occluders in), the boxes met are taken in child order,
-// without sorting them.
+// without sorting them. The 8-wide tree is walked where it was built
+// (Bvh::wide8), the 4-wide one otherwise; the primitives met are the same
+// but for the float test's slack, and the walk's order may differ, which
+// no caller's answer depends on (Tracer::nearest_by keeps coincident
+// crossings by primitive, shadow crossings are sorted).
 template <bool kNearestFirst = true, typename F>
 void traverse_bvh(const Bvh& bvh, const Ray& ray, double tmin, double tmax, F&& visit) {
-  if (bvh.wide.empty()) return;
-  struct Entry {
-    int ref, count;
-    float t;
-  };
-  const WideRay wr(ray);
-  const float tmin_f = float_down(tmin);
-  float tmax_f = float_up(tmax);
-#if defined(__SSE2__)
-  const __m128 tmin4 = _mm_set1_ps(tmin_f);
-  __m128 tmax4 = _mm_set1_ps(tmax_f);
-#endif
-  // tmax_f is rounded up from a shortened tmax only when the next node is
-  // tested: after a ray's last hit it is not needed, and computing it there
-  // cost ~20 ns a ray where every ray hits one primitive (kernel.py
-  // --probes: a sphere hit 54 -> 42 ns, a polygon hit 44 -> 34 ns; 0-9%
-  // less render CPU on the SPD scenes; the same boxes are tested).
-  double tmax_d = tmax;  // the tmax that tmax_f bounds
-  Entry stack[kBvhRayStack];
-  int sp = 0;
-  Entry cur{0, 0, -std::numeric_limits<float>::infinity()};
-  for (;;) {
-    if (cur.count == 0) {
-      const BvhWideNode& n = bvh.wide[cur.ref];
-      float entry[4];
-      if (tmax != tmax_d) {
-        tmax_d = tmax;
-        tmax_f = float_up(tmax);
-#if defined(__SSE2__)
-        tmax4 = _mm_set1_ps(tmax_f);
-#endif
-      }
-#if defined(__SSE2__)
-      int mask = wide_hits4(n, wr, tmin4, tmax4, entry);
-#else
-      int mask = wide_hits(n, wr, tmin_f, tmax_f, entry);
-#endif
-      if (mask != 0) {
-        int k = std::countr_zero(static_cast<unsigned>(mask));
-        mask &= mask - 1;
-        if (mask == 0) {
-          // One box met (most nodes a ray meets): nothing to order, nothing
-          // left pending (kernel.py: 3-5% less render CPU on SPD teapot
-          // and sombrero).
-          cur = Entry{n.ref[k], n.count[k], entry[k]};
-          continue;
-        }
-        // The boxes met, nearest entry first (insertion: at most 4).
-        Entry hit[4];
-        hit[0] = Entry{n.ref[k], n.count[k], entry[k]};
-        int nh = 1;
-        for (; mask != 0; mask &= mask - 1) {
-          k = std::countr_zero(static_cast<unsigned>(mask));
-          const Entry e{n.ref[k], n.count[k], entry[k]};
-          int j = nh++;
-          if constexpr (kNearestFirst) {
-            for (; j > 0 && e.t < hit[j - 1].t; --j) hit[j] = hit[j - 1];
-          }
-          hit[j] = e;
-        }
-        LOCUS_CHECK(sp + 3 <= kBvhRayStack);
-        for (int j = nh - 1; j > 0; --j) stack[sp++] = hit[j];
-        cur = hit[0];
-        continue;
-      }
-    } else {
-      for (int i = cur.ref; i < cur.ref + cur.count; ++i) {
-        double t;
-        if constexpr (std::is_invocable_v<F&, int, int>) {
-          t = visit(bvh.order[i], i);  // the primitive and its slot in bvh.order
-        } else {
-          t = visit(bvh.order[i]);
-        }
-        if (t < 0) return;
-        tmax = t;
-      }
-    }
-    do {
-      if (sp == 0) return;
-      cur = stack[--sp];
-    } while (static_cast<double>(cur.t) > tmax);
+#if LOCUS_WIDE8
+  if (!bvh.wide8.empty()) {
+    avx2::walk_wide8<kNearestFirst>(bvh, ray, tmin, tmax, visit);
+    return;
   }
+#endif
+  if (bvh.wide.empty()) return;
+  walk_wide<4, kNearestFirst>(bvh.wide.data(), bvh.order.data(), ray, tmin, tmax, visit);
 }
 
 }  // namespace locus

@@ -1,8 +1,9 @@
 // The hierarchy's walks: the ray walk (traverse_bvh, over the 4-wide float
-// tree) visits every leaf a brute-force double box test gives and only
-// leaves within the float test's slack besides; the 4-wide box test never
-// misses a box the double slab test meets (slab planes, parallel rays, far
-// origins); the region walk (walk_bvh) visits exactly the leaves its node
+// tree, and over the 8-wide one where the processor has AVX2) visits every
+// leaf a brute-force double box test gives and only leaves within the float
+// test's slack besides; the 4-wide and 8-wide box tests never miss a box
+// the double slab test meets (slab planes, parallel rays, far origins);
+// the region walk (walk_bvh) visits exactly the leaves its node
 // test accepts; a hierarchy deeper than a walk's stack trips the
 // LOCUS_CHECK instead of writing past the array. The builder gives
 // primitives a leaf each where their own boxes are small against the
@@ -14,8 +15,10 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace locus {
@@ -82,47 +85,109 @@ Aabb grown(const Aabb& b, double rel) {
   return Aabb{b.lo - pad, b.hi + pad};
 }
 
+// The two ray walks of one hierarchy: the 4-wide one, and the 8-wide one
+// where this processor has AVX2 (where it has not, build_bvh made none).
+std::vector<Bvh> both_walks(const Bvh& built) {
+  Bvh four = built;
+  four.wide8.clear();
+  std::vector<Bvh> out = {four};
+  if (wide8_walk_available()) {
+    EXPECT_FALSE(built.wide8.empty());
+    Bvh eight = built;
+    build_wide8(eight);
+    out.push_back(eight);
+  } else {
+    EXPECT_TRUE(built.wide8.empty());
+  }
+  return out;
+}
+
+// Whether the AVX2 walk runs here: on x86-64, it must (LOCUS_KERNEL_WIDTH=4
+// turns it off).
+TEST(BvhWalk, EightWideWalkRunsWhereTheProcessorHasAvx2) {
+#if LOCUS_WIDE8
+  const char* w = std::getenv("LOCUS_KERNEL_WIDTH");
+  const bool off = w && std::string(w) == "4";
+  EXPECT_EQ(wide8_walk_available(), !off && __builtin_cpu_supports("avx2"));
+#else
+  EXPECT_FALSE(wide8_walk_available());
+#endif
+  std::mt19937_64 rng(5);
+  EXPECT_EQ(build_bvh(random_boxes(rng)).wide8.empty(), !wide8_walk_available());
+}
+
 TEST(BvhWalk, TraversalVisitsTheLeavesTheRayMeets) {
   const uint64_t seed = 22;
   std::mt19937_64 rng(seed);
   const std::vector<Aabb> boxes = random_boxes(rng);
-  const Bvh bvh = build_bvh(boxes);
-  int extra = 0, total = 0;
+  for (const Bvh& bvh : both_walks(build_bvh(boxes))) {
+    const int width = bvh.wide8.empty() ? 4 : 8;
+    int extra = 0, total = 0;
+    for (int k = 0; k < kRays; ++k) {
+      const TestRay r = random_ray(rng);
+      const RayInv ri(r.ray);
+      std::vector<int> visited = visited_by(bvh, r);
+      std::sort(visited.begin(), visited.end());
+      ASSERT_TRUE(std::adjacent_find(visited.begin(), visited.end()) == visited.end())
+          << "a primitive visited twice, seed " << seed << ", ray " << k << ", width " << width;
+      // Every leaf the double test meets is visited ...
+      const std::vector<int> met = brute_force_leaves(
+          bvh, [&](const Aabb& b) { return hit_box_scalar(b, ri, 0.0, r.tmax); });
+      ASSERT_TRUE(std::includes(visited.begin(), visited.end(), met.begin(), met.end()))
+          << "seed " << seed << ", ray " << k << ", width " << width;
+      // ... and besides them only leaves the ray passes within the float
+      // test's slack of.
+      const std::vector<int> near = brute_force_leaves(bvh, [&](const Aabb& b) {
+        return hit_box_scalar(grown(b, 1e-5), ri, -1e-5 * r.tmax, r.tmax * (1 + 1e-5));
+      });
+      ASSERT_TRUE(std::includes(near.begin(), near.end(), visited.begin(), visited.end()))
+          << "seed " << seed << ", ray " << k << ", width " << width;
+      extra += static_cast<int>(visited.size() - met.size());
+      total += static_cast<int>(visited.size());
+      // Conservative: every primitive whose own box the ray meets is visited.
+      for (int p = 0; p < kBoxes; ++p) {
+        if (hit_box_scalar(boxes[p], ri, 0.0, r.tmax)) {
+          ASSERT_TRUE(std::binary_search(visited.begin(), visited.end(), p))
+              << "seed " << seed << ", ray " << k << ", box " << p << ", width " << width;
+        }
+      }
+    }
+    EXPECT_GT(total, kRays);
+    EXPECT_LT(extra, total / 1000 + 1) << "width " << width;
+  }
+}
+
+// The nearest box first: a walk that shortens tmax to each primitive's box
+// entry (as a nearest-hit search does) ends with the same nearest entry in
+// both walks, having visited only primitives whose boxes the ray meets
+// before it.
+TEST(BvhWalk, BothWalksFindTheSameNearestBox) {
+  std::mt19937_64 rng(31);
+  const std::vector<Aabb> boxes = random_boxes(rng);
+  const std::vector<Bvh> walks = both_walks(build_bvh(boxes));
+  int found = 0;
   for (int k = 0; k < kRays; ++k) {
     const TestRay r = random_ray(rng);
     const RayInv ri(r.ray);
-    std::vector<int> visited = visited_by(bvh, r);
-    std::sort(visited.begin(), visited.end());
-    ASSERT_TRUE(std::adjacent_find(visited.begin(), visited.end()) == visited.end())
-        << "a primitive visited twice, seed " << seed << ", ray " << k;
-    // Every leaf the double test meets is visited ...
-    const std::vector<int> met =
-        brute_force_leaves(bvh, [&](const Aabb& b) { return hit_box_scalar(b, ri, 0.0, r.tmax); });
-    ASSERT_TRUE(std::includes(visited.begin(), visited.end(), met.begin(), met.end()))
-        << "seed " << seed << ", ray " << k;
-    // ... and besides them only leaves the ray passes within the float
-    // test's slack of.
-    const std::vector<int> near = brute_force_leaves(bvh, [&](const Aabb& b) {
-      return hit_box_scalar(grown(b, 1e-5), ri, -1e-5 * r.tmax, r.tmax * (1 + 1e-5));
-    });
-    ASSERT_TRUE(std::includes(near.begin(), near.end(), visited.begin(), visited.end()))
-        << "seed " << seed << ", ray " << k;
-    extra += static_cast<int>(visited.size() - met.size());
-    total += static_cast<int>(visited.size());
-    // Conservative: every primitive whose own box the ray meets is visited.
-    for (int p = 0; p < kBoxes; ++p) {
-      if (hit_box_scalar(boxes[p], ri, 0.0, r.tmax)) {
-        ASSERT_TRUE(std::binary_search(visited.begin(), visited.end(), p))
-            << "seed " << seed << ", ray " << k << ", box " << p;
-      }
+    std::vector<double> nearest;
+    for (const Bvh& bvh : walks) {
+      double best = r.tmax;
+      traverse_bvh(bvh, r.ray, 0.0, r.tmax, [&](int prim) {
+        if (hit_box_scalar(boxes[prim], ri, 0.0, best))
+          best = std::min(best, box_entry(boxes[prim], ri, 0.0));
+        return best;
+      });
+      nearest.push_back(best);
     }
+    for (double t : nearest) ASSERT_EQ(t, nearest[0]) << "ray " << k;
+    found += nearest[0] < r.tmax;
   }
-  EXPECT_GT(total, kRays);
-  EXPECT_LT(extra, total / 1000 + 1);
+  EXPECT_GT(found, kRays / 4);
 }
 
 // The 4-wide float box test against the double slab loop: a box the double
-// test meets is met, and entered no later than it says, on random boxes and
+// test meets is met, and entered no later than it says (and the 8-wide
+// test answers as the 4-wide one does, bit for bit), on random boxes and
 // rays and on rays whose origin lies on a slab's plane with a direction
 // component of +0 or -0 (NaN slab distances), on a box's face or edge, far
 // from the origin (the float origin's rounding), with tmax at the entry.
@@ -132,7 +197,7 @@ TEST(BvhWalk, WideBoxTestNeverMissesWhatTheDoubleTestMeets) {
   std::uniform_int_distribution<int> pick(0, 5);
   const double grid[] = {-1.0, -0.5, 0.0, 0.5, 1.0};
   const double offsets[] = {0.0, 0.1, 1e3 / 3, -7e5 / 3};
-  int hits = 0, misses = 0;
+  int hits = 0, misses = 0, eight_wide = 0;
   for (int k = 0; k < 100000; ++k) {
     const Vec3 shift(offsets[k % 4], offsets[(k / 4) % 4], offsets[(k / 16) % 4]);
     BvhWideNode n;
@@ -163,6 +228,30 @@ TEST(BvhWalk, WideBoxTestNeverMissesWhatTheDoubleTestMeets) {
     const double tmax = pick(rng) % 3 == 0 ? box_entry(box[k % 4], ri, tmin) : 1e300;
     float entry[4];
     const int mask = wide_hits(n, wr, float_down(tmin), float_up(tmax), entry);
+#if LOCUS_WIDE8
+    // The 8-wide test, with the four boxes in slots 0-3 and again,
+    // reversed, in slots 4-7: the same answers in both places.
+    if (wide8_walk_available()) {
+      BvhWideNode8 n8;
+      for (int c = 0; c < 8; ++c) {
+        for (int a = 0; a < 3; ++a) {
+          for (int side = 0; side < 2; ++side)
+            n8.planes[a][side][c] = n.planes[a][side][c < 4 ? c : 7 - c];
+        }
+      }
+      float entry8[8];
+      const int mask8 = wide_hits(n8, wr, float_down(tmin), float_up(tmax), entry8);
+      for (int c = 0; c < 4; ++c) {
+        ASSERT_EQ((mask8 >> c) & 1, (mask >> c) & 1) << "ray " << k << ", box " << c;
+        ASSERT_EQ((mask8 >> (7 - c)) & 1, (mask >> c) & 1) << "ray " << k << ", box " << c;
+        if ((mask >> c) & 1) {
+          ASSERT_EQ(entry8[c], entry[c]) << "ray " << k << ", box " << c;
+          ASSERT_EQ(entry8[7 - c], entry[c]) << "ray " << k << ", box " << c;
+        }
+      }
+      ++eight_wide;
+    }
+#endif
     for (int c = 0; c < 4; ++c) {
       // (An entry at infinity, from a zero direction, is no point of the ray.)
       const bool want =
@@ -186,6 +275,7 @@ TEST(BvhWalk, WideBoxTestNeverMissesWhatTheDoubleTestMeets) {
   // TraversalVisitsTheLeavesTheRayMeets).
   EXPECT_GT(hits, 10000);
   EXPECT_GT(misses, 100000);
+  EXPECT_EQ(eight_wide, wide8_walk_available() ? 100000 : 0);
 }
 
 // float_down and float_up, inline by the float's bits, give what the
@@ -316,6 +406,13 @@ Bvh degenerate_chain(int depth) {
   return bvh;
 }
 
+// The same, walked 8-wide.
+Bvh degenerate_chain8(int depth) {
+  Bvh bvh = degenerate_chain(depth);
+  build_wide8(bvh);
+  return bvh;
+}
+
 TEST(BvhWalkDeathTest, DeeperThanTheStackTripsTheCheck) {
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   const Bvh bvh = degenerate_chain(kBvhWalkStack);
@@ -325,9 +422,18 @@ TEST(BvhWalkDeathTest, DeeperThanTheStackTripsTheCheck) {
   // The 4-wide form of a chain 3 levels deeper than kBvhRayStack: each wide
   // node holds 3 leaves and the rest of the chain, all at the same entry
   // distance, and the chain goes first.
-  EXPECT_DEATH(traverse_bvh(degenerate_chain(kBvhRayStack + 3), Ray{Vec3(0.1, 0.2, -5), Vec3(0, 0, 1)},
-                            0.0, 10.0, [](int) { return 10.0; }),
-               "CHECK failed: sp \\+ 3 <= kBvhRayStack");
+  EXPECT_DEATH(
+      traverse_bvh(degenerate_chain(kBvhRayStack + 3), Ray{Vec3(0.1, 0.2, -5), Vec3(0, 0, 1)}, 0.0,
+                   10.0, [](int) { return 10.0; }),
+      "CHECK failed: sp \\+ \\(W - 1\\) <= kBvhRayStackN<W>");
+  // The 8-wide form of a chain 14 levels deeper than its stack: each wide
+  // node holds 7 leaves and the rest of the chain.
+  if (wide8_walk_available()) {
+    EXPECT_DEATH(
+        traverse_bvh(degenerate_chain8(kBvhRayStackN<8> + 14),
+                     Ray{Vec3(0.1, 0.2, -5), Vec3(0, 0, 1)}, 0.0, 10.0, [](int) { return 10.0; }),
+        "CHECK failed: sp \\+ \\(W - 1\\) <= kBvhRayStackN<W>");
+  }
   // One level less is the longest chain the stack holds: walked to the end,
   // each right child and the last left one visited.
   int visits = 0;

@@ -257,15 +257,6 @@ TEST(ClosedSolids, SpdTetraHidesHalfItsFacesAndTheVisibleSegmentsAreUnchanged) {
   EXPECT_GT(hidden_met, 0);
 }
 
-double max_difference(const Image& x, const Image& y) {
-  double m = 0;
-  for (int j = 0; j < x.height; ++j)
-    for (int i = 0; i < x.width; ++i)
-      for (int c = 0; c < 3; ++c)
-        m = std::max(m, static_cast<double>(std::abs(x.pixel(i, j)[c] - y.pixel(i, j)[c])));
-  return m;
-}
-
 TEST(ClosedSolids, ImagesWithCullsEqualImagesWithout) {
   struct Case {
     const char* path;
@@ -289,7 +280,7 @@ TEST(ClosedSolids, ImagesWithCullsEqualImagesWithout) {
     EXPECT_GT(culled, 0) << c.path;
     const BandResult x = render_band(*w.culled, Band{0, 96}, c.params);
     const BandResult y = render_band(*w.plain, Band{0, 96}, c.params);
-    EXPECT_EQ(max_difference(x.pixels, y.pixels), 0.0) << c.path;
+    EXPECT_EQ(testing_util::max_difference(x.pixels, y.pixels), 0.0) << c.path;
     // Fewer tests where faces were skipped. The ray tracer casts the same
     // rays; the local method traces a sample whose face it cannot hit
     // (hit_on_face), which a back face's sliver at a silhouette was now
