@@ -208,11 +208,6 @@ struct WideRay {
   float origin[3], inv[3];
   int near_plane[3];  // 0: lo, 1: hi
   float slack;
-#if defined(__SSE2__)
-  // The same in all four lanes, made once for the walk's every node (a
-  // node's test made them itself: 9% of a shadow ray's instructions).
-  __m128 origin4[3], inv4[3], slack4;
-#endif
   explicit WideRay(const Ray& r);
 };
 
@@ -241,13 +236,6 @@ inline WideRay::WideRay(const Ray& r) {
   // Twice the shift, rounded up generously; kept finite (an infinite slack
   // would turn the test's infinite bounds into NaN).
   slack = static_cast<float>(std::min(2.0 * 1.01 * shift + 1e-30, 1e30));
-#if defined(__SSE2__)
-  for (int a = 0; a < 3; ++a) {
-    origin4[a] = _mm_set1_ps(origin[a]);
-    inv4[a] = _mm_set1_ps(inv[a]);
-  }
-  slack4 = _mm_set1_ps(slack);
-#endif
 }
 
 // The largest float not above x, and the smallest not below (a NaN stays
@@ -268,37 +256,54 @@ inline float float_up(double x) {
   return std::bit_cast<float>(f > 0.0f ? b + 1 : b - 1);
 }
 
+// The ray walk's stack: an entered node leaves at most W - 1 children
+// pending, and a wide tree is no deeper than the binary one (bvh.cpp).
+template <int W>
+inline constexpr int kBvhRayStackN = (W - 1) * kBvhWalkStack;
+inline constexpr int kBvhRayStack = kBvhRayStackN<4>;
+
+// The lanes of a W-wide node's box test (bvh_walk.inc, wide_lanes_hits):
+// the register type and the few operations the test makes, one intrinsic
+// each. WideOps<4> is SSE2 (or, without SSE2, no lanes: the plain loop of
+// wide_hits_scalar); WideOps<8> is AVX2, below.
+template <int W>
+struct WideOps;
+
+#if defined(__SSE2__)
+template <>
+struct WideOps<4> {
+  static constexpr bool kLanes = true;
+  using V = __m128;
+  static V set1(float x) { return _mm_set1_ps(x); }
+  static V load(const float* p) { return _mm_load_ps(p); }
+  static V add(V a, V b) { return _mm_add_ps(a, b); }
+  static V sub(V a, V b) { return _mm_sub_ps(a, b); }
+  static V mul(V a, V b) { return _mm_mul_ps(a, b); }
+  // a > b ? a : b and a < b ? a : b: b where either is NaN.
+  static V max(V a, V b) { return _mm_max_ps(a, b); }
+  static V min(V a, V b) { return _mm_min_ps(a, b); }
+  static V abs(V a) { return _mm_and_ps(a, _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff))); }
+  static void store(float* p, V a) { _mm_storeu_ps(p, a); }
+  // Bit k: a[k] <= b[k].
+  static int le_mask(V a, V b) { return _mm_movemask_ps(_mm_cmple_ps(a, b)); }
+};
+#else
+template <>
+struct WideOps<4> {
+  static constexpr bool kLanes = false;
+  using V = float;
+  static V set1(float x) { return x; }
+};
+#endif
+
 // Which of node n's four boxes the ray meets for some t in [tmin, tmax]
 // (bit k for child k), conservatively (WideRay); entry[k] is a lower bound
 // of where it enters box k. A NaN slab distance (origin on a slab's plane,
-// direction parallel to it) never moves the bounds, as in hit_box.
-#if defined(__SSE2__)
-// wide_hits with tmin and tmax in all four lanes (the walk keeps them so).
-inline int wide_hits4(const BvhWideNode& n, const WideRay& r, __m128 lo, __m128 hi,
-                      float entry[4]) {
-  // _mm_max_ps(a, b) and _mm_min_ps(a, b) return b when either is NaN: the
-  // slab distance goes first.
-  for (int a = 0; a < 3; ++a) {
-    const __m128 o = r.origin4[a], inv = r.inv4[a];
-    const __m128 tn = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[a][r.near_plane[a]]), o), inv);
-    const __m128 tf = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.planes[a][1 - r.near_plane[a]]), o), inv);
-    lo = _mm_max_ps(tn, lo);
-    hi = _mm_min_ps(tf, hi);
-  }
-  const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-  const __m128 rel = _mm_set1_ps(WideRay::kWideRel);
-  lo = _mm_sub_ps(lo, _mm_add_ps(_mm_mul_ps(_mm_and_ps(lo, abs_mask), rel), r.slack4));
-  hi = _mm_add_ps(hi, _mm_mul_ps(_mm_and_ps(hi, abs_mask), rel));
-  _mm_storeu_ps(entry, lo);
-  return _mm_movemask_ps(_mm_cmple_ps(lo, hi));
-}
-#endif
-
-inline int wide_hits(const BvhWideNode& n, const WideRay& r, float tmin, float tmax,
-                     float entry[4]) {
-#if defined(__SSE2__)
-  return wide_hits4(n, r, _mm_set1_ps(tmin), _mm_set1_ps(tmax), entry);
-#else
+// direction parallel to it) never moves the bounds, as in hit_box. The
+// plain loop, for builds without SSE2; wide_hits_lanes does the same in
+// one pass (bvh_walk.inc).
+inline int wide_hits_scalar(const BvhWideNode& n, const WideRay& r, float tmin, float tmax,
+                            float entry[4]) {
   int mask = 0;
   for (int k = 0; k < 4; ++k) {
     float lo = tmin, hi = tmax;
@@ -314,96 +319,42 @@ inline int wide_hits(const BvhWideNode& n, const WideRay& r, float tmin, float t
     if (lo <= hi) mask |= 1 << k;
   }
   return mask;
-#endif
 }
 
-// The ray walk's stack: an entered node leaves at most W - 1 children
-// pending, and a wide tree is no deeper than the binary one (bvh.cpp).
-template <int W>
-inline constexpr int kBvhRayStackN = (W - 1) * kBvhWalkStack;
-inline constexpr int kBvhRayStack = kBvhRayStackN<4>;
-
-// The per-width parts of the ray walk (bvh_walk.inc): the lanes of a
-// node's box test, the ray in them, and the test. WideOps<8> is AVX2 code
-// (below); WideOps<4> is SSE2, or the plain loop.
-template <int W>
-struct WideOps;
-
-template <>
-struct WideOps<4> {
-#if defined(__SSE2__)
-  using Lanes = __m128;
-  static Lanes set1(float x) { return _mm_set1_ps(x); }
-  struct RayLanes {
-    const WideRay& wr;
-    explicit RayLanes(const WideRay& r) : wr(r) {}
-  };
-  static int hits(const BvhWideNode& n, const RayLanes& r, Lanes lo, Lanes hi, float entry[4]) {
-    return wide_hits4(n, r.wr, lo, hi, entry);
-  }
-#else
-  using Lanes = float;
-  static Lanes set1(float x) { return x; }
-  struct RayLanes {
-    const WideRay& wr;
-    explicit RayLanes(const WideRay& r) : wr(r) {}
-  };
-  static int hits(const BvhWideNode& n, const RayLanes& r, Lanes lo, Lanes hi, float entry[4]) {
-    return wide_hits(n, r.wr, lo, hi, entry);
-  }
-#endif
-};
-
-// The walk itself, once, compiled twice: here for the 4-wide tree, and
-// below, in namespace avx2, as AVX2 code for the 8-wide one.
+// The box test and the walk, once, compiled twice: here for the 4-wide
+// tree, and below, in namespace avx2, as AVX2 code for the 8-wide one.
 #include "common/geometry/bvh_walk.inc"
+
+// Which of node n's four boxes the ray meets (wide_hits_scalar's answers,
+// from its one pass where the build has SSE2).
+inline int wide_hits(const BvhWideNode& n, const WideRay& r, float tmin, float tmax,
+                     float entry[4]) {
+  using O = WideOps<4>;
+  return wide_hits_lanes<4>(n, WideRayLanes<4>(r), O::set1(tmin), O::set1(tmax), entry);
+}
 
 #if LOCUS_WIDE8
 #pragma GCC push_options
 #pragma GCC target("avx2")
-// The 8-wide box test: wide_hits4's arithmetic in eight lanes (VMAXPS and
-// VMINPS return the second operand on NaN, as MAXPS and MINPS do). No FMA:
-// the target is AVX2 alone, so nothing here or inlined here is contracted,
-// and every primitive test gives the 4-wide walk's answers bit for bit.
+// The 8-wide lanes: VMAXPS and VMINPS return the second operand on NaN, as
+// MAXPS and MINPS do. No FMA: the target is AVX2 alone, so nothing here or
+// inlined here is contracted, and every primitive test gives the 4-wide
+// walk's answers bit for bit.
 template <>
 struct WideOps<8> {
-  using Lanes = __m256;
-  static Lanes set1(float x) { return _mm256_set1_ps(x); }
-  struct RayLanes {
-    __m256 origin[3], inv[3], slack;
-    const int* near_plane;
-    explicit RayLanes(const WideRay& r) : near_plane(r.near_plane) {
-      for (int a = 0; a < 3; ++a) {
-        origin[a] = _mm256_set1_ps(r.origin[a]);
-        inv[a] = _mm256_set1_ps(r.inv[a]);
-      }
-      slack = _mm256_set1_ps(r.slack);
-    }
-  };
-  static int hits(const BvhWideNode8& n, const RayLanes& r, Lanes lo, Lanes hi, float entry[8]) {
-    for (int a = 0; a < 3; ++a) {
-      const __m256 tn = _mm256_mul_ps(
-          _mm256_sub_ps(_mm256_load_ps(n.planes[a][r.near_plane[a]]), r.origin[a]), r.inv[a]);
-      const __m256 tf = _mm256_mul_ps(
-          _mm256_sub_ps(_mm256_load_ps(n.planes[a][1 - r.near_plane[a]]), r.origin[a]), r.inv[a]);
-      lo = _mm256_max_ps(tn, lo);
-      hi = _mm256_min_ps(tf, hi);
-    }
-    const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
-    const __m256 rel = _mm256_set1_ps(WideRay::kWideRel);
-    lo = _mm256_sub_ps(lo, _mm256_add_ps(_mm256_mul_ps(_mm256_and_ps(lo, abs_mask), rel), r.slack));
-    hi = _mm256_add_ps(hi, _mm256_mul_ps(_mm256_and_ps(hi, abs_mask), rel));
-    _mm256_storeu_ps(entry, lo);
-    return _mm256_movemask_ps(_mm256_cmp_ps(lo, hi, _CMP_LE_OQ));
-  }
+  static constexpr bool kLanes = true;
+  using V = __m256;
+  static V set1(float x) { return _mm256_set1_ps(x); }
+  static V load(const float* p) { return _mm256_load_ps(p); }
+  static V add(V a, V b) { return _mm256_add_ps(a, b); }
+  static V sub(V a, V b) { return _mm256_sub_ps(a, b); }
+  static V mul(V a, V b) { return _mm256_mul_ps(a, b); }
+  static V max(V a, V b) { return _mm256_max_ps(a, b); }
+  static V min(V a, V b) { return _mm256_min_ps(a, b); }
+  static V abs(V a) { return _mm256_and_ps(a, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff))); }
+  static void store(float* p, V a) { _mm256_storeu_ps(p, a); }
+  static int le_mask(V a, V b) { return _mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)); }
 };
-// wide_hits for an 8-wide node (the walk keeps its bounds in lanes; tests
-// call this one). AVX2 code: call it only where wide8_walk_available().
-inline int wide_hits(const BvhWideNode8& n, const WideRay& r, float tmin, float tmax,
-                     float entry[8]) {
-  return WideOps<8>::hits(n, WideOps<8>::RayLanes(r), _mm256_set1_ps(tmin), _mm256_set1_ps(tmax),
-                          entry);
-}
 namespace avx2 {
 #include "common/geometry/bvh_walk.inc"
 // Out of line: a call from the callers' SSE2 code into AVX2 code.
@@ -413,6 +364,15 @@ template <bool kNearestFirst, typename F>
   avx2::walk_wide<8, kNearestFirst>(bvh.wide8.data(), bvh.order.data(), ray, tmin, tmax, visit);
 }
 }  // namespace avx2
+// Which of an 8-wide node's boxes the ray meets (the walk keeps its bounds
+// in lanes; tests call this one). AVX2 code: call it only where
+// wide8_walk_available().
+inline int wide_hits(const BvhWideNode8& n, const WideRay& r, float tmin, float tmax,
+                     float entry[8]) {
+  using O = WideOps<8>;
+  return avx2::wide_hits_lanes<8>(n, avx2::WideRayLanes<8>(r), O::set1(tmin), O::set1(tmax),
+                                  entry);
+}
 #pragma GCC pop_options
 #endif
 
