@@ -370,8 +370,7 @@ template <bool kNearestFirst, typename F>
 inline int wide_hits(const BvhWideNode8& n, const WideRay& r, float tmin, float tmax,
                      float entry[8]) {
   using O = WideOps<8>;
-  return avx2::wide_hits_lanes<8>(n, avx2::WideRayLanes<8>(r), O::set1(tmin), O::set1(tmax),
-                                  entry);
+  return avx2::wide_hits_lanes<8>(n, avx2::WideRayLanes<8>(r), O::set1(tmin), O::set1(tmax), entry);
 }
 #pragma GCC pop_options
 #endif
