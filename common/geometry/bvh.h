@@ -262,7 +262,7 @@ template <int W>
 inline constexpr int kBvhRayStackN = (W - 1) * kBvhWalkStack;
 inline constexpr int kBvhRayStack = kBvhRayStackN<4>;
 
-// The lanes of a W-wide node's box test (bvh_walk.inc, wide_lanes_hits):
+// The lanes of a W-wide node's box test (bvh_walk.inc, wide_hits_lanes):
 // the register type and the few operations the test makes, one intrinsic
 // each. WideOps<4> is SSE2 (or, without SSE2, no lanes: the plain loop of
 // wide_hits_scalar); WideOps<8> is AVX2, below.
