@@ -224,8 +224,8 @@ void build_wide8(Bvh& bvh) { build_wide_n(bvh, bvh.wide8); }
 
 bool wide8_walk_available() {
 #if LOCUS_WIDE8
-  // LOCUS_KERNEL_WIDTH=4 keeps the 4-wide walk (bench/peers/kernel.py
-  // measures the two side by side).
+  // LOCUS_KERNEL_WIDTH=4 keeps the 4-wide walk (to measure the two side by
+  // side in one binary).
   static const bool yes = [] {
     const char* w = std::getenv("LOCUS_KERNEL_WIDTH");
     if (w && std::string_view(w) == "4") return false;
@@ -259,8 +259,13 @@ Bvh build_bvh(const std::vector<Aabb>& bounds) {
   for (const Aabb& b : padded) ctx.centres.push_back(b.centre());
   bvh.nodes.reserve(2 * bounds.size());
   build_node(ctx, 0, static_cast<int>(bounds.size()), 0);
-  build_wide(bvh);
-  if (wide8_walk_available()) build_wide8(bvh);
+  // Only the walk traverse_bvh takes: the other would cost the frame's
+  // preparation its collapse and its memory for nothing.
+  if (wide8_walk_available()) {
+    build_wide8(bvh);
+  } else {
+    build_wide(bvh);
+  }
   return bvh;
 }
 

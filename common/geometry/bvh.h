@@ -48,7 +48,6 @@ struct BvhNode {
 // BvhWideNodeN<8> is the same with 8 children, for the AVX2 walk.
 template <int W>
 struct BvhWideNodeN {
-  static constexpr int kWidth = W;
   alignas(4 * W) float planes[3][2][W];  // [axis][0: lo, 1: hi][child]
   int ref[W];
   int count[W];
@@ -59,14 +58,16 @@ using BvhWideNode8 = BvhWideNodeN<8>;
 struct Bvh {
   std::vector<BvhNode> nodes;  // the binary tree: the hierarchy of boxes of §4.1
   std::vector<int> order;      // primitive indices, leaves refer to ranges
-  std::vector<BvhWideNode> wide;  // the same leaves, 4-wide, for rays; wide[0] the root
-  // The same leaves 8-wide, where the processor has AVX2 (wide8_walk_available):
-  // traverse_bvh walks this one when it is there.
+  // The same leaves for rays, wide[0] or wide8[0] the root: 8-wide where
+  // the processor has AVX2 (wide8_walk_available), 4-wide elsewhere.
+  // build_bvh makes only the one traverse_bvh walks (it walks wide8 when
+  // that is there).
+  std::vector<BvhWideNode> wide;
   std::vector<BvhWideNode8> wide8;
 };
 
-// Builds the binary tree and its 4-wide form, and its 8-wide form where
-// the processor has AVX2.
+// Builds the binary tree and its 8-wide form where the processor has
+// AVX2, its 4-wide form elsewhere.
 Bvh build_bvh(const std::vector<Aabb>& bounds);
 
 // Fills bvh.wide from bvh.nodes: each inner node takes the children of its

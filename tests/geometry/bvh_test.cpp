@@ -90,12 +90,11 @@ Aabb grown(const Aabb& b, double rel) {
 std::vector<Bvh> both_walks(const Bvh& built) {
   Bvh four = built;
   four.wide8.clear();
+  build_wide(four);
   std::vector<Bvh> out = {four};
   if (wide8_walk_available()) {
     EXPECT_FALSE(built.wide8.empty());
-    Bvh eight = built;
-    build_wide8(eight);
-    out.push_back(eight);
+    out.push_back(built);
   } else {
     EXPECT_TRUE(built.wide8.empty());
   }
@@ -112,8 +111,11 @@ TEST(BvhWalk, EightWideWalkRunsWhereTheProcessorHasAvx2) {
 #else
   EXPECT_FALSE(wide8_walk_available());
 #endif
+  // build_bvh makes the one form traverse_bvh walks.
   std::mt19937_64 rng(5);
-  EXPECT_EQ(build_bvh(random_boxes(rng)).wide8.empty(), !wide8_walk_available());
+  const Bvh bvh = build_bvh(random_boxes(rng));
+  EXPECT_EQ(bvh.wide8.empty(), !wide8_walk_available());
+  EXPECT_EQ(bvh.wide.empty(), wide8_walk_available());
 }
 
 TEST(BvhWalk, TraversalVisitsTheLeavesTheRayMeets) {
