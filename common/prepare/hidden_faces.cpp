@@ -209,6 +209,32 @@ ClosedSolids closed_convex_solids(const PrimitiveSet& set) {
   return out;
 }
 
+namespace {
+
+// The polygon of solid face q.
+const PolygonPrim& solid_face(const PrimitiveSet& set, const ClosedSolids& solids, int s, int q) {
+  return set.polygons[set.prims[solids.faces[solids.first[s] + q]].index];
+}
+
+// Every face of solid s stops light (eq. (2)).
+bool solid_opaque(const ClosedSolids& solids, int s, const std::vector<uint8_t>& stops_light) {
+  for (int i = solids.first[s]; i < solids.first[s + 1]; ++i)
+    if (!stops_light[solids.faces[i]]) return false;
+  return true;
+}
+
+// The point lies outside convex solid s: in front of one of its faces.
+bool outside_solid(const PrimitiveSet& set, const ClosedSolids& solids, int s, const Vec3& point) {
+  const int nf = solids.first[s + 1] - solids.first[s];
+  for (int q = 0; q < nf; ++q) {
+    const PolygonPrim& f = solid_face(set, solids, s, q);
+    if (solids.sign[s] * (glm::dot(f.normal, point) - f.offset) > 0) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 std::vector<uint8_t> ray_culls(const PrimitiveSet& set, const ClosedSolids& solids,
                                const CameraFrame& cam, double z_near,
                                const std::vector<Light>& lights,
@@ -219,11 +245,10 @@ std::vector<uint8_t> ray_culls(const PrimitiveSet& set, const ClosedSolids& soli
     const int* fs = &solids.faces[solids.first[s]];
     const int nf = solids.first[s + 1] - solids.first[s];
     const double sign = solids.sign[s];
-    auto poly = [&](int q) -> const PolygonPrim& { return set.polygons[set.prims[fs[q]].index]; };
-    bool beyond = true, opaque = true;
+    auto poly = [&](int q) -> const PolygonPrim& { return solid_face(set, solids, s, q); };
+    bool beyond = true;
     for (int q = 0; q < nf; ++q) {
       for (const Vec3& p : poly(q).verts) beyond = beyond && beyond_near(cam, z_near, p);
-      opaque = opaque && stops_light[fs[q]];
     }
     if (beyond) {
       for (int q = 0; q < nf; ++q) {
@@ -231,14 +256,10 @@ std::vector<uint8_t> ray_culls(const PrimitiveSet& set, const ClosedSolids& soli
           culls[fs[q]] |= kCullEye;
       }
     }
-    if (!opaque) continue;
+    if (!solid_opaque(solids, s, stops_light)) continue;
     for (int j = 0; j < nl; ++j) {
       const Vec3& light = lights[j].position;
-      // Outside a convex solid: in front of one of its faces.
-      bool outside = false;
-      for (int q = 0; q < nf && !outside; ++q)
-        outside = sign * (glm::dot(poly(q).normal, light) - poly(q).offset) > 0;
-      if (!outside) continue;
+      if (!outside_solid(set, solids, s, light)) continue;
       for (int q = 0; q < nf; ++q) {
         if (faces_away(sign * poly(q).normal, sign * poly(q).offset, light))
           culls[fs[q]] |= cull_light(j);
@@ -246,6 +267,35 @@ std::vector<uint8_t> ray_culls(const PrimitiveSet& set, const ClosedSolids& soli
     }
   }
   return culls;
+}
+
+std::vector<OwnSolid> own_solids(const PrimitiveSet& set, const ClosedSolids& solids,
+                                 const std::vector<Light>& lights,
+                                 const std::vector<uint8_t>& stops_light) {
+  std::vector<OwnSolid> out;
+  const int nl = std::min(static_cast<int>(lights.size()), kOwnSolidLights);
+  for (int s = 0; s < solids.count(); ++s) {
+    const int* fs = &solids.faces[solids.first[s]];
+    const int nf = solids.first[s + 1] - solids.first[s];
+    const auto [lo, hi] = std::minmax_element(fs, fs + nf);
+    if (*hi - *lo + 1 != nf || !solid_opaque(solids, s, stops_light)) continue;
+    for (int q = 0; q < nf; ++q) {
+      const PolygonPrim& f = solid_face(set, solids, s, q);
+      OwnSolid o;
+      o.first = *lo;
+      o.count = static_cast<int16_t>(nf);
+      o.sign = static_cast<int8_t>(solids.sign[s]);
+      for (int j = 0; j < nl; ++j) {
+        const Vec3& light = lights[j].position;
+        // Strictly in front of the face (then outside the solid too).
+        if (o.sign * (glm::dot(f.normal, light) - f.offset) > 0) o.lights |= uint8_t(1u << j);
+      }
+      if (o.lights == 0) continue;
+      if (out.empty()) out.resize(set.prims.size());
+      out[fs[q]] = o;
+    }
+  }
+  return out;
 }
 
 bool convex_hides_back_faces(const ConvexPrim& c, const CameraFrame& cam, double z_near) {

@@ -63,6 +63,46 @@ std::vector<uint8_t> ray_culls(const PrimitiveSet& set, const ClosedSolids& soli
                                const std::vector<Light>& lights,
                                const std::vector<uint8_t>& stops_light);
 
+// A shadow ray from a face of an opaque closed convex solid, whose origin
+// lies in front of the face, to a light strictly in front of it runs in
+// front of the face's plane all the way, where no part of the solid lies:
+// it meets none of the solid's faces, and skips them (at SPD tetra level 9
+// most of a shadow ray's tests were its own solid's other faces). Per
+// primitive (empty: none), for solids whose faces are consecutive
+// primitives:
+inline constexpr int kOwnSolidLights = 8;
+struct OwnSolid {
+  int first = 0;       // the solid's faces: prims [first, first + count)
+  int16_t count = 0;   // 0: in no such solid
+  uint8_t lights = 0;  // bit j (j < kOwnSolidLights): light j strictly in front of the face
+  int8_t sign = 0;     // the face's outward normal is sign * its normal
+};
+std::vector<OwnSolid> own_solids(const PrimitiveSet& set, const ClosedSolids& solids,
+                                 const std::vector<Light>& lights,
+                                 const std::vector<uint8_t>& stops_light);
+
+// The primitives [first, first + count) a shadow ray may skip.
+struct PrimRange {
+  int first = 0, count = 0;
+  bool has(int prim) const {
+    return static_cast<unsigned>(prim - first) < static_cast<unsigned>(count);
+  }
+};
+
+// What a shadow ray from `origin` on face `receiver` (-1: none) to light j
+// skips: the receiver's own solid where the light is in front of the face
+// and the origin is too (the origin is offset to the light's side, so it
+// is, but for rounding where the light is all but in the face's plane).
+inline PrimRange own_solid_skip(const std::vector<OwnSolid>& own, const PrimitiveSet& set,
+                                int receiver, int light, const Vec3& origin) {
+  if (receiver < 0 || own.empty() || light >= kOwnSolidLights) return {};
+  const OwnSolid& o = own[receiver];
+  if (!(o.lights >> light & 1)) return {};
+  const PolygonPrim& f = set.polygons[set.prims[receiver].index];
+  if (!(o.sign * (glm::dot(f.normal, origin) - f.offset) > 0)) return {};
+  return PrimRange{o.first, o.count};
+}
+
 // Whether a convex polyhedron primitive (closed, outward normals, by
 // construction) hides its faces turned away from the eye (faces_away): it
 // lies wholly deeper than z_near and hither.

@@ -64,8 +64,9 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   // Secondary rays start this far off the surface: relative to the scene's
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
-  culls = ray_culls(prims, closed_convex_solids(prims), camera, scan_near_depth(camera, eps),
-                    scene.lights, stops_light);
+  const ClosedSolids solids = closed_convex_solids(prims);
+  culls = ray_culls(prims, solids, camera, scan_near_depth(camera, eps), scene.lights, stops_light);
+  own_solid = own_solids(prims, solids, scene.lights, stops_light);
   if (bvh_for_rays || bvh_for_shadows)
     leaf_prims = build_leaf_prims(prims, bvh, stops_light, culls);
   if (!leaf_prims.empty()) {

@@ -9,6 +9,7 @@
 #include "common/geometry/bvh.h"
 #include "common/geometry/geometry.h"
 #include "common/geometry/leaf_prims.h"
+#include "common/prepare/hidden_faces.h"
 #include "common/prepare/scan_scene.h"
 #include "common/scene/scene.h"
 
@@ -57,6 +58,9 @@ class PreparedScene {
   // Per prims[i]: which rays may skip it, a back face of a closed convex
   // solid (ray_culls, hidden_faces.h: kCullEye, cull_light(j)).
   std::vector<uint8_t> culls;
+  // Per prims[i]: the closed solid a shadow ray from it need not search
+  // (own_solid_skip, hidden_faces.h); empty where no face has one.
+  std::vector<OwnSolid> own_solid;
   // Small polygons, triangles, spheres and cones in the hierarchy's leaf
   // order, for the ray walk (leaf_prims.h); empty where there are none or
   // no hierarchy.

@@ -478,7 +478,7 @@ inline LightStates SubLineBuilder::ray_states(const ScanFace& f, double x, uint6
     const Vec3 origin = tracer_.shadow_origin(p, f.normal, j);
     const Ray seg{origin, ps_.scene.lights[j].position - origin};
     crossings_.clear();
-    const bool opaque = tracer_.shadow_crossings(seg, j, crossings_);
+    const bool opaque = tracer_.shadow_crossings(seg, j, crossings_, f.prim);
     add_light_state(st, j, opaque, ps_.scene, seg, crossings_);
   }
   return st;

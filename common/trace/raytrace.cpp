@@ -173,19 +173,21 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
   const Ray seg{origin, lp - origin};  // t in (0, 1) spans the segment
   thread_local std::vector<Crossing> crossings;
   crossings.clear();
-  if (shadow_crossings(seg, light, crossings)) return Color(0.0);
+  if (shadow_crossings(seg, light, crossings, receiver)) return Color(0.0);
   return segment_transmittance(ps_.scene, seg, crossings);
 }
 
-bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& crossings) {
+bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& crossings,
+                              int receiver) {
   ++stats_.rays_shadow;
   bool opaque = false;
+  const PrimRange own = own_solid_skip(ps_.own_solid, ps_.prims, receiver, light, seg.origin);
   // The faces an opaque closed solid turns away from the light never stop
   // it alone (hidden_faces.h).
   const uint8_t cull = light < kCullLights ? cull_light(light) : 0;
   auto test = [&](int prim, int slot = -1) {
     const LeafPrim* lp = ps_.leaf_prim_at(slot);
-    if ((lp ? lp->cull : ps_.culls[prim]) & cull) return 1.0;
+    if ((lp ? lp->cull : ps_.culls[prim]) & cull || own.has(prim)) return 1.0;
     ++stats_.tests_ray_object;
     if (lp && lp->stops_light) {
       if (!leaf_any(*lp, seg, 0.0, 1.0)) return 1.0;
