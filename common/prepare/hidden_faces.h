@@ -63,23 +63,29 @@ std::vector<uint8_t> ray_culls(const PrimitiveSet& set, const ClosedSolids& soli
                                const std::vector<Light>& lights,
                                const std::vector<uint8_t>& stops_light);
 
-// A shadow ray from a face of an opaque closed convex solid, whose origin
-// lies in front of the face, to a light strictly in front of it runs in
-// front of the face's plane all the way, where no part of the solid lies:
-// it meets none of the solid's faces, and skips them (at SPD tetra level 9
-// most of a shadow ray's tests were its own solid's other faces). Per
-// primitive (empty: none), for solids whose faces are consecutive
-// primitives:
+// A shadow ray from a face of an opaque closed convex solid to a light in
+// front of the face meets none of the solid's faces, and skips them (at
+// SPD tetra level 9 about half of a shadow ray's tests were its own
+// solid's faces). Why: its origin is offset by eps (PreparedScene::eps) to
+// the light's side of the face (Tracer::shadow_origin), which is the front,
+// outside the solid, as the light lies at least `margin` = eps + 1e-12 |L|
+// in front of the face's plane (far above the rounding of the side test
+// and of the shaded point, about 1e-15 of the scene's size); the segment
+// from there to the light lies at least about eps in front of the plane,
+// where no part of the solid is (its vertices lie behind every face's plane
+// to 1e-9 of its size, closed_convex_solids), and every other face's plane
+// meets it at least eps from that face, far beyond the rounding of the
+// exact tests. So the skipped tests would all have missed. Per primitive
+// (empty: none), for solids whose faces are consecutive primitives:
 inline constexpr int kOwnSolidLights = 8;
 struct OwnSolid {
   int first = 0;       // the solid's faces: prims [first, first + count)
   int16_t count = 0;   // 0: in no such solid
-  uint8_t lights = 0;  // bit j (j < kOwnSolidLights): light j strictly in front of the face
-  int8_t sign = 0;     // the face's outward normal is sign * its normal
+  uint8_t lights = 0;  // bit j (j < kOwnSolidLights): light j in front of the face, by the margin
 };
 std::vector<OwnSolid> own_solids(const PrimitiveSet& set, const ClosedSolids& solids,
                                  const std::vector<Light>& lights,
-                                 const std::vector<uint8_t>& stops_light);
+                                 const std::vector<uint8_t>& stops_light, double eps);
 
 // The primitives [first, first + count) a shadow ray may skip.
 struct PrimRange {
@@ -89,17 +95,12 @@ struct PrimRange {
   }
 };
 
-// What a shadow ray from `origin` on face `receiver` (-1: none) to light j
-// skips: the receiver's own solid where the light is in front of the face
-// and the origin is too (the origin is offset to the light's side, so it
-// is, but for rounding where the light is all but in the face's plane).
-inline PrimRange own_solid_skip(const std::vector<OwnSolid>& own, const PrimitiveSet& set,
-                                int receiver, int light, const Vec3& origin) {
+// What a shadow ray to light j from face `receiver` (-1: none) skips: the
+// receiver's own solid, where the light is in front of the face.
+inline PrimRange own_solid_skip(const std::vector<OwnSolid>& own, int receiver, int light) {
   if (receiver < 0 || own.empty() || light >= kOwnSolidLights) return {};
   const OwnSolid& o = own[receiver];
   if (!(o.lights >> light & 1)) return {};
-  const PolygonPrim& f = set.polygons[set.prims[receiver].index];
-  if (!(o.sign * (glm::dot(f.normal, origin) - f.offset) > 0)) return {};
   return PrimRange{o.first, o.count};
 }
 

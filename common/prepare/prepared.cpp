@@ -66,7 +66,7 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
   const ClosedSolids solids = closed_convex_solids(prims);
   culls = ray_culls(prims, solids, camera, scan_near_depth(camera, eps), scene.lights, stops_light);
-  own_solid = own_solids(prims, solids, scene.lights, stops_light);
+  own_solid = own_solids(prims, solids, scene.lights, stops_light, eps);
   if (bvh_for_rays || bvh_for_shadows)
     leaf_prims = build_leaf_prims(prims, bvh, stops_light, culls);
   if (!leaf_prims.empty()) {

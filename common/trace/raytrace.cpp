@@ -185,7 +185,7 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
                               int receiver) {
   ++stats_.rays_shadow;
   bool opaque = false;
-  const PrimRange own = own_solid_skip(ps_.own_solid, ps_.prims, receiver, light, seg.origin);
+  const PrimRange own = own_solid_skip(ps_.own_solid, receiver, light);
   // The faces an opaque closed solid turns away from the light never stop
   // it alone (hidden_faces.h).
   const uint8_t cull = light < kCullLights ? cull_light(light) : 0;

@@ -70,9 +70,9 @@ class Tracer {
   // A shadow ray through the boxes along `seg` (t in (0, 1) from the
   // shadow-ray origin to light `light`): its crossings with transparent
   // surfaces appended to `crossings`; true, and the search stopped, where an
-  // opaque occluder blocks it (eq. (2)). `receiver`: the face the origin
-  // lies on (-1: none), whose own closed solid may need no search
-  // (own_solid_skip, hidden_faces.h).
+  // opaque occluder blocks it (eq. (2)). `receiver` (-1: none): the face
+  // whose point the origin is shadow_origin's offset of, whose own closed
+  // solid the ray then need not search (own_solid_skip, hidden_faces.h).
   bool shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& crossings,
                         int receiver = -1);
 

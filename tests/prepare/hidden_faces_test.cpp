@@ -244,19 +244,16 @@ TEST(ClosedSolids, ShadowRaysSkipTheirOwnSolidOnlyWhereItCannotBeMet) {
       const bool front = glm::dot(out, light - c) > 0;
       EXPECT_EQ((o.lights >> j & 1) != 0, front) << f << " light " << j;
       any = any || front;
+      const PrimRange in = own_solid_skip(ps.own_solid, f, j);
       if (!front) {
-        EXPECT_EQ(own_solid_skip(ps.own_solid, ps.prims, f, j, c + 1e-6 * out).count, 0) << f;
+        EXPECT_EQ(in.count, 0) << f;
         continue;
       }
-      // A point just in front of the face skips the solid; one just
-      // behind it (the light all but in the face's plane) does not.
-      const PrimRange in = own_solid_skip(ps.own_solid, ps.prims, f, j, c + 1e-6 * out);
       EXPECT_EQ(in.first, first);
       EXPECT_EQ(in.count, nf);
       for (int g = first; g < first + nf; ++g) EXPECT_TRUE(in.has(g));
       EXPECT_FALSE(in.has(first - 1));
       EXPECT_FALSE(in.has(first + nf));
-      EXPECT_EQ(own_solid_skip(ps.own_solid, ps.prims, f, j, c - 1e-6 * out).count, 0) << f;
       ++skips;
     }
     // A face turned away from every light has no entry.
@@ -265,10 +262,28 @@ TEST(ClosedSolids, ShadowRaysSkipTheirOwnSolidOnlyWhereItCannotBeMet) {
       EXPECT_EQ(o.first, first) << f;
     }
     // No receiver, or a light past the table: nothing skipped.
-    EXPECT_EQ(own_solid_skip(ps.own_solid, ps.prims, -1, 0, c + 1e-6 * out).count, 0);
+    EXPECT_EQ(own_solid_skip(ps.own_solid, -1, 0).count, 0);
+    EXPECT_EQ(own_solid_skip(ps.own_solid, f, kOwnSolidLights).count, 0);
   }
   EXPECT_GT(skips, 10);
   EXPECT_LT(glass, static_cast<int>(ps.prims.prims.size()));
+  // A light all but in a face's plane (1e-12 in front of it, where rounding
+  // could put a shadow ray's origin behind the face): that face skips
+  // nothing for it; one well in front does.
+  {
+    const std::vector<Tri> t = tetra(Vec3(0, 0, 0), 1.0);
+    const Vec3 n = glm::normalize(glm::cross(t[0][1] - t[0][0], t[0][2] - t[0][0]));
+    const Vec3 at = t[0][0] + 5.0 * (t[0][1] - t[0][0]);  // in face 0's plane
+    for (double d : {1e-12, 1e-3}) {
+      std::ostringstream light;
+      light.precision(17);
+      const Vec3 l = at + d * n;
+      light << "l " << l.x << ' ' << l.y << ' ' << l.z << '\n';
+      const PreparedScene near(scene_of({{kMatte, t}}, kCamera, light.str()), RenderParams{});
+      ASSERT_FALSE(near.own_solid.empty());
+      EXPECT_EQ(own_solid_skip(near.own_solid, 0, 0).count, d > 1e-6 ? 4 : 0) << d;
+    }
+  }
   // Nothing to skip in a scene of glass alone: no table.
   const PreparedScene clear(scene_of({{kGlass, tetra(Vec3(0, 0, 0), 1.0)}}, kCamera),
                             RenderParams{});
