@@ -34,6 +34,21 @@ inline RenderParams config_iv_params(int aa, int threads) {
   return p;
 }
 
+// The ray tracer (--method raytrace) with spp x spp samples a pixel.
+inline RenderParams raytrace_params(int spp) {
+  RenderParams p;
+  p.method = Method::kRaytrace;
+  p.spp = spp;
+  return p;
+}
+
+// Configuration IV on one thread with its shadows by rays (--shadows rays).
+inline RenderParams shadow_rays_params(int aa) {
+  RenderParams p = config_iv_params(aa, 1);
+  p.shadows = ShadowPass::kRays;
+  return p;
+}
+
 // Distance from pixel centre (x, y) to the nearest projected face edge of
 // the scanline pass.
 // Renders the scene at 64 x 50 whole and split into 2, 3, 7 and 50 bands;

@@ -291,11 +291,8 @@ TEST(ClosedSolids, ShadowRaysSkipTheirOwnSolidOnlyWhereItCannotBeMet) {
 }
 
 TEST(ClosedSolids, ShadowRaysSkippingTheirOwnSolidMakeTheSameImages) {
-  RenderParams traced;
-  traced.method = Method::kRaytrace;
-  traced.spp = 1;
-  RenderParams rays = testing_util::config_iv_params(2, 1);
-  rays.shadows = ShadowPass::kRays;
+  const RenderParams traced = testing_util::raytrace_params(1);
+  const RenderParams rays = testing_util::shadow_rays_params(2);
   for (const char* path : {"/spd/def/tetra.nff", "/spd/s1/tetra.nff"}) {
     for (const RenderParams& params : {traced, rays}) {
       auto scene = load_scene(std::string(LOCUS_SHARED_DIR) + path);
@@ -381,11 +378,8 @@ TEST(ClosedSolids, ImagesWithCullsEqualImagesWithout) {
     RenderParams params;
     bool counts_tests;  // shadow or eye rays are cast (configuration IV may use volumes)
   };
-  RenderParams traced;
-  traced.method = Method::kRaytrace;
-  traced.spp = 1;
-  RenderParams rays = config_iv(2);
-  rays.shadows = ShadowPass::kRays;
+  const RenderParams traced = testing_util::raytrace_params(1);
+  const RenderParams rays = testing_util::shadow_rays_params(2);
   for (const Case& c :
        {Case{"/spd/def/tetra.nff", config_iv(4), false}, Case{"/spd/def/tetra.nff", traced, true},
         Case{"/spd/s1/tetra.nff", rays, true}, Case{"/spd/def/tetra.nff", config_iv(0), false}}) {

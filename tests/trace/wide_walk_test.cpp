@@ -19,11 +19,8 @@ namespace locus {
 namespace {
 
 TEST(WideWalk, EightWideWalkRendersTheFourWideWalksImages) {
-  RenderParams traced;
-  traced.method = Method::kRaytrace;
-  traced.spp = 1;
-  RenderParams rays = testing_util::config_iv_params(2, 1);
-  rays.shadows = ShadowPass::kRays;
+  const RenderParams traced = testing_util::raytrace_params(1);
+  const RenderParams rays = testing_util::shadow_rays_params(2);
   const RenderParams local = testing_util::config_iv_params(2, 1);
   int compared = 0;
   for (const char* path :
