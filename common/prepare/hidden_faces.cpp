@@ -18,12 +18,6 @@ uint64_t mix64(uint64_t x) {
   return x;
 }
 
-// How far outside a face's plane a vertex of a convex solid may lie (in
-// the solid's box, of coordinates up to `far`): rounding, not shape.
-double convexity_tolerance(const Aabb& box, double far) {
-  return 1e-9 * glm::length(box.hi - box.lo) + 1e-12 * far;
-}
-
 size_t table_size(size_t n) { return std::bit_ceil(std::max<size_t>(16, 2 * n)); }
 
 // Vertices matched by their exact coordinates (-0 is 0): open addressing.
@@ -196,7 +190,7 @@ ClosedSolids closed_convex_solids(const PrimitiveSet& set) {
     if (!(std::abs(volume) > 1e-9 * diag * diag * diag)) continue;  // flat: two sides of a sheet
     const double sign = volume > 0 ? 1.0 : -1.0;
     // Convex: no vertex outside any face's plane.
-    const double tol = convexity_tolerance(box, far);
+    const double tol = 1e-9 * diag + 1e-12 * far;
     bool convex = true;
     for (int q = 0; q < size[r] && convex; ++q) {
       const PolygonPrim& p = poly(fs[q]);
@@ -211,6 +205,7 @@ ClosedSolids closed_convex_solids(const PrimitiveSet& set) {
     for (int q = 0; q < size[r]; ++q) out.faces.push_back(polys[fs[q]]);
     out.first.push_back(static_cast<int>(out.faces.size()));
     out.sign.push_back(sign);
+    out.tolerance.push_back(tol);
   }
   return out;
 }
@@ -280,35 +275,26 @@ std::vector<OwnSolid> own_solids(const PrimitiveSet& set, const ClosedSolids& so
                                  const std::vector<uint8_t>& stops_light, double eps) {
   std::vector<OwnSolid> out;
   const int nl = std::min(static_cast<int>(lights.size()), kOwnSolidLights);
+  // How far in front of a face light j must lie (own_solid_skip).
+  double margin[kOwnSolidLights];
+  for (int j = 0; j < nl; ++j) margin[j] = eps + 1e-12 * glm::length(lights[j].position);
   for (int s = 0; s < solids.count(); ++s) {
     const int* fs = &solids.faces[solids.first[s]];
     const int nf = solids.first[s + 1] - solids.first[s];
     const auto [lo, hi] = std::minmax_element(fs, fs + nf);
     if (*hi - *lo + 1 != nf || !solid_opaque(solids, s, stops_light)) continue;
-    // Its vertices may stand up to closed_convex_solids' tolerance outside
-    // a face's plane (1e-9 of its size, 1e-12 of its coordinates): far
-    // below eps but in a scene of coordinates beyond about 1e8, where eps
-    // stops growing with the scene.
-    Aabb box;
-    double far = 0.0;
-    for (int q = 0; q < nf; ++q) {
-      for (const Vec3& v : solid_face(set, solids, s, q).verts) {
-        box.extend(v);
-        far = std::max(far, max_component(glm::abs(v)));
-      }
-    }
-    if (!(10.0 * convexity_tolerance(box, far) < eps)) continue;
+    // Its vertices may stand up to its tolerance outside a face's plane:
+    // far below eps but in a scene of coordinates beyond about 1e8, where
+    // eps stops growing with the scene.
+    if (!(10.0 * solids.tolerance[s] < eps)) continue;
     for (int q = 0; q < nf; ++q) {
       const PolygonPrim& f = solid_face(set, solids, s, q);
       OwnSolid o;
       o.first = *lo;
       o.count = static_cast<int16_t>(nf);
       for (int j = 0; j < nl; ++j) {
-        const Vec3& light = lights[j].position;
-        // In front of the face by the margin (own_solid_skip), so outside
-        // the solid too.
-        const double margin = eps + 1e-12 * glm::length(light);
-        if (solids.sign[s] * (glm::dot(f.normal, light) - f.offset) > margin)
+        // In front of the face by the margin, so outside the solid too.
+        if (solids.sign[s] * (glm::dot(f.normal, lights[j].position) - f.offset) > margin[j])
           o.lights |= uint8_t(1u << j);
       }
       if (o.lights == 0) continue;

@@ -40,6 +40,9 @@ struct ClosedSolids {
   std::vector<int> first{0};
   std::vector<int> faces;
   std::vector<double> sign;
+  // How far outside a face's plane a vertex of solid s may lie (1e-9 of its
+  // box's diagonal and 1e-12 of its coordinates): rounding, not shape.
+  std::vector<double> tolerance;
   int count() const { return static_cast<int>(sign.size()); }
 };
 
