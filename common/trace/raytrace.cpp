@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "common/geometry/optics.h"
 #include "common/prepare/hidden_faces.h"
@@ -312,10 +313,17 @@ void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Ba
   Tracer tracer(ps, stats);
   const CameraFrame& cam = ps.camera;
   const int n = std::max(1, params.spp);
-  for (int x = 0; x < cam.width; ++x) {
-    Color sum(0.0);
+  // The row's eye directions first, then its rays: made in the loop, each
+  // direction's square root and division (CameraFrame::direction) were a
+  // chain of ~35 cycles that the next walk waited for, since the walk
+  // before it filled the processor's window (perf: 40% of raytrace_rows'
+  // own time on SPD s1 tetra). Made apart, they overlap each other. The
+  // same operations: the same directions, bit for bit.
+  thread_local std::vector<Vec3> dirs;
+  dirs.resize(static_cast<size_t>(cam.width) * n * n);
+  for (int x = 0, k = 0; x < cam.width; ++x) {
     for (int sy = 0; sy < n; ++sy) {
-      for (int sx = 0; sx < n; ++sx) {
+      for (int sx = 0; sx < n; ++sx, ++k) {
         double fx = 0.5, fy = 0.5;
         if (n > 1) {
           const uint64_t h = mix((static_cast<uint64_t>(y) << 32) ^ static_cast<uint64_t>(x) ^
@@ -323,10 +331,17 @@ void raytrace_rows(const PreparedScene& ps, const RenderParams& params, const Ba
           fx = (sx + unit(h)) / n;
           fy = (sy + unit(mix(h))) / n;
         }
-        ++stats.rays_eye;
-        const Ray ray{cam.from, cam.direction(x + fx, y + fy)};
-        sum += tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
+        dirs[k] = cam.direction(x + fx, y + fy);
       }
+    }
+  }
+  const Vec3* dir = dirs.data();
+  for (int x = 0; x < cam.width; ++x) {
+    Color sum(0.0);
+    for (int k = 0; k < n * n; ++k) {
+      ++stats.rays_eye;
+      const Ray ray{cam.from, *dir++};
+      sum += tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
     }
     sum /= static_cast<double>(n * n);
     store_pixel(out, band, x, y, sum);
