@@ -25,8 +25,7 @@ LeafKind leaf_kind(const PrimitiveSet& set, const PrimRef& ref) {
 }  // namespace
 
 std::vector<LeafPrim> build_leaf_prims(const PrimitiveSet& set, const Bvh& bvh,
-                                       const std::vector<uint8_t>& stops_light,
-                                       const std::vector<uint8_t>& culls) {
+                                       const std::vector<uint8_t>& stops_light) {
   bool any = false;
   for (int prim : bvh.order) any = any || leaf_kind(set, set.prims[prim]) != LeafKind::kOther;
   if (!any) return {};
@@ -37,7 +36,6 @@ std::vector<LeafPrim> build_leaf_prims(const PrimitiveSet& set, const Bvh& bvh,
     LeafPrim& lp = out[slot];
     lp.kind = leaf_kind(set, ref);
     lp.stops_light = stops_light[prim];
-    if (!culls.empty()) lp.cull = culls[prim];
     lp.object = ref.object;
     switch (lp.kind) {
       case LeafKind::kPolygon: {

@@ -50,7 +50,6 @@ struct LeafPrim {
   LeafKind kind = LeafKind::kOther;
   int8_t n = 0, axis_u = 0, axis_v = 0;  // a polygon's vertices and axes
   uint8_t stops_light = 0;               // PreparedScene::stops_light
-  uint8_t cull = 0;                      // PreparedScene::culls (hidden_faces.h)
   int object = -1;                       // its scene object (Crossing::leaf)
   int index = -1;                        // a triangle's, in PrimitiveSet::triangles (Crossing::tri)
   union {
@@ -129,9 +128,8 @@ inline bool leaf_any(const LeafPrim& p, const Ray& ray, double tmin, double tmax
 
 // One LeafPrim per slot of bvh.order (kOther where the primitive is of
 // another kind), or nothing where the scene has none of these kinds.
-// `stops_light` and `culls` (empty: none) are per primitive.
+// `stops_light` is per primitive.
 std::vector<LeafPrim> build_leaf_prims(const PrimitiveSet& set, const Bvh& bvh,
-                                       const std::vector<uint8_t>& stops_light,
-                                       const std::vector<uint8_t>& culls = {});
+                                       const std::vector<uint8_t>& stops_light);
 
 }  // namespace locus

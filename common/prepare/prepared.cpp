@@ -67,8 +67,7 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   const ClosedSolids solids = closed_convex_solids(prims);
   culls = ray_culls(prims, solids, camera, scan_near_depth(camera, eps), scene.lights, stops_light);
   own_solid = own_solids(prims, solids, scene.lights, stops_light, eps);
-  if (bvh_for_rays || bvh_for_shadows)
-    leaf_prims = build_leaf_prims(prims, bvh, stops_light, culls);
+  if (bvh_for_rays || bvh_for_shadows) leaf_prims = build_leaf_prims(prims, bvh, stops_light);
   if (!leaf_prims.empty()) {
     leaf_slot.assign(prims.prims.size(), -1);
     for (size_t slot = 0; slot < bvh.order.size(); ++slot)

@@ -322,7 +322,6 @@ struct WithAndWithout {
         plain(std::make_unique<PreparedScene>(scene, p)) {
     plain->culls.assign(plain->culls.size(), 0);
     plain->own_solid.clear();
-    for (LeafPrim& lp : plain->leaf_prims) lp.cull = 0;
     if (plain->scan && !plain->by_rays)
       plain->scan = std::make_unique<ScanScene>(build_scan_scene(*plain, p.aa > 0, 1));
   }
@@ -388,7 +387,7 @@ TEST(ClosedSolids, ImagesWithCullsEqualImagesWithout) {
     scene->camera.width = scene->camera.height = 96;
     const WithAndWithout w(*scene, c.params);
     int culled = 0;
-    for (const LeafPrim& lp : w.culled->leaf_prims) culled += lp.cull != 0;
+    for (const uint8_t c : w.culled->culls) culled += c != 0;
     EXPECT_GT(culled, 0) << c.path;
     const BandResult x = render_band(*w.culled, Band{0, 96}, c.params);
     const BandResult y = render_band(*w.plain, Band{0, 96}, c.params);
