@@ -94,15 +94,19 @@ namespace {
 // of time alone. Measured side by side at --aa 4, one thread, on the SPD
 // scenes (levels 2 and 3) and the paper's, at 256x256 and 512x512
 // (docs/renderer.md "Shadows by rays"), the volumes' time over the rays'
-// grows with the occluders in view per row and with the lights: at about
-// 15 per row, mount (1 light) 1.02, balls and rings (3) 1.17, gears (5)
-// 1.70. Counted as occluders in view times lights per row, it passes 1
-// between 9 and 16: teapot 1.02 at 9, tetra 0.79 at 8, sombrero level 2
-// 0.82 and gears level 2 1.17 both at 11.3, mount 1.02 at 15.6; every
-// scene above 12 was faster by rays (tetra 1.08 at 16.4, teapot 1.29 at
-// 18, sombrero level 2 1.34 at 22.6), every one below 9 by volumes (the
-// paper's scenes are below 1). So rays from 12.
-constexpr double kShadowRayOccluderLightsPerRow = 12;
+// grows with the occluders in view per row and with the lights. Counted
+// as occluders in view times lights per row (M), session 24 found it
+// passing 1 between 9 and 16 and cast rays from 12. Shadow rays have
+// become cheaper since (the 8-wide walk, back faces and the receiver's own
+// solid skipped, culls read before the leaf copies), and session 33's
+// measurement of the same 48 frames moved the crossing down: teapot 1.25
+// at 9.0, gears level 2 1.40 and sombrero level 2 1.14 at 11.3, tetra
+// 1.02 at 8.2, all faster by rays; below 8, sombrero 1.07 at 5.5 (and
+// 0.67 at 2.8), the level-2 scenes below 4 0.41-1.11, the paper's scenes
+// 0.59-0.91. So rays from 8: the worst choice left on those frames is
+// level 2 teapot at 256x256 (volumes, 1.11x the rays' time), where at 12
+// it was gears level 2 at 512x512 (1.40x).
+constexpr double kShadowRayOccluderLightsPerRow = 8;
 }  // namespace
 
 bool shadows_by_rays(const VisibilityMeasure& m, const CameraFrame& cam,

@@ -369,7 +369,7 @@ TEST(ShadowPass, RaysSkipLightsThatCannotLightTheFace) {
 }
 
 // auto (the default): rays where the occluders in view times the lights
-// reach 12 per image row (docs/renderer.md "Shadows by rays"), volumes
+// reach 8 per image row (docs/renderer.md "Shadows by rays"), volumes
 // otherwise; the same scene at a larger size builds volumes again, and the
 // farm's smaller cost preview builds what its frame will.
 TEST(ShadowPass, AutoCastsRaysWhereTheOccludersAndLightsOutnumberTheRows) {
