@@ -99,7 +99,7 @@ namespace {
 // passing 1 between 9 and 16 and cast rays from 12. Shadow rays have
 // become cheaper since (the 8-wide walk, back faces and the receiver's own
 // solid skipped, culls read before the leaf copies), and session 33's
-// measurement of the same 48 frames moved the crossing down: teapot 1.25
+// measurement of 50 such frames moved the crossing down: teapot 1.25
 // at 9.0, gears level 2 1.40 and sombrero level 2 1.14 at 11.3, tetra
 // 1.02 at 8.2, all faster by rays; below 8, sombrero 1.07 at 5.5 (and
 // 0.67 at 2.8), the level-2 scenes below 4 0.41-1.11, the paper's scenes
