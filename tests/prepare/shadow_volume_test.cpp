@@ -406,9 +406,13 @@ void expect_groups_equal_walks(const Scene& scene, const std::string& what, int*
                                size_t* extra) {
   RenderParams p = config_iv();
   p.aa = 4;
+  // The volumes' line groups are what is tested: `auto` would choose shadow
+  // rays for the small frames of many of these scenes (shadows_by_rays).
+  p.shadows = ShadowPass::kVolumes;
   auto ps = prepare_scene(scene, p);
   ASSERT_TRUE(ps.ok()) << what << ": " << ps.status().message();
   const PreparedScene& s = **ps;
+  ASSERT_TRUE(s.volumes) << what;
   const CameraFrame& cam = s.camera;
   Stats stats;
   SpanShadows grouped(s, 0.0, stats), walked(s, 0.0, stats);
