@@ -8,6 +8,7 @@
 #include <cmath>
 #include <optional>
 
+#include "common/base/check.h"
 #include "common/geometry/bvh.h"
 #include "common/prepare/prepared.h"
 #include "common/prepare/shadow_candidates.h"
@@ -32,6 +33,8 @@ constexpr double kNodeSlack = 2.0;
 SpanShadows::SpanShadows(const PreparedScene& ps, double y, Stats& stats)
     : ps_(ps), stats_(stats), lights_(static_cast<int>(ps.scene.lights.size())),
       slot_of_face_(ps.scan->faces.size(), -1), group_slot_of_face_(ps.scan->faces.size(), -1) {
+  // The frame's shadow pass must be the volumes (shadows_by_rays decides).
+  LOCUS_CHECK(ps.volumes);
   const CameraFrame& cam = ps.camera;
   a_line_lo_ = image_a(0.0);
   a_line_hi_ = image_a(cam.width);

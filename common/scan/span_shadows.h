@@ -44,7 +44,8 @@ void add_light_state(LightStates& st, int j, bool opaque, const Scene& scene, co
 class SpanShadows : public KnownShadows {
  public:
   // Spans on the sample line at image row coordinate y (row j's pixel
-  // centres: y = j + 0.5; multi-scanning: any sub-scanline).
+  // centres: y = j + 0.5; multi-scanning: any sub-scanline). `ps` must have
+  // its shadow volumes (a frame whose shadows are found by rays has none).
   SpanShadows(const PreparedScene& ps, double y, Stats& stats);
   // Moves to another sample line, keeping the allocations.
   void set_line(double y);
