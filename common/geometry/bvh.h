@@ -200,13 +200,23 @@ bool walk_bvh(const Bvh& bvh, Enter&& enter, Visit&& visit) {
 // slab distance of a plane p, fl(fl(p - o_f) * inv_f), is within 3 units of
 // float rounding (relative, 2^-24 each) of the exact distance from the
 // float origin o_f; the exact origin o = o_f + r moves the distance on axis
-// a by r_a / d_a. So each entry is lowered by kWideRel of its size and by
-// twice the largest |r_a / d_a|, and a box the exact ray meets in
+// a by r_a / d_a. So a near plane's distance is taken with the reciprocal
+// scaled by 1 - kWideRel (inv_near) and a far plane's with 1 + kWideRel
+// (inv_far): a positive distance comes out no larger (near) or no smaller
+// (far) than the exact one from o_f, and a negative one stays negative,
+// where a near plane's cannot raise the entry above tmin, which is never
+// negative, and a far plane's is within the origin's shift of 0 (the
+// ray's exact far distance is at least tmin >= 0). The entry is then
+// lowered by twice the largest |r_a / d_a| (slack, with 1% to spare for
+// those negative far distances), and a box the exact ray meets in
 // [tmin, tmax] is never missed; the exact tests of its primitives decide
-// (the hierarchy only ever adds candidates).
+// (the hierarchy only ever adds candidates). The scaled reciprocals take
+// the relative margin out of each node's test, where it was two more
+// operations in the chain from the slab distances to the mask.
 struct WideRay {
   static constexpr float kWideRel = 1.0f / (1 << 20);  // 16 units of float rounding
   float origin[3], inv[3];
+  float inv_near[3], inv_far[3];  // inv scaled by 1 -+ kWideRel (above)
   int near_plane[3];  // 0: lo, 1: hi
   float slack;
   explicit WideRay(const Ray& r);
@@ -233,6 +243,9 @@ inline WideRay::WideRay(const Ray& r) {
       // The float origin's error along the ray.
       shift = std::max(shift, std::abs((r.origin[a] - static_cast<double>(origin[a])) * inv_d));
     }
+    // Infinite and NaN reciprocals stay so.
+    inv_near[a] = static_cast<float>(static_cast<double>(inv[a]) * (1.0 - kWideRel));
+    inv_far[a] = static_cast<float>(static_cast<double>(inv[a]) * (1.0 + kWideRel));
   }
   // Twice the shift, rounded up generously; kept finite (an infinite slack
   // would turn the test's infinite bounds into NaN).
@@ -283,7 +296,6 @@ struct WideOps<4> {
   // a > b ? a : b and a < b ? a : b: b where either is NaN.
   static V max(V a, V b) { return _mm_max_ps(a, b); }
   static V min(V a, V b) { return _mm_min_ps(a, b); }
-  static V abs(V a) { return _mm_and_ps(a, _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff))); }
   static void store(float* p, V a) { _mm_storeu_ps(p, a); }
   // Bit k: a[k] <= b[k].
   static int le_mask(V a, V b) { return _mm_movemask_ps(_mm_cmple_ps(a, b)); }
@@ -309,13 +321,12 @@ inline int wide_hits_scalar(const BvhWideNode& n, const WideRay& r, float tmin, 
   for (int k = 0; k < 4; ++k) {
     float lo = tmin, hi = tmax;
     for (int a = 0; a < 3; ++a) {
-      const float tn = (n.planes[a][r.near_plane[a]][k] - r.origin[a]) * r.inv[a];
-      const float tf = (n.planes[a][1 - r.near_plane[a]][k] - r.origin[a]) * r.inv[a];
+      const float tn = (n.planes[a][r.near_plane[a]][k] - r.origin[a]) * r.inv_near[a];
+      const float tf = (n.planes[a][1 - r.near_plane[a]][k] - r.origin[a]) * r.inv_far[a];
       lo = tn > lo ? tn : lo;
       hi = tf < hi ? tf : hi;
     }
-    lo = lo - (std::abs(lo) * WideRay::kWideRel + r.slack);
-    hi = hi + std::abs(hi) * WideRay::kWideRel;
+    lo = lo - r.slack;
     entry[k] = lo;
     if (lo <= hi) mask |= 1 << k;
   }
@@ -352,7 +363,6 @@ struct WideOps<8> {
   static V mul(V a, V b) { return _mm256_mul_ps(a, b); }
   static V max(V a, V b) { return _mm256_max_ps(a, b); }
   static V min(V a, V b) { return _mm256_min_ps(a, b); }
-  static V abs(V a) { return _mm256_and_ps(a, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff))); }
   static void store(float* p, V a) { _mm256_storeu_ps(p, a); }
   static int le_mask(V a, V b) { return _mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_LE_OQ)); }
 };
