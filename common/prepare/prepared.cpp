@@ -94,6 +94,7 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
     if (!shadows_by_rays(measure, camera, params)) {
       volumes = std::make_shared<const ShadowVolumes>(
           build_shadow_volumes(*this, bvh_for_shadows, threads));
+      point_shadows_by_rays = volumes->search && params.shadows == ShadowPass::kAuto;
     }
   }
 }

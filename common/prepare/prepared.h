@@ -93,6 +93,15 @@ class PreparedScene {
   // Configuration IV (--method local --boxes eye+shadow): shadow volumes
   // replace shadow rays (paper §4.1).
   std::shared_ptr<const ShadowVolumes> volumes;
+  // Configuration IV with --shadows auto, where the spans' shadows are the
+  // volumes': a point reached by a secondary ray, or sampled inside a
+  // curved body's span, casts shadow rays through the boxes instead of
+  // searching the volumes' hierarchy (paper §4.1's point test). The
+  // answers are the same; a point has no span's coherence to share, and
+  // its ray costs less than its search on the frames measured
+  // (docs/renderer.md "Points by rays"). --shadows volumes keeps the
+  // paper's search.
+  bool point_shadows_by_rays = false;
 };
 
 // The paper's §3 steps ii-iii for one frame: tessellation, primitives and

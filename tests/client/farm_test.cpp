@@ -63,7 +63,7 @@ TEST_F(FarmTest, StitchedFramesEqualSingleProcessForAnySplit) {
   EXPECT_GT(single->stats.tests_shadow_volume, 0u);
   EXPECT_EQ(iv.stats.tests_shadow_volume, single->stats.tests_shadow_volume);
   EXPECT_EQ(iv.stats.pixels_total, single->stats.pixels_total);
-  EXPECT_EQ(iv.stats.shadow_method, "volumes");
+  EXPECT_EQ(iv.stats.shadow_method, "volumes+rays");  // auto: the points by rays
 }
 
 TEST_F(FarmTest, BezierPatchesTravelAndTessellateAlikeOnEveryWorker) {

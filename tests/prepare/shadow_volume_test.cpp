@@ -533,7 +533,10 @@ TEST(ShadowVolumeScenes, FewerShadowRaysThanConfigurationIII) {
     RenderParams p = config_iv();
     p.boxes = Boxes::kEye;
     auto iii = render_image(*scene, p);
+    // The paper's IV: its points search the volumes (--shadows volumes;
+    // auto casts rays from them, AutoCastsRaysFromPointsForTheSameImage).
     p.boxes = Boxes::kEyeShadow;
+    p.shadows = ShadowPass::kVolumes;
     auto iv = render_image(*scene, p);
     ASSERT_TRUE(iii.ok() && iv.ok());
     EXPECT_EQ(iii->stats.shadow_method, "volumes+rays");
@@ -556,6 +559,46 @@ TEST(ShadowVolumeScenes, FewerShadowRaysThanConfigurationIII) {
     EXPECT_NE(json.find("\"shadow_volume\": "), std::string::npos);
     EXPECT_NE(json.find("\"ray_object\": "), std::string::npos);
     EXPECT_NE(json.find("\"method\": \"volumes\""), std::string::npos);
+  }
+}
+
+// --shadows auto where the spans' shadows are the volumes': the points
+// reached by secondary rays cast shadow rays instead of searching the
+// volumes' hierarchy (PreparedScene::point_shadows_by_rays), and the image
+// is the paper's IV's, bit for bit. Paper scenes (a) and (d), and SPD balls
+// and rings (mirrors, glass, curved occluders).
+TEST(ShadowVolumeScenes, AutoCastsRaysFromPointsForTheSameImage) {
+  const std::string spd = std::string(LOCUS_SHARED_DIR) + "/spd";
+  for (const std::string& path :
+       {std::string(LOCUS_SOURCE_DIR) + "/scenes/paper/a_glass.json",
+        std::string(LOCUS_SOURCE_DIR) + "/scenes/paper/d_spheres_3lights.json",
+        spd + "/s1/balls.nff", spd + "/s1/rings.nff"}) {
+    auto scene = load_scene(path);
+    ASSERT_TRUE(scene.ok()) << scene.status().message();
+    scene->camera.width = 96;
+    scene->camera.height = 72;
+    RenderParams p = config_iv();
+    p.aa = 4;
+    p.shadows = ShadowPass::kVolumes;
+    auto paper = prepare_scene(*scene, p);
+    p.shadows = ShadowPass::kAuto;
+    auto mixed = prepare_scene(*scene, p);
+    ASSERT_TRUE(paper.ok() && mixed.ok());
+    ASSERT_TRUE((*mixed)->volumes) << path << ": auto chose rays for the spans too";
+    EXPECT_FALSE((*paper)->point_shadows_by_rays);
+    EXPECT_TRUE((*mixed)->point_shadows_by_rays);
+    const BandResult a = render_band(**paper, Band{0, 72}, p);
+    const BandResult b = render_band(**mixed, Band{0, 72}, p);
+    EXPECT_EQ(a.stats.shadow_method, "volumes") << path;
+    EXPECT_EQ(b.stats.shadow_method, "volumes+rays") << path;
+    // The same points, asked another way.
+    EXPECT_GT(b.stats.rays_shadow, a.stats.rays_shadow) << path;
+    EXPECT_LT(b.stats.tests_shadow_volume, a.stats.tests_shadow_volume) << path;
+    EXPECT_EQ(b.stats.rays_eye, a.stats.rays_eye) << path;
+    ASSERT_EQ(a.pixels.rgb.size(), b.pixels.rgb.size());
+    size_t differ = 0;
+    for (size_t i = 0; i < a.pixels.rgb.size(); ++i) differ += a.pixels.rgb[i] != b.pixels.rgb[i];
+    EXPECT_EQ(differ, 0u) << path;
   }
 }
 
