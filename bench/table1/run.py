@@ -37,6 +37,11 @@ def render(locus, scene, method, boxes, size, tmp):
     # Table 1 compares visibility and shadow search, not anti-aliasing.
     if method == "local":
         cmd += ["--aa", "0"]
+    # IV as the paper has it: every shadow from the volumes, the points of
+    # secondary rays searched too (auto casts rays from those points:
+    # docs/renderer.md "Points by rays").
+    if method == "local" and boxes == "eye+shadow":
+        cmd += ["--shadows", "volumes"]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         return None, r.stderr.strip().splitlines()[-1] if r.stderr.strip() else "failed"
