@@ -211,8 +211,9 @@ bool walk_bvh(const Bvh& bvh, Enter&& enter, Visit&& visit) {
 // those negative far distances), and a box the exact ray meets in
 // [tmin, tmax] is never missed; the exact tests of its primitives decide
 // (the hierarchy only ever adds candidates). The scaled reciprocals take
-// the relative margin out of each node's test, where it was two more
-// operations in the chain from the slab distances to the mask.
+// the relative margin out of each node's test, where it was six more
+// operations, three of them in the chain from the slab distances to the
+// mask (docs/renderer.md "The box test's margin in the reciprocals").
 struct WideRay {
   static constexpr float kWideRel = 1.0f / (1 << 20);  // 16 units of float rounding
   float origin[3], inv[3];
