@@ -105,7 +105,7 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   for (const double c : cpu) result.stats.seconds_render_cpu += c;
   result.stats.geometry_triangles = ps.prims.triangles.size();
   result.stats.visibility = ps.scan && !ps.by_rays ? "scanline" : "rays";
-  result.stats.shadow_method = !ps.volumes ? "rays"
+  result.stats.shadow_method = !ps.volumes                                       ? "rays"
                                : ps.volumes->search && !ps.point_shadows_by_rays ? "volumes"
                                                                                  : "volumes+rays";
   result.stats.seconds_render =
