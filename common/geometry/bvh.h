@@ -216,8 +216,9 @@ bool walk_bvh(const Bvh& bvh, Enter&& enter, Visit&& visit) {
 // mask (docs/renderer.md "The box test's margin in the reciprocals").
 struct WideRay {
   static constexpr float kWideRel = 1.0f / (1 << 20);  // 16 units of float rounding
-  float origin[3], inv[3];
-  float inv_near[3], inv_far[3];  // inv scaled by 1 -+ kWideRel (above)
+  float origin[3];
+  // The float reciprocal of the direction, scaled by 1 -+ kWideRel (above).
+  float inv_near[3], inv_far[3];
   int near_plane[3];  // 0: lo, 1: hi
   float slack;
   explicit WideRay(const Ray& r);
@@ -230,23 +231,24 @@ inline WideRay::WideRay(const Ray& r) {
     const double inv_d = 1.0 / r.dir[a];
     origin[a] = static_cast<float>(r.origin[a]);
     near_plane[a] = std::signbit(inv_d) ? 1 : 0;
+    float inv;
     if (std::isinf(inv_d)) {
       // Parallel to the slabs: the distances are infinite or NaN, and their
       // signs are those of the exact origin's (rounding is monotonic and
       // the planes are rounded outward), so no shift.
-      inv[a] = static_cast<float>(inv_d);
+      inv = static_cast<float>(inv_d);
     } else if (std::abs(inv_d) > 1e30) {
       // Nearly parallel: this axis is not tested (a NaN distance), which is
       // conservative, rather than rounded to an infinite reciprocal.
-      inv[a] = std::numeric_limits<float>::quiet_NaN();
+      inv = std::numeric_limits<float>::quiet_NaN();
     } else {
-      inv[a] = static_cast<float>(inv_d);
+      inv = static_cast<float>(inv_d);
       // The float origin's error along the ray.
       shift = std::max(shift, std::abs((r.origin[a] - static_cast<double>(origin[a])) * inv_d));
     }
     // Infinite and NaN reciprocals stay so.
-    inv_near[a] = static_cast<float>(static_cast<double>(inv[a]) * (1.0 - kWideRel));
-    inv_far[a] = static_cast<float>(static_cast<double>(inv[a]) * (1.0 + kWideRel));
+    inv_near[a] = static_cast<float>(static_cast<double>(inv) * (1.0 - kWideRel));
+    inv_far[a] = static_cast<float>(static_cast<double>(inv) * (1.0 + kWideRel));
   }
   // Twice the shift, rounded up generously; kept finite (an infinite slack
   // would turn the test's infinite bounds into NaN).
