@@ -105,9 +105,9 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   for (const double c : cpu) result.stats.seconds_render_cpu += c;
   result.stats.geometry_triangles = ps.prims.triangles.size();
   result.stats.visibility = ps.scan && !ps.by_rays ? "scanline" : "rays";
-  result.stats.shadow_method = !ps.volumes                                       ? "rays"
-                               : ps.volumes->search && !ps.point_shadows_by_rays ? "volumes"
-                                                                                 : "volumes+rays";
+  result.stats.shadow_method = !ps.volumes                  ? "rays"
+                               : ps.points_search_volumes() ? "volumes"
+                                                            : "volumes+rays";
   result.stats.seconds_render =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

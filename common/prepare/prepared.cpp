@@ -99,6 +99,10 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   }
 }
 
+bool PreparedScene::points_search_volumes() const {
+  return volumes && volumes->search && !point_shadows_by_rays;
+}
+
 Result<std::shared_ptr<const PreparedScene>> prepare_scene(Scene scene,
                                                            const RenderParams& params) {
   if (Status s = check_render_params(params); !s.ok()) return s;

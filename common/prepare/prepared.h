@@ -102,6 +102,9 @@ class PreparedScene {
   // (docs/renderer.md "Points by rays"). --shadows volumes keeps the
   // paper's search.
   bool point_shadows_by_rays = false;
+  // Whether a point without a span finds its shadows by searching the
+  // volumes' hierarchy (volume_transmittance; paper §4.1), not by rays.
+  bool points_search_volumes() const;
 };
 
 // The paper's §3 steps ii-iii for one frame: tessellation, primitives and

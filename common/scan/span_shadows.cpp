@@ -499,7 +499,7 @@ std::optional<Color> SpanShadows::transmittance(const Vec3& p, const Vec3& origi
   // light almost in the face's plane may put a pixel's origin on the other.
   if ((glm::dot(origin - p, f.normal) > 0) != static_cast<bool>(s_->side[light])) {
     // A shadow ray decides (Tracer::transmittance), or the volumes' search.
-    if (!ps_.volumes->search || ps_.point_shadows_by_rays) return std::nullopt;
+    if (!ps_.points_search_volumes()) return std::nullopt;
     return volume_transmittance(ps_, origin, light, f.prim, stats_, nullptr);
   }
   const double a = a_;

@@ -175,7 +175,7 @@ Color Tracer::transmittance(const Vec3& p, const Vec3& ng, int light, int receiv
   }
   // Configuration IV: containment in shadow volumes (paper §4.1), unless
   // the frame's points cast rays (PreparedScene::point_shadows_by_rays).
-  if (ps_.volumes && ps_.volumes->search && !ps_.point_shadows_by_rays) {
+  if (ps_.points_search_volumes()) {
     return volume_transmittance(ps_, origin, light, receiver, stats_, &last_occluder(light));
   }
   const Ray seg{origin, lp - origin};  // t in (0, 1) spans the segment
