@@ -28,6 +28,19 @@ constexpr double kContrast = 0.05;
 // RMSE than 1/8, 1/4, 3/4 or 1 (docs/multiscan.md).
 constexpr double kSilhouetteCorner = 0.5;
 
+// At N = 1 (PixelSamples::centre_only_) the sub-scanlines lie one per pixel
+// row, and the paper would trace one ray per pixel of a traced span (§3.3).
+// A pixel its corners do not settle (a silhouette, or an edge of the
+// reflected or refracted image: step 3 of traced_colour) then traces its
+// centre alone and weighs it with the corners that see the material, as a
+// silhouette does at N < 8 without its two diagonal fine points: one ray
+// where the 2 x 2 fine grid took four. Measured side by side at 256x256,
+// one thread, against raytrace --spp 16 (docs/multiscan.md, "Session 35"):
+// render 0.58-0.84x, RMSE +3-14%, error x sqrt(time) lower on (b), (d),
+// balls, gears and rings and equal on (a); at N = 2 the same rule lost on
+// balls and gears (RMSE +35% and +21% for 0.63x and 0.75x), so it stops at
+// N = 1.
+
 }  // namespace
 
 // The lookups of samples (corner, fine_point, grid_samples, grid_point) are
@@ -45,6 +58,7 @@ PixelSamples::PixelSamples(const PreparedScene& ps, Tracer& tracer, EyeCandidate
       j0_(j0),
       j1_(j1),
       grid_(std::max(1, aa / 4)),
+      centre_only_(aa <= 1),
       lattice_(static_cast<size_t>(ps.camera.width) + 1),
       interior_(static_cast<size_t>(ps.camera.width) * grid_ * grid_),
       fine_(static_cast<size_t>(ps.camera.width) * 4 * grid_ * grid_) {}
@@ -74,9 +88,11 @@ void PixelSamples::set_line(double y) {
 // radiance, estimated from the samples inside it. Where the corners see
 // different materials at N < 8 (a silhouette crosses the pixel), fewer fine
 // samples do: the pixel's centre and the two fine points on its main
-// diagonal, with its corners (kSilhouetteCorner). A piece whose material
-// none of those samples sees (a sliver thinner than their spacing) is
-// sampled itself (`direct(x)`; docs/multiscan.md).
+// diagonal, with its corners (kSilhouetteCorner); at N = 1 every pixel
+// the corners do not settle takes its centre and corners alone
+// (centre_only_). A piece whose material none of those samples sees (a
+// sliver thinner than their spacing) is sampled itself (`direct(x)`;
+// docs/multiscan.md).
 template <class Direct>
 Color PixelSamples::traced_colour(double x0, double x1, int hit, int j, Direct&& direct) {
   const int material = material_of(hit);
@@ -107,8 +123,9 @@ Color PixelSamples::traced_colour(double x0, double x1, int hit, int j, Direct&&
   const double contrast = kContrast / grid_;
   const double keep = smooth ? std::clamp(2.0 - max_component(hi - lo) / contrast, 0.0, 1.0) : 0.0;
   if (keep >= 1.0) return acc;
-  if (!smooth && grid_ == 1) {
-    // A silhouette: the samples of the pixel that see the material.
+  if (grid_ == 1 && (!smooth || centre_only_)) {
+    // A silhouette (and at N = 1 any pixel its corners do not settle): the
+    // samples of the pixel that see the material.
     Color sum(0.0);
     double weight = 0;
     auto add = [&](const Corner& k, double w) {
@@ -117,10 +134,13 @@ Color PixelSamples::traced_colour(double x0, double x1, int hit, int j, Direct&&
       weight += w;
     };
     add(*interior(i, j), 1.0);
-    add(fine_point(i, j, 0), 1.0);
-    add(fine_point(i, j, 3), 1.0);
+    if (!centre_only_) {
+      add(fine_point(i, j, 0), 1.0);
+      add(fine_point(i, j, 3), 1.0);
+    }
     for (int c = 0; c < 4; ++c) add(corner(i + (c & 1), j + (c >> 1)), kSilhouetteCorner);
-    return weight > 0 ? sum / weight : direct(xm);
+    const Color mean = weight > 0 ? sum / weight : direct(xm);
+    return keep > 0 ? keep * acc + (1.0 - keep) * mean : mean;
   }
   const int g = 2 * grid_;
   const Corner* in = fine(i, j);

@@ -106,6 +106,7 @@ class PixelSamples {
   double y_ = 0;
   int row_down_ = -1, row_up_ = -1;  // set_line's rows (-1: none)
   int grid_;                         // max(1, aa / 4)
+  bool centre_only_;                 // N = 1: a pixel's interior is its centre (pixel_samples.cpp)
   RowRing lattice_;                  // pixel corners, a row of them per lattice row
   RowRing interior_, fine_;          // per pixel row
 };
