@@ -123,9 +123,10 @@ Color PixelSamples::traced_colour(double x0, double x1, int hit, int j, Direct&&
   const double contrast = kContrast / grid_;
   const double keep = smooth ? std::clamp(2.0 - max_component(hi - lo) / contrast, 0.0, 1.0) : 0.0;
   if (keep >= 1.0) return acc;
+  // The mean of the samples of the pixel that see the material.
+  Color mean;
   if (grid_ == 1 && (!smooth || centre_only_)) {
-    // A silhouette (and at N = 1 any pixel its corners do not settle): the
-    // samples of the pixel that see the material.
+    // A silhouette (and at N = 1 any pixel its corners do not settle).
     Color sum(0.0);
     double weight = 0;
     auto add = [&](const Corner& k, double w) {
@@ -139,20 +140,21 @@ Color PixelSamples::traced_colour(double x0, double x1, int hit, int j, Direct&&
       add(fine_point(i, j, 3), 1.0);
     }
     for (int c = 0; c < 4; ++c) add(corner(i + (c & 1), j + (c >> 1)), kSilhouetteCorner);
-    const Color mean = weight > 0 ? sum / weight : direct(xm);
-    return keep > 0 ? keep * acc + (1.0 - keep) * mean : mean;
-  }
-  const int g = 2 * grid_;
-  const Corner* in = fine(i, j);
-  Color sum(0.0);
-  int n = 0;
-  for (int q = 0; q < g * g; ++q) {
-    if (in[q].material == material) {
-      sum += in[q].colour;
-      ++n;
+    mean = weight > 0 ? sum / weight : direct(xm);
+  } else {
+    // The fine grid.
+    const int g = 2 * grid_;
+    const Corner* in = fine(i, j);
+    Color sum(0.0);
+    int n = 0;
+    for (int q = 0; q < g * g; ++q) {
+      if (in[q].material == material) {
+        sum += in[q].colour;
+        ++n;
+      }
     }
+    mean = n > 0 ? sum / static_cast<double>(n) : direct(xm);
   }
-  const Color mean = n > 0 ? sum / static_cast<double>(n) : direct(xm);
   return keep > 0 ? keep * acc + (1.0 - keep) * mean : mean;
 }
 
