@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "common/base/cost_map.h"
+#include "common/base/exr.h"
 #include "server/syncs.h"
 
 namespace locus::farm {
@@ -285,18 +286,31 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
         /*sync_dir=*/false);
     if (!st.ok()) return st;
   }
-  // A PNG whose bands all came as png8+deflate: joined as they are
-  // (png_from_bands), nothing decoded or compressed here.
-  std::vector<EncodedBand> deflated;
-  if (output_sample_format(f.file_name) == SampleFormat::kUint8) {
+  // The frame's bands when every one came in `encoding` (their first rows
+  // in `y0s`); fewer when one did not (or its record does not unpack:
+  // stitch_frame names it below).
+  std::vector<int> y0s;
+  const auto all_in = [&](BandEncoding encoding) -> Result<std::vector<EncodedBand>> {
+    std::vector<EncodedBand> bands;
+    y0s.clear();
     for (int b = 0; b < f.bands; ++b) {
       const Band rows = band_rows(f.height, f.bands, f.band_edges, b);
       auto bytes = read(b);
       if (!bytes.ok()) return bytes.status();
       auto band = unpack_record(**bytes, {f.width, rows.y0, rows.y1});
-      if (!band.ok() || band->encoding != BandEncoding::kPng8Deflate) break;
-      deflated.push_back(std::move(*band));
+      if (!band.ok() || band->encoding != encoding) break;
+      bands.push_back(std::move(*band));
+      y0s.push_back(rows.y0);
     }
+    return bands;
+  };
+  // A PNG whose bands all came as png8+deflate: joined as they are
+  // (png_from_bands), nothing decoded or compressed here.
+  std::vector<EncodedBand> deflated;
+  if (output_sample_format(f.file_name) == SampleFormat::kUint8) {
+    auto bands = all_in(BandEncoding::kPng8Deflate);
+    if (!bands.ok()) return bands.status();
+    deflated = std::move(*bands);
   }
   if (static_cast<int>(deflated.size()) == f.bands) {
     records.clear();
@@ -307,9 +321,35 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
         job_dir, f.file_name, [&](const std::string& path) { return write_file(path, *png); },
         sync, sync_dir);
   }
+  deflated.clear();
+  // An EXR whose bands all came as exr+zip: the blocks they hold whole as
+  // they came, those across two bands compressed from their edge rows
+  // (exr_blocks_from_bands), written as they are.
+  if (output_sample_format(f.file_name) == SampleFormat::kFloat32) {
+    auto bands = all_in(BandEncoding::kExrZip);
+    if (!bands.ok()) return bands.status();
+    std::vector<EncodedBand> zipped = std::move(*bands);
+    if (static_cast<int>(zipped.size()) == f.bands) {
+      auto blocks = exr_blocks_from_bands(f.width, f.height, y0s, zipped);
+      zipped.clear();
+      // Bands that do not fit together (a damaged record) are stitched
+      // below, where stitch_frame names the one at fault.
+      if (blocks.ok()) {
+        records.clear();
+        const std::vector<std::string_view> views(blocks->begin(), blocks->end());
+        return write_atomically(
+            job_dir, f.file_name,
+            [&](const std::string& path) {
+              return write_exr_blocks(path, f.width, f.height, views);
+            },
+            sync, sync_dir);
+      }
+      spdlog::warn("job {}: frame {}'s EXR blocks: {}; stitching its pixels instead", f.job_id,
+                   f.frame, blocks.status().message());
+    }
+  }
   // Otherwise (other outputs, older workers' bands, a damaged record named
   // by stitch_frame): the frame's pixels, encoded by write_image.
-  deflated.clear();
   auto image = stitch_frame(f, [&](int b) -> Result<std::string> {
     if (b < static_cast<int>(records.size())) return std::move(records[b]);
     return record(b);

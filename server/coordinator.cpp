@@ -37,7 +37,7 @@ Coordinator::Coordinator(CoordinatorOptions options)
       scheduler_(SchedulerOptions{options_.lease, options_.lease, options_.max_attempts,
                                   options_.quarantine_after, options_.speculate_factor,
                                   options_.speculate_min, options_.band_timeout, options_.ageing,
-                                  options_.user_max_running},
+                                  options_.user_max_running, options_.exr_zip},
                  options_.now),
       metrics_(std::make_unique<CoordinatorMetrics>()) {}
 
@@ -450,6 +450,12 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   // (seconds for a big one), and every worker's lease, result and
   // heartbeat waits on mu_.
   if (cost_split) job->spec.band_edges = options_.cost_pass(*job, &job->spec.row_costs);
+  // An EXR job's bands on its frames' blocks: each worker compresses its
+  // own, and the frame is written from them (band_codec.h "exr+zip").
+  if (output_sample_format(job->spec.output) == SampleFormat::kFloat32) {
+    job->spec.band_edges =
+        align_band_edges(job->spec.height, job->spec.bands, job->spec.band_edges);
+  }
   std::lock_guard lk(mu_);
   // Asked again: meanwhile a retry of this request may have been recorded,
   // a drain begun or the queue filled.

@@ -54,6 +54,7 @@ struct CoordinatorOptions {
   Millis band_timeout{0};    // --band-timeout; 0: none
   Millis ageing{60000};      // --ageing
   int user_max_running = 0;  // --user-max-running; 0: no cap
+  bool exr_zip = true;       // SchedulerOptions::exr_zip (--no-exr-zip: false)
   // --retention-days: finished jobs older than this are deleted with their
   // frames (checked every minute); 0: kept until `locus delete`.
   Millis retention{0};
@@ -230,10 +231,10 @@ class Coordinator {
 
   // ---- WorkerService ----
   // InvalidArgument for bad tags (check_tags).
-  // `png_deflate`: the worker offers png8+deflate (WorkerInfo::png_deflate).
+  // `offers`: the encodings the worker offers (WorkerInfo::encodings).
   Result<Registration> register_worker(const std::string& name, int threads,
                                        const std::vector<std::string>& tags = {},
-                                       bool png_deflate = false);
+                                       EncodingOffers offers = {});
   // GetTask, the long poll, without holding a thread (the gRPC callback
   // service): `done` gets the band leased to the worker as soon as there is
   // one, nothing once `wait` (capped by max_poll) has passed, or the error;

@@ -12,12 +12,12 @@ namespace locus::farm {
 
 Result<Registration> Coordinator::register_worker(const std::string& name, int threads,
                                                   const std::vector<std::string>& tags,
-                                                  bool png_deflate) {
+                                                  EncodingOffers offers) {
   if (Status s = check_tags(tags, "tag"); !s.ok()) return s;
   std::lock_guard lk(mu_);
   Registration r;
   r.worker_id = scheduler_.add_worker(name.empty() ? "unnamed" : name.substr(0, 200),
-                                      std::max(1, threads), tags, png_deflate);
+                                      std::max(1, threads), tags, offers);
   r.heartbeat = options_.heartbeat;
   r.lease = options_.lease;
   persist();

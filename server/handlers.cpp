@@ -253,10 +253,11 @@ Status Handlers::Register(const v1::RegisterRequest& req, const std::string& pee
     return InvalidArgument("tags: at most " + std::to_string(farm::kMaxTags));
   const std::vector<std::string> tags(req.tags().begin(), req.tags().end());
   // Encodings this coordinator does not know are ignored (a newer worker).
-  const bool png_deflate =
-      std::find(req.encodings().begin(), req.encodings().end(), v1::BAND_PNG8_DEFLATE) !=
-      req.encodings().end();
-  auto r = c_.register_worker(name, std::clamp(req.threads(), 1, 1024), tags, png_deflate);
+  const auto offered = [&](v1::BandEncoding e) {
+    return std::find(req.encodings().begin(), req.encodings().end(), e) != req.encodings().end();
+  };
+  const farm::EncodingOffers offers{offered(v1::BAND_PNG8_DEFLATE), offered(v1::BAND_EXR_ZIP)};
+  auto r = c_.register_worker(name, std::clamp(req.threads(), 1, 1024), tags, offers);
   if (!r.ok()) return r.status();
   resp->set_worker_id(r->worker_id);
   resp->set_heartbeat_ms(static_cast<int32_t>(r->heartbeat.count()));

@@ -252,8 +252,11 @@ BandLease Scheduler::make_lease(const Job& job, int job_band, const Lease& lease
   out.frame_first = s.frame_first;
   out.frame_last = s.frame_last;
   const auto worker = workers_.find(lease.worker_id);
-  out.encoding = band_encoding_for(s.output,
-                                   worker != workers_.end() && worker->second.info.png_deflate);
+  const EncodingOffers offers =
+      worker != workers_.end() ? worker->second.info.encodings : EncodingOffers{};
+  out.encoding = band_encoding_for(
+      s.output, offers.png_deflate,
+      options_.exr_zip && offers.exr_zip && holds_exr_block(out.y0, out.y1, s.height));
   out.cost_map = !s.cost_map.empty();
   return out;
 }

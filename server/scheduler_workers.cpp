@@ -10,14 +10,14 @@ using scheduler_detail::numbered;
 using scheduler_detail::seconds;
 
 std::string Scheduler::add_worker(const std::string& name, int threads,
-                                  const std::vector<std::string>& tags, bool png_deflate) {
+                                  const std::vector<std::string>& tags, EncodingOffers offers) {
   const std::string id = numbered("w", next_worker_++);
   Worker w;
   w.info.worker_id = id;
   w.info.name = name;
   w.info.threads = threads;
   w.info.tags = tags;
-  w.info.png_deflate = png_deflate;
+  w.info.encodings = offers;
   w.info.disabled = disabled_.count(name) > 0;
   w.last_seen = now_();
   workers_.emplace(id, std::move(w));

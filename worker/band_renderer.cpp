@@ -94,7 +94,7 @@ Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bo
   }
   // Only what the job's output file keeps travels (band_codec.h).
   if (t.encoding != BandEncoding::kFloat32) {
-    auto encoded = encode_band(t.encoding, t.width, t.y1 - t.y0, out.rgb);
+    auto encoded = encode_band(t.encoding, t.width, t.y1 - t.y0, out.rgb, t.y0, t.height);
     if (!encoded.ok()) return encoded.status();
     out.encoded = std::move(*encoded);
     out.rgb = {};

@@ -158,8 +158,10 @@ bool WorkerClient::Impl::register_worker() {
   req.set_name(o_.name);
   req.set_threads(o_.threads);
   for (const std::string& t : o_.tags) req.add_tags(t);
-  // PNG jobs' bands as PNG image data (common/farm/band_codec.h).
+  // PNG jobs' bands as PNG image data, EXR jobs' as EXR blocks
+  // (common/farm/band_codec.h).
   req.add_encodings(v1::BAND_PNG8_DEFLATE);
+  req.add_encodings(v1::BAND_EXR_ZIP);
   v1::RegisterResponse resp;
   grpc::ClientContext ctx;
   rpc::prepare(ctx, conn_, rpc::kShortCall);

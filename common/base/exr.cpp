@@ -6,10 +6,13 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfThreading.h>
+#include <OpenEXR/openexr.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <exception>
 #include <fstream>
 #include <mutex>
@@ -91,6 +94,124 @@ Result<Image> read_exr(const std::string& path) {
     if (!exists) return NotFound(path + ": cannot read image: no such file");
     return InvalidArgument(path + ": cannot decode the EXR: " + e.what());
   }
+}
+
+// ---- Blocks compressed elsewhere
+
+namespace {
+
+// EXR stores a scanline's channels in the order of their names: B, G, R.
+constexpr int kStoredChannel[3] = {2, 1, 0};
+
+size_t block_bytes(int width, int rows) { return static_cast<size_t>(width) * rows * 12; }
+
+std::string exr_error(exr_result_t r) { return exr_get_error_code_as_string(r); }
+
+}  // namespace
+
+std::string exr_zip_block(const float* rgb, int width, int rows) {
+  // The block as EXR lays it out: line by line, each channel's samples.
+  const size_t n = block_bytes(width, rows);
+  std::string raw(n, '\0');
+  char* out = raw.data();
+  for (int y = 0; y < rows; ++y) {
+    const float* line = rgb + static_cast<size_t>(y) * width * 3;
+    for (const int c : kStoredChannel) {
+      for (int x = 0; x < width; ++x, out += 4) std::memcpy(out, line + x * 3 + c, 4);
+    }
+  }
+  // ZIP_COMPRESSION's preparation: the even bytes, then the odd ones; each
+  // byte then replaced by its difference from the one before, plus 128.
+  std::string split(n, '\0');
+  const size_t half = (n + 1) / 2;
+  for (size_t i = 0; i < n; ++i) split[(i % 2 == 0 ? 0 : half) + i / 2] = raw[i];
+  auto* t = reinterpret_cast<unsigned char*>(split.data());
+  for (size_t i = n; i-- > 1;) t[i] = static_cast<unsigned char>(t[i] - t[i - 1] + 128);
+  // write_exr's level (OpenEXR's default for its C++ writer), so that a
+  // frame joined from blocks is the very file write_exr writes.
+  static const int level = Imf::Header().zipCompressionLevel();
+  uLongf size = compressBound(static_cast<uLong>(n));
+  std::string z(size, '\0');
+  if (compress2(reinterpret_cast<Bytef*>(z.data()), &size, t, static_cast<uLong>(n), level) !=
+          Z_OK ||
+      size >= n) {
+    return raw;
+  }
+  z.resize(size);
+  return z;
+}
+
+Status exr_unzip_block(std::string_view data, int width, int rows, float* rgb,
+                       const std::string& what) {
+  const size_t n = block_bytes(width, rows);
+  std::string raw;
+  if (data.size() == n) {
+    if (!rgb) return Status::Ok();
+    raw.assign(data);
+  } else {
+    std::string split(n, '\0');
+    uLongf got = static_cast<uLongf>(n);
+    // Bounded by the block's size, whatever the stream says.
+    const int r =
+        uncompress(reinterpret_cast<Bytef*>(split.data()), &got,
+                   reinterpret_cast<const Bytef*>(data.data()), static_cast<uLong>(data.size()));
+    if (r != Z_OK || got != n) {
+      std::string m = what;
+      m.append(": not a ZIP block of ").append(std::to_string(rows)).append(" rows of ");
+      m.append(std::to_string(width)).append(" pixels (");
+      m.append(r == Z_OK ? std::to_string(got) + " bytes, expected " + std::to_string(n)
+                         : std::string(r == Z_BUF_ERROR ? "more bytes than the rows hold"
+                                                        : "corrupt zlib stream"));
+      return InvalidArgument(m.append(")"));
+    }
+    if (!rgb) return Status::Ok();
+    auto* t = reinterpret_cast<unsigned char*>(split.data());
+    for (size_t i = 1; i < n; ++i) t[i] = static_cast<unsigned char>(t[i - 1] + t[i] - 128);
+    raw.assign(n, '\0');
+    const size_t half = (n + 1) / 2;
+    for (size_t i = 0; i < n; ++i) raw[i] = split[(i % 2 == 0 ? 0 : half) + i / 2];
+  }
+  const char* in = raw.data();
+  for (int y = 0; y < rows; ++y) {
+    float* line = rgb + static_cast<size_t>(y) * width * 3;
+    for (const int c : kStoredChannel) {
+      for (int x = 0; x < width; ++x, in += 4) std::memcpy(line + x * 3 + c, in, 4);
+    }
+  }
+  return Status::Ok();
+}
+
+Status write_exr_blocks(const std::string& path, int width, int height,
+                        const std::vector<std::string_view>& blocks) {
+  if (width <= 0 || height <= 0) return InvalidArgument(path + ": empty image");
+  const size_t expected = (static_cast<size_t>(height) + kExrZipBlockRows - 1) / kExrZipBlockRows;
+  if (blocks.size() != expected) {
+    return InvalidArgument(path + ": " + std::to_string(blocks.size()) + " blocks for " +
+                           std::to_string(height) + " rows, expected " + std::to_string(expected));
+  }
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  exr_context_t ctx = nullptr;
+  // Written directly: the caller writes to a temporary name and renames.
+  exr_result_t r = exr_start_write(&ctx, path.c_str(), EXR_WRITE_FILE_DIRECTLY, &init);
+  if (r != EXR_ERR_SUCCESS) return Internal(path + ": cannot write the EXR: " + exr_error(r));
+  int part = 0;
+  r = exr_add_part(ctx, nullptr, EXR_STORAGE_SCANLINE, &part);
+  if (r == EXR_ERR_SUCCESS)
+    r = exr_initialize_required_attr_simple(ctx, part, width, height, EXR_COMPRESSION_ZIP);
+  // As write_exr's header has them: float, not perceptually linear.
+  for (const char* c : {"B", "G", "R"}) {
+    if (r == EXR_ERR_SUCCESS)
+      r = exr_add_channel(ctx, part, c, EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+  }
+  if (r == EXR_ERR_SUCCESS) r = exr_write_header(ctx);
+  for (size_t k = 0; k < blocks.size() && r == EXR_ERR_SUCCESS; ++k) {
+    r = exr_write_scanline_chunk(ctx, part, static_cast<int>(k) * kExrZipBlockRows,
+                                 blocks[k].data(), blocks[k].size());
+  }
+  const exr_result_t finished = exr_finish(&ctx);
+  if (r == EXR_ERR_SUCCESS) r = finished;
+  if (r != EXR_ERR_SUCCESS) return Internal(path + ": cannot write the EXR: " + exr_error(r));
+  return Status::Ok();
 }
 
 bool is_exr_file(const std::string& path) {

@@ -6,6 +6,8 @@
 #pragma once
 
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "common/base/image.h"
 #include "common/base/status.h"
@@ -19,6 +21,38 @@ Status write_exr(const std::string& path, const Image& image);
 // The R, G and B channels of an EXR file (half, float or uint) as floats,
 // its data window's pixels, top row first.
 Result<Image> read_exr(const std::string& path);
+
+// ---- Frames joined from blocks compressed elsewhere (docs/farm.md
+// "Frames"): a farm's workers compress the blocks of their bands, and the
+// coordinator writes the frame's file from those bytes.
+
+// The scanlines of one block of a ZIP-compressed EXR: block k holds rows
+// 16k to 16k + 15 (the last block of a frame may hold fewer).
+inline constexpr int kExrZipBlockRows = 16;
+
+// The chunk data of one block of a ZIP-compressed EXR (OpenEXR's
+// ZIP_COMPRESSION, as write_exr writes): `rows` rows (1 to
+// kExrZipBlockRows) of `width` pixels of interleaved RGB floats, as Image
+// holds them, laid out as EXR stores a scanline block (each line's B, G
+// and R samples, little-endian), its bytes split into halves and
+// differenced, then zlib-compressed at write_exr's level; the block
+// as laid out where that is not smaller (an EXR reader tells the two apart
+// by the size).
+std::string exr_zip_block(const float* rgb, int width, int rows);
+
+// The inverse of exr_zip_block: the block's floats into `rgb` (width *
+// rows * 3; null: only the check). InvalidArgument, naming `what`, for data
+// that is neither the laid-out block nor a zlib stream of exactly its size.
+Status exr_unzip_block(std::string_view data, int width, int rows, float* rgb,
+                       const std::string& what);
+
+// A `width` x `height` EXR like write_exr's from its blocks' chunk data,
+// top to bottom (exr_zip_block's, one for each kExrZipBlockRows rows),
+// written through OpenEXR's core library as they are: nothing is
+// compressed here. InvalidArgument when the number of blocks is not the
+// height's.
+Status write_exr_blocks(const std::string& path, int width, int height,
+                        const std::vector<std::string_view>& blocks);
 
 // Whether `path` starts with EXR's magic number (a missing or short file:
 // false).

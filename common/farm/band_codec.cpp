@@ -3,12 +3,15 @@
 #include <zlib.h>
 #include <zstd.h>
 
+#include <algorithm>
 #include <bit>
 #include <cstdlib>
 #include <cstring>
 #include <optional>
 #include <string_view>
 
+#include "common/base/check.h"
+#include "common/base/exr.h"
 #include "common/base/image.h"
 #include "common/base/png.h"
 
@@ -37,7 +40,8 @@ std::optional<Layout> layout_of(BandEncoding e) {
     case BandEncoding::kFloat32Zstd:
       return Layout{4, true};
     case BandEncoding::kPng8Deflate:
-      break;  // not samples in a layout: png8_codes
+    case BandEncoding::kExrZip:
+      break;  // not samples in a layout: png8_codes, exr_zip_floats
   }
   return std::nullopt;
 }
@@ -239,16 +243,20 @@ std::vector<unsigned char> png8_codes(const std::string& raw, int width, int row
   return codes;
 }
 
+// exr+zip's encoding (below, with its decoding).
+Result<EncodedBand> encode_exr_zip(int width, int rows, const std::vector<float>& rgb, int y0,
+                                   int height);
+
 }  // namespace
 
-BandEncoding band_encoding_for(const std::string& output, bool png_deflate) {
+BandEncoding band_encoding_for(const std::string& output, bool png_deflate, bool exr_zip) {
   switch (output_sample_format(output)) {
     case SampleFormat::kUint8:
       return png_deflate ? BandEncoding::kPng8Deflate : BandEncoding::kRgb8Zstd;
     case SampleFormat::kUint16:
       return BandEncoding::kRgb16Zstd;
     case SampleFormat::kFloat32:
-      return BandEncoding::kFloat32Zstd;
+      return exr_zip ? BandEncoding::kExrZip : BandEncoding::kFloat32Zstd;
     case SampleFormat::kUnsupported:
       break;
   }
@@ -256,9 +264,9 @@ BandEncoding band_encoding_for(const std::string& output, bool png_deflate) {
 }
 
 Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
-                                const std::vector<float>& rgb) {
+                                const std::vector<float>& rgb, int y0, int height) {
   const std::optional<Layout> l = layout_of(encoding);
-  if (!l && encoding != BandEncoding::kPng8Deflate)
+  if (!l && encoding != BandEncoding::kPng8Deflate && encoding != BandEncoding::kExrZip)
     return InvalidArgument("cannot encode a band in " + encoding_name(encoding));
   if (width < 1 || rows < 1 || rgb.size() != static_cast<size_t>(width) * rows * 3) {
     std::string m = "cannot encode a band of ";
@@ -266,6 +274,7 @@ Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
     m.append(std::to_string(rgb.size())).append(" floats");
     return InvalidArgument(m);
   }
+  if (encoding == BandEncoding::kExrZip) return encode_exr_zip(width, rows, rgb, y0, height);
   if (!l) {
     auto bytes = deflate_rows(png_filter_rows(width, rows, rgb));
     if (!bytes.ok()) return bytes.status();
@@ -318,6 +327,24 @@ Status inflate_exactly(std::string_view bytes, size_t expected, const std::strin
   return Status::Ok();
 }
 
+// Names a band in errors.
+std::string band_text(const EncodedBand& band) {
+  return encoding_name(band.encoding) + " band of " + band_size_text(band.width, band.rows) +
+         " pixels";
+}
+
+// A band's size: at least a pixel, its floats at most kMaxDecodedBandBytes.
+Status check_size(const EncodedBand& band, const std::string& what) {
+  if (band.width < 1 || band.rows < 1 ||
+      static_cast<int64_t>(band.width) * band.rows > kMaxDecodedBandBytes / 12) {
+    std::string m = what;
+    m.append(": the size is out of range (at most ");
+    m.append(std::to_string(kMaxDecodedBandBytes / 12)).append(" pixels)");
+    return InvalidArgument(m);
+  }
+  return Status::Ok();
+}
+
 // Every check decode_band makes, in one place. On success `inflated` holds
 // the band's bytes when they were compressed (the samples as pack() laid
 // them out, or png8+deflate's filtered rows); uncompressed float32 is
@@ -327,15 +354,8 @@ Status check_bytes(const EncodedBand& band, std::string& inflated) {
   const std::optional<Layout> l = layout_of(band.encoding);
   if (!l && band.encoding != BandEncoding::kPng8Deflate)
     return InvalidArgument("band pixels in " + encoding_name(band.encoding));
-  const std::string what = encoding_name(band.encoding) + " band of " +
-                           band_size_text(band.width, band.rows) + " pixels";
-  if (band.width < 1 || band.rows < 1 ||
-      static_cast<int64_t>(band.width) * band.rows > kMaxDecodedBandBytes / 12) {
-    std::string m = what;
-    m.append(": the size is out of range (at most ");
-    m.append(std::to_string(kMaxDecodedBandBytes / 12)).append(" pixels)");
-    return InvalidArgument(m);
-  }
+  const std::string what = band_text(band);
+  if (Status s = check_size(band, what); !s.ok()) return s;
   const size_t n = static_cast<size_t>(band.width) * band.rows * 3;
   if (!l) {
     auto rows = png8_rows(band, what);
@@ -354,14 +374,263 @@ Status check_bytes(const EncodedBand& band, std::string& inflated) {
   return inflate_exactly(band.bytes, expected, what, inflated);
 }
 
+// ---- exr+zip (band_codec.h)
+
+// Where the frame's blocks of kExrZipBlockRows fall in rows [y0, y1) of a
+// frame of `height` rows: `head` rows before the first block the band holds
+// whole, `blocks` such blocks, `tail` rows after them.
+struct ExrSplit {
+  int head = 0;
+  int blocks = 0;
+  int tail = 0;
+};
+ExrSplit exr_split(int y0, int y1, int height) {
+  ExrSplit s;
+  int y = (y0 + kExrZipBlockRows - 1) / kExrZipBlockRows * kExrZipBlockRows;
+  if (y >= y1) {
+    s.head = y1 - y0;
+    return s;
+  }
+  s.head = y - y0;
+  for (; y < y1 && std::min(y + kExrZipBlockRows, height) <= y1; y += kExrZipBlockRows) ++s.blocks;
+  s.tail = y1 - std::min(y, y1);
+  return s;
+}
+
 }  // namespace
 
+bool holds_exr_block(int y0, int y1, int height) {
+  return y0 >= 0 && y0 < y1 && y1 <= height && exr_split(y0, y1, height).blocks > 0;
+}
+
+namespace {
+
+// The parts of an exr+zip band's bytes, as views into them.
+struct ExrZipParts {
+  ExrSplit split;
+  std::vector<std::pair<int, std::string_view>> blocks;  // rows, chunk data
+  std::string_view head, tail;                           // float32+zstd
+};
+
+void put_part(std::string& out, std::string_view bytes) {
+  put_be32(out, static_cast<uint32_t>(bytes.size()));
+  out.append(bytes);
+}
+
+Result<EncodedBand> encode_exr_zip(int width, int rows, const std::vector<float>& rgb, int y0,
+                                   int height) {
+  if (height == 0) height = y0 + rows;
+  if (y0 < 0 || y0 + rows > height) {
+    return InvalidArgument("cannot encode rows " + std::to_string(y0) + " to " +
+                           std::to_string(y0 + rows - 1) + " of a frame of " +
+                           std::to_string(height) + " rows");
+  }
+  const ExrSplit split = exr_split(y0, y0 + rows, height);
+  const size_t row_floats = static_cast<size_t>(width) * 3;
+  // Rows [from, from + n) of the band as float32+zstd; nothing for none.
+  const auto edge = [&](int from, int n) -> Result<std::string> {
+    if (n == 0) return std::string();
+    const auto first = rgb.begin() + static_cast<ptrdiff_t>(from * row_floats);
+    auto band =
+        encode_band(BandEncoding::kFloat32Zstd, width, n,
+                    std::vector<float>(first, first + static_cast<ptrdiff_t>(n * row_floats)));
+    if (!band.ok()) return band.status();
+    return std::move(band->bytes);
+  };
+  std::string out;
+  put_be32(out, static_cast<uint32_t>(split.head));
+  put_be32(out, static_cast<uint32_t>(split.blocks));
+  put_be32(out, static_cast<uint32_t>(split.tail));
+  int row = split.head;
+  for (int b = 0; b < split.blocks; ++b) {
+    const int n = std::min(kExrZipBlockRows, height - (y0 + row));
+    put_be32(out, static_cast<uint32_t>(n));
+    put_part(out, exr_zip_block(rgb.data() + row * row_floats, width, n));
+    row += n;
+  }
+  auto head = edge(0, split.head);
+  if (!head.ok()) return head.status();
+  put_part(out, *head);
+  auto tail = edge(row, split.tail);
+  if (!tail.ok()) return tail.status();
+  put_part(out, *tail);
+  return EncodedBand{BandEncoding::kExrZip, width, rows, std::move(out)};
+}
+
+// The parts of an exr+zip band, their sizes checked against the band's
+// rows (nothing decompressed).
+Result<ExrZipParts> exr_zip_parts(const EncodedBand& band, const std::string& what) {
+  if (Status s = check_size(band, what); !s.ok()) return s;
+  std::string_view in(band.bytes);
+  bool short_read = false;
+  const auto u32 = [&]() -> uint32_t {
+    if (in.size() < 4) {
+      short_read = true;
+      return 0;
+    }
+    const uint32_t v = get_be32(in.data());
+    in.remove_prefix(4);
+    return v;
+  };
+  const auto part = [&]() -> std::string_view {
+    const uint32_t n = u32();
+    if (short_read || n > in.size()) {
+      short_read = true;
+      return {};
+    }
+    std::string_view p = in.substr(0, n);
+    in.remove_prefix(n);
+    return p;
+  };
+  ExrZipParts p;
+  const uint32_t head = u32(), blocks = u32(), tail = u32();
+  if (short_read || head > static_cast<uint32_t>(band.rows) ||
+      blocks > static_cast<uint32_t>(band.rows) || tail > static_cast<uint32_t>(band.rows))
+    return InvalidArgument(what + ": its rows' layout is out of range");
+  p.split = {static_cast<int>(head), static_cast<int>(blocks), static_cast<int>(tail)};
+  int64_t rows = head + tail;
+  for (uint32_t b = 0; b < blocks && !short_read; ++b) {
+    const uint32_t n = u32();
+    // Only the frame's last block is shorter, and nothing follows it.
+    if (n < 1 || n > kExrZipBlockRows || (n < kExrZipBlockRows && (b + 1 < blocks || tail > 0)))
+      return InvalidArgument(what + ": block " + std::to_string(b) + " of " + std::to_string(n) +
+                             " rows");
+    p.blocks.emplace_back(static_cast<int>(n), part());
+    rows += n;
+  }
+  p.head = part();
+  p.tail = part();
+  if (short_read) return InvalidArgument(what + ": the bytes end inside a part");
+  if (!in.empty()) return InvalidArgument(what + ": bytes after the last part");
+  if (rows != band.rows) {
+    return InvalidArgument(what + ": its parts hold " + std::to_string(rows) + " rows, expected " +
+                           std::to_string(band.rows));
+  }
+  if (p.head.empty() != (head == 0) || p.tail.empty() != (tail == 0))
+    return InvalidArgument(what + ": edge rows without their bytes, or bytes without rows");
+  return p;
+}
+
+// An edge's float32+zstd rows into `out` (null: only checked).
+Status edge_floats(std::string_view bytes, int width, int rows, float* out,
+                   const std::string& what) {
+  if (rows == 0) return Status::Ok();
+  const EncodedBand edge{BandEncoding::kFloat32Zstd, width, rows, std::string(bytes)};
+  if (!out) {
+    const Status s = check_band(edge);
+    return s.ok() ? s : Status(s.code(), what + ": " + s.message());
+  }
+  auto floats = decode_band(edge);
+  if (!floats.ok()) return Status(floats.status().code(), what + ": " + floats.status().message());
+  std::copy(floats->begin(), floats->end(), out);
+  return Status::Ok();
+}
+
+// The floats of an exr+zip band into `rgb` (width * rows * 3; null: only
+// checked), after every check decode_band makes. The check inflates each
+// block without rearranging its bytes into floats.
+Status exr_zip_floats(const EncodedBand& band, float* rgb) {
+  const std::string what = band_text(band);
+  auto parts = exr_zip_parts(band, what);
+  if (!parts.ok()) return parts.status();
+  const size_t row_floats = static_cast<size_t>(band.width) * 3;
+  const auto at = [&](size_t row) { return rgb ? rgb + row * row_floats : nullptr; };
+  if (Status s = edge_floats(parts->head, band.width, parts->split.head, at(0), what + ", head");
+      !s.ok())
+    return s;
+  size_t row = parts->split.head;
+  for (size_t b = 0; b < parts->blocks.size(); ++b) {
+    const auto& [n, data] = parts->blocks[b];
+    if (Status s =
+            exr_unzip_block(data, band.width, n, at(row), what + ", block " + std::to_string(b));
+        !s.ok())
+      return s;
+    row += n;
+  }
+  return edge_floats(parts->tail, band.width, parts->split.tail, at(row), what + ", tail");
+}
+
+}  // namespace
+
+Result<std::vector<std::string>> exr_blocks_from_bands(int width, int height,
+                                                       const std::vector<int>& y0s,
+                                                       const std::vector<EncodedBand>& bands) {
+  if (width < 1 || height < 1) return InvalidArgument("an EXR frame of no pixels");
+  if (y0s.size() != bands.size()) return InvalidArgument("a first row for each band, expected");
+  const size_t row_floats = static_cast<size_t>(width) * 3;
+  const int count = (height + kExrZipBlockRows - 1) / kExrZipBlockRows;
+  std::vector<std::string> blocks(count);
+  std::vector<bool> whole(count, false);
+  // The edge rows of every band, and which rows of the frame they are.
+  std::vector<float> edges;
+  std::vector<std::pair<int, size_t>> edge_rows;  // frame row, offset in edges
+  int next = 0;
+  for (size_t b = 0; b < bands.size(); ++b) {
+    const EncodedBand& band = bands[b];
+    const std::string what = "band " + std::to_string(b);
+    if (band.encoding != BandEncoding::kExrZip || band.width != width || y0s[b] != next)
+      return InvalidArgument(what + " is not an exr+zip band " + std::to_string(width) +
+                             " pixels wide from row " + std::to_string(next));
+    auto parts = exr_zip_parts(band, what);
+    if (!parts.ok()) return parts.status();
+    const ExrSplit split = exr_split(next, next + band.rows, height);
+    if (next + band.rows > height || split.head != parts->split.head ||
+        split.blocks != parts->split.blocks || split.tail != parts->split.tail)
+      return InvalidArgument(what + ": its blocks are not where rows " + std::to_string(next) +
+                             " to " + std::to_string(next + band.rows - 1) + " put them");
+    const auto add_edge = [&](std::string_view bytes, int first, int n) -> Status {
+      const size_t at = edges.size();
+      edges.resize(at + n * row_floats);
+      for (int r = 0; r < n; ++r) edge_rows.emplace_back(first + r, at + r * row_floats);
+      return edge_floats(bytes, width, n, edges.data() + at, what);
+    };
+    if (Status s = add_edge(parts->head, next, split.head); !s.ok()) return s;
+    int y = next + split.head;
+    for (const auto& [n, data] : parts->blocks) {
+      blocks[y / kExrZipBlockRows].assign(data);
+      whole[y / kExrZipBlockRows] = true;
+      y += n;
+    }
+    if (Status s = add_edge(parts->tail, y, split.tail); !s.ok()) return s;
+    next += band.rows;
+  }
+  if (next != height) {
+    return InvalidArgument("the bands hold " + std::to_string(next) + " rows of a frame of " +
+                           std::to_string(height));
+  }
+  // The blocks across bands, from their rows (in frame order: the bands
+  // cover the frame in order, so edge_rows is sorted).
+  std::vector<float> block(row_floats * kExrZipBlockRows);
+  size_t e = 0;
+  for (int k = 0; k < count; ++k) {
+    if (whole[k]) continue;
+    const int y = k * kExrZipBlockRows, n = std::min(kExrZipBlockRows, height - y);
+    while (e < edge_rows.size() && edge_rows[e].first < y) ++e;
+    for (int r = 0; r < n; ++r, ++e) {
+      // Every row is in a whole block or an edge: the bands cover the frame.
+      LOCUS_CHECK(e < edge_rows.size() && edge_rows[e].first == y + r);
+      std::copy_n(edges.begin() + static_cast<ptrdiff_t>(edge_rows[e].second), row_floats,
+                  block.begin() + static_cast<ptrdiff_t>(r * row_floats));
+    }
+    blocks[k] = exr_zip_block(block.data(), width, n);
+  }
+  return blocks;
+}
+
 Status check_band(const EncodedBand& band) {
+  if (band.encoding == BandEncoding::kExrZip) return exr_zip_floats(band, nullptr);
   std::string inflated;
   return check_bytes(band, inflated);
 }
 
 Result<std::vector<float>> decode_band(const EncodedBand& band) {
+  if (band.encoding == BandEncoding::kExrZip) {
+    // Sized once the size is checked (exr_zip_floats checks it first).
+    if (Status s = check_size(band, band_text(band)); !s.ok()) return s;
+    std::vector<float> rgb(static_cast<size_t>(band.width) * band.rows * 3);
+    if (Status s = exr_zip_floats(band, rgb.data()); !s.ok()) return s;
+    return rgb;
+  }
   std::string inflated;
   if (Status s = check_bytes(band, inflated); !s.ok()) return s;
   const size_t n = static_cast<size_t>(band.width) * band.rows * 3;

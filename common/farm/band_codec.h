@@ -7,7 +7,8 @@
 //   .png        8-bit, quantize8                   png8+deflate   3 before deflate
 //               (a worker that does not offer it)  rgb8+zstd      3 before zstd
 //   .tif .tiff  16-bit, quantize16                 rgb16+zstd     6 before zstd
-//   .exr        float32, unclamped                 float32+zstd   12 before zstd
+//   .exr        float32, unclamped                 exr+zip        12 before zip
+//               (a worker that does not offer it)  float32+zstd   12 before zstd
 //   other       (none: a movie job has no bands)   float32        12
 //
 // The integer encodings carry the very code value the writer would store;
@@ -33,6 +34,15 @@
 // frame's: a PNG decoder reads each band's first row against the previous
 // band's last row only through filters that do not look up, which is why
 // decode_band refuses any other filter there.
+//
+// exr+zip is the same for EXR frames (exr_blocks_from_bands): the band's
+// rows in the frame's blocks of 16 (common/base/exr.h), each block the band
+// holds whole compressed as the EXR file stores it (exr_zip_block), and the
+// rows of a block it shares with a neighbour (at most one above and one
+// below) as float32+zstd, for the coordinator to compress that block from
+// both bands' rows. Its bytes: big-endian uint32s head rows, blocks, tail
+// rows; each block's rows and byte count, then its bytes; the byte count of
+// the head rows' float32+zstd, then those bytes; the same for the tail.
 #pragma once
 
 #include <cstdint>
@@ -52,14 +62,16 @@ enum class BandEncoding : int32_t {
   kRgb8Zstd = 1,
   kRgb16Zstd = 2,
   kFloat32Zstd = 3,
-  kPng8Deflate = 4
+  kPng8Deflate = 4,
+  kExrZip = 5
 };
-inline constexpr Labels<BandEncoding, 5> kBandEncodingLabels = {
+inline constexpr Labels<BandEncoding, 6> kBandEncodingLabels = {
     {{BandEncoding::kFloat32, "float32"},
      {BandEncoding::kRgb8Zstd, "rgb8+zstd"},
      {BandEncoding::kRgb16Zstd, "rgb16+zstd"},
      {BandEncoding::kFloat32Zstd, "float32+zstd"},
-     {BandEncoding::kPng8Deflate, "png8+deflate"}}};
+     {BandEncoding::kPng8Deflate, "png8+deflate"},
+     {BandEncoding::kExrZip, "exr+zip"}}};
 
 // A band's pixels in an encoding: `width` x `rows` pixels, 3 channels,
 // row-major from the band's first row.
@@ -78,14 +90,24 @@ inline constexpr int64_t kMaxDecodedBandBytes = 64 << 20;
 // The encoding for a job whose frames are written to `output` (a file name
 // or pattern, e.g. "out/shot_####.png"), by output_sample_format; for an
 // 8-bit output png8+deflate when the worker offers it (`png_deflate`,
-// RegisterRequest.encodings), rgb8+zstd otherwise.
-BandEncoding band_encoding_for(const std::string& output, bool png_deflate = false);
+// RegisterRequest.encodings), rgb8+zstd otherwise; for an EXR output
+// exr+zip when the worker offers it (`exr_zip`), float32+zstd otherwise.
+BandEncoding band_encoding_for(const std::string& output, bool png_deflate = false,
+                               bool exr_zip = false);
+
+// Whether rows [y0, y1) of a frame of `height` rows hold a whole block of
+// the frame's EXR (kExrZipBlockRows rows, or the frame's last): exr+zip is
+// leased only for such bands. A frame with a band that holds none (more
+// bands than blocks) is stitched and written by write_exr, on OpenEXR's
+// threads, as before.
+bool holds_exr_block(int y0, int y1, int height);
 
 // `rgb` (width * rows * 3 linear floats, as render_band gives them) in
-// `encoding`. InvalidArgument for a size that is not width x rows or an
-// unknown encoding.
+// `encoding`; exr+zip also needs the band's first row `y0` in a frame of
+// `height` rows (0: the band ends the frame). InvalidArgument for a size
+// that is not width x rows, rows outside the frame or an unknown encoding.
 Result<EncodedBand> encode_band(BandEncoding encoding, int width, int rows,
-                                const std::vector<float>& rgb);
+                                const std::vector<float>& rgb, int y0 = 0, int height = 0);
 
 // The floats of an encoded band: exactly its floats for float32 and
 // float32+zstd, the codes as floats for the others (see above).
@@ -107,6 +129,17 @@ Status check_band(const EncodedBand& band);
 // again. InvalidArgument when a band is of another encoding or width, or
 // the bands' rows do not add up to the height.
 Result<std::string> png_from_bands(int width, int height, const std::vector<EncodedBand>& bands);
+
+// The chunk data of every block of a `width` x `height` EXR frame, top to
+// bottom, for write_exr_blocks (common/base/exr.h), from its bands, top to
+// bottom, all exr+zip and each accepted by decode_band, band b starting at
+// row y0s[b]: a block that a band holds whole as it came, a block across
+// bands compressed here from their edge rows. InvalidArgument when a band
+// is of another encoding or width, its rows are not where y0s puts them,
+// or they do not add up to the height.
+Result<std::vector<std::string>> exr_blocks_from_bands(int width, int height,
+                                                       const std::vector<int>& y0s,
+                                                       const std::vector<EncodedBand>& bands);
 
 // A band's work per pixel (common/base/cost.h; docs/cost-map.md), as a
 // worker returns it with the band's pixels when the job makes cost maps

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <utility>
 
+#include "common/base/exr.h"
+#include "common/farm/types.h"
 #include "common/prepare/parallel.h"
 #include "common/prepare/visibility.h"
 
@@ -80,6 +82,23 @@ std::vector<int> split_rows_by_cost(const std::vector<double>& costs, int bands)
     edges[b] = std::clamp(y, edges[b - 1] + 1, h - (bands - b));
   }
   return edges;
+}
+
+std::vector<int> align_band_edges(int height, int bands, const std::vector<int>& edges) {
+  const int blocks = (height + kExrZipBlockRows - 1) / kExrZipBlockRows;
+  if (bands < 1 || bands > blocks) return edges;
+  std::vector<int> aligned{0};
+  for (int i = 1; i < bands; ++i) {
+    const int edge = farm::band_rows(height, bands, edges, i).y0;
+    const int nearest = (edge + kExrZipBlockRows / 2) / kExrZipBlockRows;
+    // At least a block after the previous edge, and a block for each band
+    // still to come.
+    const int block =
+        std::clamp(nearest, aligned.back() / kExrZipBlockRows + 1, blocks - (bands - i));
+    aligned.push_back(block * kExrZipBlockRows);
+  }
+  aligned.push_back(height);
+  return aligned;
 }
 
 }  // namespace locus

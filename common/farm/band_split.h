@@ -41,4 +41,12 @@ Result<std::vector<double>> predict_row_costs(const Scene& scene, const RenderPa
 // has at least one row. Requires 1 <= bands <= costs.size().
 std::vector<int> split_rows_by_cost(const std::vector<double>& costs, int bands);
 
+// An EXR job's band edges moved onto its frames' blocks of 16 rows
+// (kExrZipBlockRows), so that each band's blocks are whole and compressed
+// by the worker that rendered them (band_codec.h "exr+zip"): each inner
+// edge of `edges` (empty: the equal split of band_rows) to the nearest
+// multiple of 16 that leaves every band at least one block. Unchanged
+// (`edges` as given) for more bands than the frame has blocks.
+std::vector<int> align_band_edges(int height, int bands, const std::vector<int>& edges);
+
 }  // namespace locus

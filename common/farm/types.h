@@ -186,6 +186,14 @@ int default_bands(int width, int height, int frames, int workers, bool cost_coun
 // counts' kCostCountBytes more, in case they do not compress.
 int min_bands(int width, int height, bool cost_counts = false);
 
+// The band encodings beyond those of every release that a worker offers
+// (RegisterRequest.encodings; band_codec.h): png8+deflate for PNG jobs,
+// exr+zip for EXR jobs.
+struct EncodingOffers {
+  bool png_deflate = false;
+  bool exr_zip = false;
+};
+
 // A band leased to a worker: everything a stateless worker needs but the
 // scene, which it fetches once per hash. On the wire it is v1::BandTask,
 // the name of an older release (a band is never called a task in code).
@@ -273,9 +281,9 @@ struct WorkerInfo {
   std::string name;
   int threads = 1;
   std::vector<std::string> tags;  // `locus-worker --tag`
-  // Offers png8+deflate (RegisterRequest.encodings): PNG jobs' bands are
-  // leased to it in that encoding (band_encoding_for).
-  bool png_deflate = false;
+  // The encodings it offers (RegisterRequest.encodings): jobs' bands are
+  // leased to it in them (band_encoding_for).
+  EncodingOffers encodings;
   bool draining = false;          // `locus drain`: finishes its band, takes no more, exits
   bool disabled = false;          // `locus disable`: by name, until `locus enable`
   bool busy = false;

@@ -16,6 +16,7 @@
 #include <random>
 #include <sstream>
 
+#include "common/base/exr.h"
 #include "common/base/image.h"
 #include "common/render.h"
 #include "common/scene/scene_io.h"
@@ -25,9 +26,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr BandEncoding kAll[] = {BandEncoding::kFloat32, BandEncoding::kRgb8Zstd,
-                                 BandEncoding::kRgb16Zstd, BandEncoding::kFloat32Zstd,
-                                 BandEncoding::kPng8Deflate};
+constexpr BandEncoding kAll[] = {BandEncoding::kFloat32,     BandEncoding::kRgb8Zstd,
+                                 BandEncoding::kRgb16Zstd,   BandEncoding::kFloat32Zstd,
+                                 BandEncoding::kPng8Deflate, BandEncoding::kExrZip};
 
 std::string name_of(BandEncoding e) { return std::string(label_name(kBandEncodingLabels, e)); }
 
@@ -68,6 +69,11 @@ TEST(BandCodec, ChoosesTheEncodingOfTheWrittenFile) {
   EXPECT_EQ(band_encoding_for("out/shot_####.png", true), BandEncoding::kPng8Deflate);
   EXPECT_EQ(band_encoding_for("a.tif", true), BandEncoding::kRgb16Zstd);
   EXPECT_EQ(band_encoding_for("a.exr", true), BandEncoding::kFloat32Zstd);
+  // A worker that offers exr+zip gets it for EXR jobs, and only those.
+  EXPECT_EQ(band_encoding_for("out/shot_####.exr", false, true), BandEncoding::kExrZip);
+  EXPECT_EQ(band_encoding_for("a.png", false, true), BandEncoding::kRgb8Zstd);
+  EXPECT_EQ(band_encoding_for("a.png", true, true), BandEncoding::kPng8Deflate);
+  EXPECT_EQ(band_encoding_for("a.tif", true, true), BandEncoding::kRgb16Zstd);
   EXPECT_EQ(band_encoding_for("shot.mp4", true), BandEncoding::kFloat32);
   EXPECT_EQ(band_encoding_for("out/shot_####.exr"), BandEncoding::kFloat32Zstd);
   EXPECT_EQ(band_encoding_for("a.tif"), BandEncoding::kRgb16Zstd);
@@ -91,7 +97,8 @@ TEST(BandCodec, EveryEncodingRoundTrips) {
     ASSERT_TRUE(dec.ok()) << dec.status().message();
     ASSERT_EQ(dec->size(), rgb.size());
     for (size_t i = 0; i < rgb.size(); ++i) {
-      if (e == BandEncoding::kFloat32 || e == BandEncoding::kFloat32Zstd) {
+      if (e == BandEncoding::kFloat32 || e == BandEncoding::kFloat32Zstd ||
+          e == BandEncoding::kExrZip) {
         // The floats' bits, NaN payloads and -0 included.
         ASSERT_EQ(std::bit_cast<uint32_t>((*dec)[i]), std::bit_cast<uint32_t>(rgb[i])) << i;
       } else if (e == BandEncoding::kRgb8Zstd || e == BandEncoding::kPng8Deflate) {
@@ -266,6 +273,137 @@ TEST(BandCodec, PngFramesJoinedFromDeflatedBandsHoldTheRenderersPixels) {
     // At most the 3 bytes a pixel of the codes (and a filter byte a row).
     EXPECT_LT(wire, static_cast<size_t>(width) * height * 3);
   }
+}
+
+// exr+zip (band_codec.h): an EXR joined from the bands' blocks
+// (exr_blocks_from_bands, as the coordinator writes an EXR job's frames)
+// holds the renderer's floats, for any split: one band, bands on the
+// blocks' edges, uneven bands, a band per row; and the blocks are the same
+// bytes whichever bands they came in. 70 rows: a last block of 6.
+TEST(BandCodec, ExrFramesJoinedFromZippedBandsHoldTheRenderersFloats) {
+  const int width = 96, height = 70;
+  const RenderParams p = params_iv();
+  auto prepared = prepare_d(width, height);
+  ASSERT_TRUE(prepared.ok()) << prepared.status().message();
+  const BandResult whole = render_band(**prepared, Band{0, height}, p);
+  const fs::path dir = fs::path(::testing::TempDir()) / "band_codec_exr";
+  fs::create_directories(dir);
+  std::vector<int> per_row;
+  for (int y = 0; y <= height; ++y) per_row.push_back(y);
+  std::vector<std::string> first_blocks;
+  for (const std::vector<int>& edges :
+       {std::vector<int>{0, height}, std::vector<int>{0, 16, 48, 64, 70},
+        std::vector<int>{0, 7, 20, 41, 66, 70}, per_row}) {
+    SCOPED_TRACE(std::to_string(edges.size() - 1) + " bands");
+    std::vector<EncodedBand> bands;
+    std::vector<int> y0s;
+    size_t wire = 0;
+    for (size_t b = 0; b + 1 < edges.size(); ++b) {
+      const size_t from = static_cast<size_t>(edges[b]) * width * 3;
+      const size_t to = static_cast<size_t>(edges[b + 1]) * width * 3;
+      const std::vector<float> rgb(whole.pixels.rgb.begin() + from, whole.pixels.rgb.begin() + to);
+      auto enc =
+          encode_band(BandEncoding::kExrZip, width, edges[b + 1] - edges[b], rgb, edges[b], height);
+      ASSERT_TRUE(enc.ok()) << enc.status().message();
+      ASSERT_TRUE(check_band(*enc).ok());  // what the coordinator checks on arrival
+      auto dec = decode_band(*enc);
+      ASSERT_TRUE(dec.ok()) << dec.status().message();
+      EXPECT_EQ(*dec, rgb);
+      wire += enc->bytes.size();
+      bands.push_back(std::move(*enc));
+      y0s.push_back(edges[b]);
+    }
+    auto blocks = exr_blocks_from_bands(width, height, y0s, bands);
+    ASSERT_TRUE(blocks.ok()) << blocks.status().message();
+    ASSERT_EQ(blocks->size(), 5u);
+    if (first_blocks.empty()) first_blocks = *blocks;
+    EXPECT_EQ(*blocks, first_blocks);
+    const fs::path joined = dir / ("joined_" + std::to_string(bands.size()) + ".exr");
+    const std::vector<std::string_view> views(blocks->begin(), blocks->end());
+    ASSERT_TRUE(write_exr_blocks(joined.string(), width, height, views).ok());
+    auto got = read_image(joined.string());
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    EXPECT_EQ(got->width, width);
+    EXPECT_EQ(got->height, height);
+    EXPECT_EQ(got->rgb, whole.pixels.rgb);
+    // Fewer bytes than the floats (a band per row: all of them float32+zstd).
+    EXPECT_LT(wire, static_cast<size_t>(width) * height * 12);
+  }
+}
+
+// What exr_blocks_from_bands cannot join, and payloads that are not an
+// exr+zip band's, are refused naming the problem.
+TEST(BandCodec, ExrZipRefusesBandsThatDoNotFit) {
+  const int width = 8;
+  // Smooth rows, whose blocks compress (a damaged stream cannot pass for
+  // a block kept as laid out).
+  const auto smooth = [](int rows) {
+    std::vector<float> v(static_cast<size_t>(width) * rows * 3);
+    for (size_t i = 0; i < v.size(); ++i) v[i] = 0.25f + 0.001f * static_cast<float>(i % 24);
+    return v;
+  };
+  const auto band = [&](int y0, int rows, int height) {
+    auto enc = encode_band(BandEncoding::kExrZip, width, rows, smooth(rows), y0, height);
+    EXPECT_TRUE(enc.ok()) << enc.status().message();
+    return *enc;
+  };
+  // Rows 0-19 and 20-39 of a frame of 40: block 1 (rows 16-31) is across.
+  const EncodedBand top = band(0, 20, 40), bottom = band(20, 20, 40);
+  ASSERT_TRUE(exr_blocks_from_bands(width, 40, {0, 20}, {top, bottom}).ok());
+  const auto refused = [&](const std::vector<int>& y0s, const std::vector<EncodedBand>& bands,
+                           int height, const std::string& words) {
+    auto r = exr_blocks_from_bands(width, height, y0s, bands);
+    ASSERT_FALSE(r.ok()) << words;
+    EXPECT_EQ(r.status().code(), Code::kInvalidArgument);
+    EXPECT_NE(r.status().message().find(words), std::string::npos) << r.status().message();
+  };
+  // Its rows somewhere else than the band encoded them for.
+  refused({0, 20}, {band(0, 20, 40), band(4, 20, 44)}, 40,
+          "band 1: its blocks are not where rows 20 to 39 put them");
+  refused({0, 20}, {top, valid_band(BandEncoding::kFloat32Zstd, width, 20)}, 40,
+          "band 1 is not an exr+zip band 8 pixels wide from row 20");
+  refused({0, 20}, {top, band(20, 10, 30)}, 40, "the bands hold 30 rows of a frame of 40");
+  refused({0, 21}, {top, bottom}, 40, "band 1 is not an exr+zip band 8 pixels wide from row 20");
+  refused({0}, {top, bottom}, 40, "a first row for each band");
+  // Encoding rows outside the frame.
+  auto outside = encode_band(BandEncoding::kExrZip, width, 4, std::vector<float>(96, 0.5f), 38, 40);
+  ASSERT_FALSE(outside.ok());
+  EXPECT_NE(outside.status().message().find("rows 38 to 41 of a frame of 40 rows"),
+            std::string::npos)
+      << outside.status().message();
+  // Payloads: a middle band is one whole block between edges of 2 rows.
+  const EncodedBand mid = band(14, 20, 40);  // head 2 (14-15), block 16-31, tail 2 (32-33)
+  ASSERT_TRUE(check_band(mid).ok());
+  const auto with = [&](size_t at, const std::string& bytes, size_t replace = 4) {
+    EncodedBand b = mid;
+    b.bytes.replace(at, replace, bytes);
+    return b;
+  };
+  const auto be32 = [](uint32_t v) {
+    std::string s;
+    for (int sh = 24; sh >= 0; sh -= 8) s.push_back(static_cast<char>((v >> sh) & 0xff));
+    return s;
+  };
+  expect_refused(with(0, be32(99)), "its rows' layout is out of range");
+  expect_refused(with(12, be32(0)), "block 0 of 0 rows");
+  expect_refused(with(12, be32(17)), "block 0 of 17 rows");
+  // Only the frame's last block may be short, and nothing follows it.
+  expect_refused(with(12, be32(15)), "block 0 of 15 rows");
+  expect_refused(with(16, be32(static_cast<uint32_t>(mid.bytes.size()))),
+                 "the bytes end inside a part");
+  EncodedBand extra = mid;
+  extra.bytes.push_back('x');
+  expect_refused(extra, "bytes after the last part");
+  // The block's data damaged: not a ZIP block of its rows.
+  EncodedBand damaged = mid;
+  for (size_t i = 20; i < 40; ++i) damaged.bytes[i] = static_cast<char>(0xA5);
+  expect_refused(damaged, "exr+zip band of 8 x 20 pixels, block 0: not a ZIP block of 16 rows");
+  // Edge rows whose float32+zstd bytes are not a zstd frame.
+  const size_t tail_bytes =
+      encode_band(BandEncoding::kFloat32Zstd, width, 2, smooth(2))->bytes.size();
+  expect_refused(with(mid.bytes.size() - tail_bytes, "XXXX"),
+                 "exr+zip band of 8 x 20 pixels, tail: float32+zstd band of 8 x 2 pixels: the "
+                 "payload is not a zstd frame");
 }
 
 // The payload of a png8+deflate band from `raw` (each row's filter byte and

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <numeric>
 
+#include "common/farm/band_codec.h"
 #include "common/scene/scene_io.h"
 
 namespace locus {
@@ -42,6 +43,41 @@ TEST(BandSplit, SkewedCostsAreBalancedAndEveryBandHasARow) {
   std::vector<double> one(5, 0.0);
   one[2] = 1e9;
   EXPECT_EQ(split_rows_by_cost(one, 5), (std::vector<int>{0, 1, 2, 3, 4, 5}));
+}
+
+// An EXR job's edges on its blocks of 16 rows: the equal split's and a cost
+// split's moved to the nearest block edge, every band keeping a block;
+// more bands than blocks are left as they were.
+TEST(BandSplit, EdgesOfAnExrJobMoveOntoItsBlocks) {
+  EXPECT_EQ(align_band_edges(512, 32, {}), [] {
+    std::vector<int> e;
+    for (int y = 0; y <= 512; y += 16) e.push_back(y);
+    return e;
+  }());
+  // 1080 rows in 32 bands: 33.75 rows each; 68 blocks, the last of 8 rows.
+  const std::vector<int> a = align_band_edges(1080, 32, {});
+  ASSERT_EQ(a.size(), 33u);
+  EXPECT_EQ(a.front(), 0);
+  EXPECT_EQ(a.back(), 1080);
+  for (int i = 1; i < 32; ++i) {
+    EXPECT_EQ(a[i] % 16, 0) << i;
+    EXPECT_GT(a[i], a[i - 1]) << i;
+    EXPECT_LE(std::abs(a[i] - 1080 * i / 32), 8) << i;  // the nearest block edge
+  }
+  // A cost split's edges crowded at the top: each band still gets a block.
+  EXPECT_EQ(align_band_edges(70, 4, {0, 1, 2, 3, 70}), (std::vector<int>{0, 16, 32, 48, 70}));
+  EXPECT_EQ(align_band_edges(70, 3, {0, 9, 60, 70}), (std::vector<int>{0, 16, 64, 70}));
+  // Each aligned band holds a block, so its worker compresses its own.
+  for (int i = 0; i < 32; ++i) EXPECT_TRUE(farm::holds_exr_block(a[i], a[i + 1], 1080)) << i;
+  EXPECT_TRUE(farm::holds_exr_block(64, 70, 70));  // the frame's last block, of 6 rows
+  EXPECT_TRUE(farm::holds_exr_block(60, 70, 70));  // ... from row 60
+  EXPECT_FALSE(farm::holds_exr_block(60, 66, 70));
+  EXPECT_FALSE(farm::holds_exr_block(1, 31, 70));
+  EXPECT_TRUE(farm::holds_exr_block(0, 16, 70));
+  // More bands than blocks (5 for 70 rows): as given.
+  EXPECT_EQ(align_band_edges(70, 6, {}), std::vector<int>{});
+  EXPECT_EQ(align_band_edges(70, 6, {0, 1, 2, 3, 4, 5, 70}),
+            (std::vector<int>{0, 1, 2, 3, 4, 5, 70}));
 }
 
 TEST(BandSplit, ThePrePassRunsOnlyForFewBandsPerWorker) {

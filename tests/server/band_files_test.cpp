@@ -16,8 +16,14 @@
 
 namespace locus::farm {
 namespace {
+
 namespace fs = std::filesystem;
 using test_doubles::TempDir;
+
+std::string file_of(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 TEST(BandFiles, EdgesAsTextRoundTripAndAreChecked) {
   EXPECT_EQ(band_edges_text({0, 2, 7}), "0 2 7");
@@ -191,10 +197,6 @@ TEST(BandFiles, APngFrameIsJoinedFromDeflatedBandsOrElseStitched) {
     }
     return r;
   };
-  const auto file_of = [](const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-  };
   const auto count = [](const std::string& s, const std::string& word) {
     size_t n = 0;
     for (size_t at = s.find(word); at != std::string::npos; at = s.find(word, at + 1)) ++n;
@@ -232,6 +234,65 @@ TEST(BandFiles, APngFrameIsJoinedFromDeflatedBandsOrElseStitched) {
   const auto lookup = [&](int band) -> Result<std::string> { return r.at(band); };
   const fs::path out = dir.path / "damaged";
   EXPECT_FALSE(write_frame(out.string(), f, lookup, true).ok());
+  EXPECT_FALSE(fs::exists(out / f.file_name));
+}
+
+// write_frame: an EXR frame whose bands all came as exr+zip is written from
+// their blocks (OpenEXR's core library, which names the part's type); a
+// frame with a band of another encoding, or one whose blocks are not where
+// its rows are, is stitched and written by write_exr. The floats are the
+// same every way. Rows 0-1, 2-20, 21-39: blocks 0 and 1 across bands.
+TEST(BandFiles, AnExrFrameIsWrittenFromZippedBandsOrElseStitched) {
+  TempDir dir;
+  const int width = 6, height = 40;
+  const std::vector<int> edges{0, 2, 21, 40};
+  const FrameReady f{"j0001", 3, "f_0003.exr", width, height, 3, edges, ""};
+  Image expected(width, height);
+  for (size_t i = 0; i < expected.rgb.size(); ++i)
+    expected.rgb[i] = static_cast<float>(i % 97) / 64.0f - 0.25f;
+  enum class Case { kZipped, kOlderMiddle, kMisplacedMiddle };
+  const auto records = [&](Case c) {
+    std::map<int, std::string> r;
+    for (int b = 0; b < 3; ++b) {
+      const BandPixels px{width, edges[b], edges[b + 1]};
+      const std::vector<float> rgb(expected.rgb.begin() + edges[b] * width * 3,
+                                   expected.rgb.begin() + edges[b + 1] * width * 3);
+      const bool middle = b == 1;
+      const BandEncoding e =
+          middle && c == Case::kOlderMiddle ? BandEncoding::kFloat32Zstd : BandEncoding::kExrZip;
+      // Misplaced: encoded as if it began the frame.
+      const int y0 = middle && c == Case::kMisplacedMiddle ? 0 : edges[b];
+      auto enc = encode_band(e, width, edges[b + 1] - edges[b], rgb, y0, height);
+      EXPECT_TRUE(enc.ok());
+      r[b] = pack_band(px, *enc);
+    }
+    return r;
+  };
+  for (Case c : {Case::kZipped, Case::kOlderMiddle, Case::kMisplacedMiddle}) {
+    SCOPED_TRACE(static_cast<int>(c));
+    const std::map<int, std::string> r = records(c);
+    std::map<int, int> reads;  // each band's record is read once, either way
+    const auto lookup = [&](int band) -> Result<std::string> {
+      ++reads[band];
+      return r.at(band);
+    };
+    const fs::path out = dir.path / std::to_string(static_cast<int>(c));
+    ASSERT_TRUE(write_frame(out.string(), f, lookup, true).ok());
+    EXPECT_EQ(reads, (std::map<int, int>{{0, 1}, {1, 1}, {2, 1}}));
+    auto read = read_image((out / f.file_name).string());
+    ASSERT_TRUE(read.ok()) << read.status().message();
+    EXPECT_EQ(read->rgb, expected.rgb);
+    EXPECT_FALSE(fs::exists(out / (".partial-" + f.file_name)));
+    const bool joined = file_of(out / f.file_name).find("scanlineimage") != std::string::npos;
+    EXPECT_EQ(joined, c == Case::kZipped);
+  }
+  // A damaged record is an error naming it, and nothing is written.
+  std::map<int, std::string> r = records(Case::kZipped);
+  r[2][r[2].size() / 2] ^= 0x55;
+  const auto lookup = [&](int band) -> Result<std::string> { return r.at(band); };
+  const fs::path out = dir.path / "damaged";
+  const Status s = write_frame(out.string(), f, lookup, true);
+  EXPECT_FALSE(s.ok());
   EXPECT_FALSE(fs::exists(out / f.file_name));
 }
 

@@ -117,6 +117,34 @@ TEST_F(SchedulerTest, FramesAreReadyWhenTheirLastBandIsIn) {
   EXPECT_EQ(s.job(job)->frames_done, 2);
 }
 
+// The lease names the encoding the job's output needs, within what the
+// worker offers: exr+zip for an EXR job's band that holds a block, unless
+// the coordinator is run with --no-exr-zip (SchedulerOptions::exr_zip).
+TEST(SchedulerEncodings, AnExrJobsBandsAreZippedWhereTheyHoldABlock) {
+  for (bool exr_zip : {true, false}) {
+    SCOPED_TRACE(exr_zip);
+    FakeClock clock;
+    SchedulerOptions o{Millis(1000), Millis(3000), 3};
+    o.exr_zip = exr_zip;
+    Scheduler s(o, clock.fn());
+    JobSpec j = spec(8, 40, 1, 1, 3);
+    j.output = "f_####.exr";
+    j.band_edges = {0, 2, 32, 40};  // band 0 holds no block; 1 holds 16-31; 2 the last, 32-39
+    s.add_job(j);
+    const std::string offers = s.add_worker("new", 1, {}, EncodingOffers{true, true});
+    const std::string older = s.add_worker("old", 1);
+    std::vector<BandEncoding> got;
+    for (int b = 0; b < 3; ++b) {
+      auto r = s.next_band(b == 2 ? older : offers);
+      ASSERT_TRUE(r.ok() && r->has_value());
+      got.push_back((*r)->encoding);
+    }
+    const BandEncoding zip = exr_zip ? BandEncoding::kExrZip : BandEncoding::kFloat32Zstd;
+    EXPECT_EQ(got, (std::vector<BandEncoding>{BandEncoding::kFloat32Zstd, zip,
+                                              BandEncoding::kFloat32Zstd}));
+  }
+}
+
 TEST_F(SchedulerTest, LapsedLeaseIsLeasedAgainAndItsLateResultIgnored) {
   const std::string job = s.add_job(spec(4, 4, 1, 1, 1));
   const std::string slow = s.add_worker("slow", 1), fast = s.add_worker("fast", 1);

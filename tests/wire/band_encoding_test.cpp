@@ -1,7 +1,8 @@
 // Band pixels on the wire (common/farm/band_codec.h; issue #25 item 4),
 // over loopback: each job's bands travel in its output's encoding and the
 // written frames hold a single-process render's pixels (a PNG job's frames
-// joined from the workers' deflate streams; from a worker that does not
+// joined from the workers' deflate streams, an EXR job's from their ZIP
+// blocks; from a worker that does not
 // offer png8+deflate, the bytes of the single-process render's); a worker of an
 // older release that sends floats is still served; encoded pixels that do
 // not decode are refused with INVALID_ARGUMENT naming the lease and the
@@ -49,15 +50,18 @@ TEST_F(BandEncodingTest, EachOutputsBandsTravelInItsEncodingAndFramesAreBitIdent
   struct Case {
     const char* output;
     BandEncoding encoding;
+    int bands;
   };
-  for (const Case& c :
-       {Case{"e_####.png", BandEncoding::kPng8Deflate},
-        Case{"e_####.tif", BandEncoding::kRgb16Zstd},
-        Case{"e_####.exr", BandEncoding::kFloat32Zstd}}) {
+  // 48 rows are 3 blocks of an EXR: in 3 bands each holds one (exr+zip), in
+  // 5 none (float32+zstd, the frame stitched).
+  for (const Case& c : {Case{"e_####.png", BandEncoding::kPng8Deflate, 5},
+                        Case{"e_####.tif", BandEncoding::kRgb16Zstd, 5},
+                        Case{"e_####.exr", BandEncoding::kExrZip, 3},
+                        Case{"f_####.exr", BandEncoding::kFloat32Zstd, 5}}) {
     SCOPED_TRACE(c.output);
-    // locus-worker offers png8+deflate (RegisterRequest.encodings).
-    EXPECT_EQ(band_encoding_for(c.output, true), c.encoding);
-    SubmitRequest r = request(kGlass, 64, 48, 1, 2, 5, c.output);
+    // locus-worker offers png8+deflate and exr+zip (RegisterRequest.encodings).
+    EXPECT_EQ(band_encoding_for(c.output, true, c.bands == 3), c.encoding);
+    SubmitRequest r = request(kGlass, 64, 48, 1, 2, c.bands, c.output);
     const JobInfo job = run(r);
     expect_identical(job, r);  // the stored samples, read back exactly
     if (c.encoding == BandEncoding::kPng8Deflate) {
@@ -68,6 +72,15 @@ TEST_F(BandEncodingTest, EachOutputsBandsTravelInItsEncodingAndFramesAreBitIdent
         for (size_t at = a.find("IDAT"); at != std::string::npos; at = a.find("IDAT", at + 1))
           ++chunks;
         EXPECT_EQ(chunks, static_cast<size_t>(job.spec.bands) + 1) << "frame " << f;
+      }
+    }
+    if (fs::path(c.output).extension() == ".exr") {
+      // Written from the bands' blocks by OpenEXR's core library, which
+      // names the part's type (write_exr does not).
+      for (int f = 1; f <= 2; ++f) {
+        const std::string a = file_bytes(dir_ / ("got_" + job.job_id) / frame_path(c.output, f));
+        EXPECT_EQ(a.find("scanlineimage") != std::string::npos, c.encoding == BandEncoding::kExrZip)
+            << "frame " << f;
       }
     }
   }
