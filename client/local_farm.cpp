@@ -7,9 +7,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
-#include <cstring>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 
@@ -91,6 +92,11 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   // Its data directory is a temporary one, deleted at exit: nothing there
   // needs to outlive a power loss.
   co.fsync = false;
+  // Workers that leave a core idle (one on two cores) render EXR frames
+  // sooner if the coordinator compresses each frame on OpenEXR's threads
+  // than if each compresses its bands' blocks (docs/farm.md "Frames").
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  co.exr_zip = o.workers * (o.threads > 0 ? o.threads : cores) >= cores;
   farm->coordinator_ = std::make_unique<farm::Coordinator>(co);
   if (Status s = farm->coordinator_->start(); !s.ok()) return s;
   // Loopback only, plaintext (nothing leaves the host), and a fresh random

@@ -52,7 +52,7 @@ cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON \
 cmake --build build-asan -j "$(nproc)" --target locus_tests
 phase asan-tests
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*:MovieJob*:MovieChecks*:NotifyUrls*:BandCodec*:BandCostCodec*:BadResults*:StoreV013*:ClosedSolids*:BvhWalk.*:BvhBuild.*:WideWalk.*'
+  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*:MovieJob*:MovieChecks*:NotifyUrls*:BandCodec*:BandCostCodec*:ExrBlocks*:BadResults*:StoreV013*:ClosedSolids*:BvhWalk.*:BvhBuild.*:WideWalk.*'
 # libFuzzer targets (clang, ASan+UBSan): the NFF loader, the JSON scene
 # loader and the coordinator's request handling, each FUZZ_SECONDS (30) on
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and
