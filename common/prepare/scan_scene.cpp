@@ -12,6 +12,27 @@
 namespace locus {
 namespace {
 
+// Andrew's monotone chain: the convex hull of the points `p` (sorted in
+// place), counter-clockwise, without collinear points, into `out`.
+void convex_hull_2d(std::vector<Vec2>& p, std::vector<Vec2>& out) {
+  std::sort(p.begin(), p.end(),
+            [](const Vec2& a, const Vec2& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  auto turns_left = [](const Vec2& o, const Vec2& a, const Vec2& b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x) > 0;
+  };
+  out.assign(2 * p.size(), Vec2(0.0));
+  size_t k = 0;
+  for (size_t i = 0; i < p.size(); ++i) {  // lower chain
+    while (k >= 2 && !turns_left(out[k - 2], out[k - 1], p[i])) --k;
+    out[k++] = p[i];
+  }
+  for (size_t i = p.size() - 1, lower = k + 1; i-- > 0;) {  // upper chain
+    while (k >= lower && !turns_left(out[k - 2], out[k - 1], p[i])) --k;
+    out[k++] = p[i];
+  }
+  out.resize(k > 1 ? k - 1 : k);  // the first point closes the upper chain
+}
+
 struct Projector {
   const CameraFrame& cam;
   double z_near;
@@ -46,8 +67,10 @@ struct FaceAdder {
   const CameraFrame& cam;
   const Projector& pr;
   ScanScene& scan;
-  std::vector<Vec3> kept;  // the clipped outline, reused from face to face
-  std::vector<Vec3> pts;   // a bounding face's outline, reused
+  double silhouette_pixels;       // build_scan_scene's
+  std::vector<Vec3> kept;         // the clipped outline, reused from face to face
+  std::vector<Vec3> pts;          // a bounding face's outline, reused
+  std::vector<Vec2> image, hull;  // a small polyhedron's projected vertices, their hull
 
   void add(const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
            bool curved, bool back = false) {
@@ -96,6 +119,7 @@ struct FaceAdder {
   // plane goes.
   void add_bounding_faces(const Scene& scene, int object, int prim) {
     for (const Polyhedron& poly : bounding_polyhedra(scene, object)) {
+      if (add_silhouette(poly, prim)) continue;
       // The eye inside the polyhedron: the body may be anywhere along
       // every eye ray.
       bool eye_inside = true;
@@ -112,6 +136,41 @@ struct FaceAdder {
       }
       if (eye_inside) scan.trace_everything = true;
     }
+  }
+
+  // A bounding polyhedron whose image is at most silhouette_pixels across,
+  // wholly in front of the near plane, as one face (kSilhouettePixels): the
+  // hull of its projected vertices, which is the union of its front faces'
+  // outlines (a convex polyhedron's image is its vertices' hull), on the
+  // plane facing the eye through its nearest vertex. Its span is sampled
+  // as theirs was (SubLineBuilder::curved); only a surface lying between
+  // that plane and the polyhedron's front faces is now traced there
+  // instead of scan-converted. Returns false where the faces are added.
+  bool add_silhouette(const Polyhedron& poly, int prim) {
+    if (!(silhouette_pixels > 0) || poly.vertices.empty()) return false;
+    double nearest = kInf;
+    Vec2 lo(kInf), hi(-kInf);
+    image.clear();
+    for (const Vec3& v : poly.vertices) {
+      const double z = pr.depth(v);
+      if (!(z >= pr.z_near)) return false;  // the near plane cuts it, or the eye is inside
+      nearest = std::min(nearest, z);
+      image.push_back(pr.project(v));
+      lo = glm::min(lo, image.back());
+      hi = glm::max(hi, image.back());
+    }
+    if (!(std::max(hi.x - lo.x, hi.y - lo.y) <= silhouette_pixels)) return false;
+    convex_hull_2d(image, hull);
+    if (hull.size() < 3) return false;
+    // The hull's corners on that plane, along their eye rays.
+    pts.clear();
+    for (const Vec2& q : hull) {
+      const Vec3 d = cam.direction(q.x, q.y);
+      pts.push_back(cam.from + (nearest / glm::dot(d, cam.w)) * d);
+    }
+    const Vec3 n = -cam.w;  // towards the eye
+    add(pts, n, glm::dot(n, pts[0]), prim, true);
+    return true;
   }
 };
 
@@ -142,7 +201,8 @@ double scan_near_depth(const CameraFrame& cam, double eps) {
   return std::max(1e-12, 1e-6 * std::max(cam.hither, eps));
 }
 
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads) {
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads,
+                           double silhouette_pixels) {
   const CameraFrame& cam = ps.camera;
   const double z_near = scan_near_depth(cam, ps.eps);
   const Projector pr{cam, z_near};
@@ -155,7 +215,7 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads)
   const int chunks = chunk_count(n, kGrain, 4 * std::max(1, threads));
   std::vector<ScanScene> parts(chunks);
   parallel_for(chunks, threads, [&](int c) {
-    FaceAdder faces{cam, pr, parts[c], {}, {}};
+    FaceAdder faces{cam, pr, parts[c], silhouette_pixels, {}, {}, {}, {}};
     const int end = chunk_edge(n, c + 1, chunks);
     // Bounding polyhedra are per object; a CSG or quadric object is one prim.
     for (int i = chunk_edge(n, c, chunks); i < end; ++i) {

@@ -49,12 +49,25 @@ struct ScanScene {
 // within hither are traced instead, see local_rows).
 double scan_near_depth(const CameraFrame& cam, double eps);
 
+// A curved body's bounding polyhedron whose image is at most this many
+// pixels across (its projected vertices' extent in x and in y) enters the
+// scan scene as one face instead of its front faces: the convex hull of its
+// projected vertices, which is the outline their union covers, on the
+// plane facing the eye through its nearest vertex, so that it lies in front
+// of the body as they do (docs/renderer.md, "Small curved bodies"). An
+// icosahedron's ten front faces over a body a few pixels wide are finer
+// than the pixels, and at SPD balls level 6 (597,871 spheres at 512²) they
+// were 2.1 GB and most of the frame's time.
+inline constexpr double kSilhouettePixels = 8.0;
+
 // On up to `threads` threads (parallel_for, common/prepare/parallel.h):
 // the primitives' faces by chunks, joined in primitive order, so the scan
 // scene is the same, bit for bit, for any count. The faces closed solids
 // turn away from the eye are left out (PreparedScene::culls, and the
-// polyhedra's own; hidden_faces.h).
-ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1);
+// polyhedra's own; hidden_faces.h). `silhouette_pixels`: kSilhouettePixels
+// (0: every bounding polyhedron by its faces, for tests).
+ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads = 1,
+                           double silhouette_pixels = kSilhouettePixels);
 
 // No faces, every pixel traced (Visibility::kRays): the rows' passes find
 // an eye ray per sample, as inside a curved body's span.
