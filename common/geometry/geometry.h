@@ -222,6 +222,11 @@ Vec3 newell_normal(const std::vector<Vec3>& pts);
 // as it is, bit for bit.
 std::vector<Vec3> polygon_outline(const PolygonPrim& p);
 
+// The convex hull of 2D points by Andrew's monotone chain: indices into
+// `p`, counter-clockwise, without collinear points (fewer than 3 where the
+// points span no area).
+std::vector<int> convex_hull_2d(const std::vector<Vec2>& p);
+
 // Flattens the scene into primitives (transforms of polygons, meshes and
 // polyhedra are applied to their vertices; quadrics keep a frame).
 PrimitiveSet build_primitives(const Scene& scene);

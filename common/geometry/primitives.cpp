@@ -289,6 +289,30 @@ ConeAxis cone_axis(const Cone& c) {
 
 PrimitiveSet build_primitives(const Scene& scene) { return Builder(scene).build(); }
 
+std::vector<int> convex_hull_2d(const std::vector<Vec2>& p) {
+  if (p.size() < 3) return {};
+  std::vector<int> idx(p.size());
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
+  std::sort(idx.begin(), idx.end(),
+            [&](int a, int b) { return p[a].x != p[b].x ? p[a].x < p[b].x : p[a].y < p[b].y; });
+  auto turn = [&](int o, int a, int b) {
+    const Vec2 e = p[a] - p[o], f = p[b] - p[o];
+    return e.x * f.y - e.y * f.x;
+  };
+  std::vector<int> hull(2 * idx.size());
+  size_t k = 0;
+  for (size_t i = 0; i < idx.size(); ++i) {  // lower chain
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], idx[i]) <= 0) --k;
+    hull[k++] = idx[i];
+  }
+  for (size_t i = idx.size() - 1, t = k + 1; i > 0; --i) {  // upper chain
+    while (k >= t && turn(hull[k - 2], hull[k - 1], idx[i - 1]) <= 0) --k;
+    hull[k++] = idx[i - 1];
+  }
+  hull.resize(k > 0 ? k - 1 : 0);  // the first point closes the upper chain
+  return hull;
+}
+
 std::vector<Vec3> polygon_outline(const PolygonPrim& p) {
   std::vector<Vec3> out = p.verts;
   const int drop = 3 - p.axis_u - p.axis_v;

@@ -12,27 +12,6 @@
 namespace locus {
 namespace {
 
-// Andrew's monotone chain: the convex hull of the points `p` (sorted in
-// place), counter-clockwise, without collinear points, into `out`.
-void convex_hull_2d(std::vector<Vec2>& p, std::vector<Vec2>& out) {
-  std::sort(p.begin(), p.end(),
-            [](const Vec2& a, const Vec2& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
-  auto turns_left = [](const Vec2& o, const Vec2& a, const Vec2& b) {
-    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x) > 0;
-  };
-  out.assign(2 * p.size(), Vec2(0.0));
-  size_t k = 0;
-  for (size_t i = 0; i < p.size(); ++i) {  // lower chain
-    while (k >= 2 && !turns_left(out[k - 2], out[k - 1], p[i])) --k;
-    out[k++] = p[i];
-  }
-  for (size_t i = p.size() - 1, lower = k + 1; i-- > 0;) {  // upper chain
-    while (k >= lower && !turns_left(out[k - 2], out[k - 1], p[i])) --k;
-    out[k++] = p[i];
-  }
-  out.resize(k > 1 ? k - 1 : k);  // the first point closes the upper chain
-}
-
 struct Projector {
   const CameraFrame& cam;
   double z_near;
@@ -70,7 +49,7 @@ struct FaceAdder {
   double silhouette_pixels;       // build_scan_scene's
   std::vector<Vec3> kept;         // the clipped outline, reused from face to face
   std::vector<Vec3> pts;          // a bounding face's outline, reused
-  std::vector<Vec2> image, hull;  // a small polyhedron's projected vertices, their hull
+  std::vector<Vec2> image;        // a small polyhedron's projected vertices
 
   void add(const std::vector<Vec3>& outline, const Vec3& normal, double offset, int prim,
            bool curved, bool back = false) {
@@ -160,12 +139,12 @@ struct FaceAdder {
       hi = glm::max(hi, image.back());
     }
     if (!(std::max(hi.x - lo.x, hi.y - lo.y) <= silhouette_pixels)) return false;
-    convex_hull_2d(image, hull);
+    const std::vector<int> hull = convex_hull_2d(image);
     if (hull.size() < 3) return false;
     // The hull's corners on that plane, along their eye rays.
     pts.clear();
-    for (const Vec2& q : hull) {
-      const Vec3 d = cam.direction(q.x, q.y);
+    for (const int i : hull) {
+      const Vec3 d = cam.direction(image[i].x, image[i].y);
       pts.push_back(cam.from + (nearest / glm::dot(d, cam.w)) * d);
     }
     const Vec3 n = -cam.w;  // towards the eye
@@ -215,7 +194,7 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads,
   const int chunks = chunk_count(n, kGrain, 4 * std::max(1, threads));
   std::vector<ScanScene> parts(chunks);
   parallel_for(chunks, threads, [&](int c) {
-    FaceAdder faces{cam, pr, parts[c], silhouette_pixels, {}, {}, {}, {}};
+    FaceAdder faces{cam, pr, parts[c], silhouette_pixels, {}, {}, {}};
     const int end = chunk_edge(n, c + 1, chunks);
     // Bounding polyhedra are per object; a CSG or quadric object is one prim.
     for (int i = chunk_edge(n, c, chunks); i < end; ++i) {

@@ -380,28 +380,7 @@ std::vector<Vec3> hull_points(const PreparedScene& ps, int prim,
 // The volume of the convex hull of a planar outline (plane `plane`).
 int add_hull_volume(VolumeSet& out, const std::vector<Vec3>& verts, const HalfSpace& plane,
                     const Vec3& light) {
-  // Andrew's monotone chain on the 2D outline.
-  const std::vector<Vec2> p2 = outline_2d(verts, plane.m);
-  std::vector<int> idx(verts.size());
-  for (size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
-  std::sort(idx.begin(), idx.end(), [&](int a, int b) {
-    return p2[a].x != p2[b].x ? p2[a].x < p2[b].x : p2[a].y < p2[b].y;
-  });
-  auto turn = [&](int o, int a, int b) {
-    const Vec2 e = p2[a] - p2[o], f = p2[b] - p2[o];
-    return e.x * f.y - e.y * f.x;
-  };
-  std::vector<int> hull(2 * idx.size());
-  size_t k = 0;
-  for (size_t i = 0; i < idx.size(); ++i) {
-    while (k >= 2 && turn(hull[k - 2], hull[k - 1], idx[i]) <= 0) --k;
-    hull[k++] = idx[i];
-  }
-  for (size_t i = idx.size() - 1, t = k + 1; i > 0; --i) {
-    while (k >= t && turn(hull[k - 2], hull[k - 1], idx[i - 1]) <= 0) --k;
-    hull[k++] = idx[i - 1];
-  }
-  hull.resize(k > 0 ? k - 1 : 0);
+  const std::vector<int> hull = convex_hull_2d(outline_2d(verts, plane.m));
   const double s = glm::dot(plane.m, light) - plane.h;
   if (hull.size() < 3 || s == 0) {
     out.volumes.push_back(ShadowVolume{VolumeKind::kEverywhere, 0, 0});
