@@ -330,20 +330,21 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
     if (!bands.ok()) return bands.status();
     std::vector<EncodedBand> zipped = std::move(*bands);
     if (static_cast<int>(zipped.size()) == f.bands) {
+      // The blocks view the bands' bytes: `zipped` is kept until the file
+      // is written.
       auto blocks = exr_blocks_from_bands(f.width, f.height, y0s, zipped);
-      zipped.clear();
       // Bands that do not fit together (a damaged record) are stitched
       // below, where stitch_frame names the one at fault.
       if (blocks.ok()) {
         records.clear();
-        const std::vector<std::string_view> views(blocks->begin(), blocks->end());
         return write_atomically(
             job_dir, f.file_name,
             [&](const std::string& path) {
-              return write_exr_blocks(path, f.width, f.height, views);
+              return write_exr_blocks(path, f.width, f.height, blocks->blocks);
             },
             sync, sync_dir);
       }
+      zipped.clear();
       spdlog::warn("job {}: frame {}'s EXR blocks: {}; stitching its pixels instead", f.job_id,
                    f.frame, blocks.status().message());
     }

@@ -162,8 +162,8 @@ Result<Row> measure(const std::string& path, const std::string& group, int width
   if (static_cast<int>(zipped.size()) == row.bands) {
     auto blocks = exr_blocks_from_bands(width, height, y0s, zipped);
     if (!blocks.ok()) return blocks.status();
-    const std::vector<std::string_view> views(blocks->begin(), blocks->end());
-    if (Status s = write_exr_blocks((dir / "joined.exr").string(), width, height, views); !s.ok())
+    if (Status s = write_exr_blocks((dir / "joined.exr").string(), width, height, blocks->blocks);
+        !s.ok())
       return s;
     row.exr_join_ms = (now_s() - x1) * 1e3;
   }

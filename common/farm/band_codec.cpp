@@ -526,14 +526,20 @@ Status edge_floats(std::string_view bytes, int width, int rows, float* out,
   return Status::Ok();
 }
 
-// The floats of an exr+zip band into `rgb` (width * rows * 3; null: only
-// checked), after every check decode_band makes. The check inflates each
-// block without rearranging its bytes into floats.
-Status exr_zip_floats(const EncodedBand& band, float* rgb) {
+// The floats of an exr+zip band into `out` (resized to width * rows * 3
+// once exr_zip_parts has checked the size; null: only checked), after every
+// check decode_band makes. The check inflates each block without
+// rearranging its bytes into floats.
+Status exr_zip_floats(const EncodedBand& band, std::vector<float>* out) {
   const std::string what = band_text(band);
   auto parts = exr_zip_parts(band, what);
   if (!parts.ok()) return parts.status();
   const size_t row_floats = static_cast<size_t>(band.width) * 3;
+  float* rgb = nullptr;
+  if (out) {
+    out->assign(row_floats * band.rows, 0.0f);
+    rgb = out->data();
+  }
   const auto at = [&](size_t row) { return rgb ? rgb + row * row_floats : nullptr; };
   if (Status s = edge_floats(parts->head, band.width, parts->split.head, at(0), what + ", head");
       !s.ok())
@@ -552,14 +558,14 @@ Status exr_zip_floats(const EncodedBand& band, float* rgb) {
 
 }  // namespace
 
-Result<std::vector<std::string>> exr_blocks_from_bands(int width, int height,
-                                                       const std::vector<int>& y0s,
-                                                       const std::vector<EncodedBand>& bands) {
+Result<ExrFrameBlocks> exr_blocks_from_bands(int width, int height, const std::vector<int>& y0s,
+                                             const std::vector<EncodedBand>& bands) {
   if (width < 1 || height < 1) return InvalidArgument("an EXR frame of no pixels");
   if (y0s.size() != bands.size()) return InvalidArgument("a first row for each band, expected");
   const size_t row_floats = static_cast<size_t>(width) * 3;
   const int count = (height + kExrZipBlockRows - 1) / kExrZipBlockRows;
-  std::vector<std::string> blocks(count);
+  ExrFrameBlocks out;
+  out.blocks.resize(count);
   std::vector<bool> whole(count, false);
   // The edge rows of every band, and which rows of the frame they are.
   std::vector<float> edges;
@@ -587,7 +593,7 @@ Result<std::vector<std::string>> exr_blocks_from_bands(int width, int height,
     if (Status s = add_edge(parts->head, next, split.head); !s.ok()) return s;
     int y = next + split.head;
     for (const auto& [n, data] : parts->blocks) {
-      blocks[y / kExrZipBlockRows].assign(data);
+      out.blocks[y / kExrZipBlockRows] = data;
       whole[y / kExrZipBlockRows] = true;
       y += n;
     }
@@ -601,6 +607,7 @@ Result<std::vector<std::string>> exr_blocks_from_bands(int width, int height,
   // The blocks across bands, from their rows (in frame order: the bands
   // cover the frame in order, so edge_rows is sorted).
   std::vector<float> block(row_floats * kExrZipBlockRows);
+  std::vector<int> made_at;  // the block each of out.made is
   size_t e = 0;
   for (int k = 0; k < count; ++k) {
     if (whole[k]) continue;
@@ -612,9 +619,13 @@ Result<std::vector<std::string>> exr_blocks_from_bands(int width, int height,
       std::copy_n(edges.begin() + static_cast<ptrdiff_t>(edge_rows[e].second), row_floats,
                   block.begin() + static_cast<ptrdiff_t>(r * row_floats));
     }
-    blocks[k] = exr_zip_block(block.data(), width, n);
+    out.made.push_back(exr_zip_block(block.data(), width, n));
+    made_at.push_back(k);
   }
-  return blocks;
+  // Viewed once out.made has stopped growing (a short string lives inside
+  // its std::string, which the vector moves as it grows).
+  for (size_t m = 0; m < made_at.size(); ++m) out.blocks[made_at[m]] = out.made[m];
+  return out;
 }
 
 Status check_band(const EncodedBand& band) {
@@ -625,10 +636,8 @@ Status check_band(const EncodedBand& band) {
 
 Result<std::vector<float>> decode_band(const EncodedBand& band) {
   if (band.encoding == BandEncoding::kExrZip) {
-    // Sized once the size is checked (exr_zip_floats checks it first).
-    if (Status s = check_size(band, band_text(band)); !s.ok()) return s;
-    std::vector<float> rgb(static_cast<size_t>(band.width) * band.rows * 3);
-    if (Status s = exr_zip_floats(band, rgb.data()); !s.ok()) return s;
+    std::vector<float> rgb;
+    if (Status s = exr_zip_floats(band, &rgb); !s.ok()) return s;
     return rgb;
   }
   std::string inflated;

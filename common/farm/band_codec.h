@@ -130,16 +130,23 @@ Status check_band(const EncodedBand& band);
 // the bands' rows do not add up to the height.
 Result<std::string> png_from_bands(int width, int height, const std::vector<EncodedBand>& bands);
 
-// The chunk data of every block of a `width` x `height` EXR frame, top to
-// bottom, for write_exr_blocks (common/base/exr.h), from its bands, top to
+// The chunk data of every block of an EXR frame, top to bottom, for
+// write_exr_blocks (common/base/exr.h): `blocks[k]` views either a band's
+// own bytes (a block the band holds whole, as it came) or `made` (a block
+// across bands, compressed from their edge rows). The views into the bands
+// are valid while the bands are.
+struct ExrFrameBlocks {
+  std::vector<std::string_view> blocks;
+  std::vector<std::string> made;
+};
+
+// The blocks of a `width` x `height` EXR frame from its bands, top to
 // bottom, all exr+zip and each accepted by decode_band, band b starting at
-// row y0s[b]: a block that a band holds whole as it came, a block across
-// bands compressed here from their edge rows. InvalidArgument when a band
-// is of another encoding or width, its rows are not where y0s puts them,
-// or they do not add up to the height.
-Result<std::vector<std::string>> exr_blocks_from_bands(int width, int height,
-                                                       const std::vector<int>& y0s,
-                                                       const std::vector<EncodedBand>& bands);
+// row y0s[b]; no block a band holds whole is copied. InvalidArgument when
+// a band is of another encoding or width, its rows are not where y0s puts
+// them, or they do not add up to the height.
+Result<ExrFrameBlocks> exr_blocks_from_bands(int width, int height, const std::vector<int>& y0s,
+                                             const std::vector<EncodedBand>& bands);
 
 // A band's work per pixel (common/base/cost.h; docs/cost-map.md), as a
 // worker returns it with the band's pixels when the job makes cost maps
