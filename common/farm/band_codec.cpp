@@ -607,7 +607,9 @@ Result<ExrFrameBlocks> exr_blocks_from_bands(int width, int height, const std::v
   // The blocks across bands, from their rows (in frame order: the bands
   // cover the frame in order, so edge_rows is sorted).
   std::vector<float> block(row_floats * kExrZipBlockRows);
-  std::vector<int> made_at;  // the block each of out.made is
+  // Reserved, so that out.made never moves its strings (a short one lives
+  // inside its std::string) while earlier blocks view them.
+  out.made.reserve(static_cast<size_t>(std::count(whole.begin(), whole.end(), false)));
   size_t e = 0;
   for (int k = 0; k < count; ++k) {
     if (whole[k]) continue;
@@ -619,12 +621,8 @@ Result<ExrFrameBlocks> exr_blocks_from_bands(int width, int height, const std::v
       std::copy_n(edges.begin() + static_cast<ptrdiff_t>(edge_rows[e].second), row_floats,
                   block.begin() + static_cast<ptrdiff_t>(r * row_floats));
     }
-    out.made.push_back(exr_zip_block(block.data(), width, n));
-    made_at.push_back(k);
+    out.blocks[k] = out.made.emplace_back(exr_zip_block(block.data(), width, n));
   }
-  // Viewed once out.made has stopped growing (a short string lives inside
-  // its std::string, which the vector moves as it grows).
-  for (size_t m = 0; m < made_at.size(); ++m) out.blocks[made_at[m]] = out.made[m];
   return out;
 }
 
