@@ -93,7 +93,7 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   // needs to outlive a power loss.
   co.fsync = false;
   // Workers that leave a core idle (one on two cores) render EXR frames
-  // sooner if the coordinator compresses each frame on OpenEXR's threads
+  // sooner if the coordinator compresses each frame on every core (write_exr)
   // than if each compresses its bands' blocks (docs/farm.md "Frames").
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   co.exr_zip = o.workers * (o.threads > 0 ? o.threads : cores) >= cores;

@@ -10,7 +10,7 @@
 
 #include "common/base/cpu_time.h"
 #include "common/base/log.h"
-#include "common/prepare/parallel.h"
+#include "common/base/parallel.h"
 #include "common/prepare/prepared.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/prepare/tessellate.h"

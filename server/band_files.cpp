@@ -257,7 +257,8 @@ Result<CostBuffer> stitch_cost(const FrameReady& f,
 
 Status write_frame(const std::string& job_dir, const FrameReady& f,
                    const std::function<Result<std::string>(int band)>& record, bool sync,
-                   bool sync_dir) {
+                   bool sync_dir, FrameWrite* how) {
+  if (how) *how = FrameWrite::kJoined;
   // Each band's record is read once, in band order, and kept for the
   // frame's steps below.
   std::vector<std::string> records;
@@ -351,6 +352,7 @@ Status write_frame(const std::string& job_dir, const FrameReady& f,
   }
   // Otherwise (other outputs, older workers' bands, a damaged record named
   // by stitch_frame): the frame's pixels, encoded by write_image.
+  if (how) *how = FrameWrite::kEncoded;
   auto image = stitch_frame(f, [&](int b) -> Result<std::string> {
     if (b < static_cast<int>(records.size())) return std::move(records[b]);
     return record(b);

@@ -70,15 +70,19 @@ Status write_frame_file(const std::string& job_dir, const std::string& file_name
                         const Image& image, bool sync, bool sync_dir = true);
 // The frame's file from its bands' records, as write_frame_file writes it:
 // a PNG whose bands are all png8+deflate is joined from their bytes
-// (png_from_bands: no pixel is decoded or compressed by the coordinator);
-// any other frame is stitched (stitch_frame) and encoded. A frame with a
+// (png_from_bands: no pixel is decoded or compressed by the coordinator),
+// an EXR whose bands are all exr+zip from their blocks
+// (exr_blocks_from_bands); any other frame is stitched (stitch_frame) and
+// encoded. A frame with a
 // cost map (FrameReady::cost_file_name) has it written first, from
 // stitch_cost, as the picture cost_map_image makes. With `sync` the
 // file is fsynced before its rename, and the directory after it unless
 // `sync_dir` is false (the caller syncs it once for several frames:
-// sync_directory).
+// sync_directory). `how`, when given, says which way it was written: the
+// file's bytes are the same either way.
+enum class FrameWrite { kJoined, kEncoded };
 Status write_frame(const std::string& job_dir, const FrameReady& f,
                    const std::function<Result<std::string>(int band)>& record, bool sync,
-                   bool sync_dir = true);
+                   bool sync_dir = true, FrameWrite* how = nullptr);
 Status sync_directory(const std::string& dir);
 }  // namespace locus::farm

@@ -293,7 +293,8 @@ int main(int argc, char** argv) {
   std::printf(
       "\nAn EXR frame written by the coordinator, milliseconds, averaged over the scenes "
       "(ns a pixel):\n\n| how | ms a frame | ns a pixel |\n|---|---:|---:|\n"
-      "| encoded from the stitched floats (write_image: OpenEXR, ZIP, its threads) | %.2f | %.1f "
+      "| encoded from the stitched floats (write_image: write_exr, its blocks on every core) | "
+      "%.2f | %.1f "
       "|\n| written from the bands' blocks (exr_blocks_from_bands, write_exr_blocks; encoded as "
       "above where a band holds no whole block) | %.2f | %.1f |\n",
       exr_encoded / n, exr_encoded / n * 1e6 / (static_cast<double>(width) * height),

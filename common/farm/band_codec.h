@@ -98,8 +98,8 @@ BandEncoding band_encoding_for(const std::string& output, bool png_deflate = fal
 // Whether rows [y0, y1) of a frame of `height` rows hold a whole block of
 // the frame's EXR (kExrZipBlockRows rows, or the frame's last): exr+zip is
 // leased only for such bands. A frame with a band that holds none (more
-// bands than blocks) is stitched and written by write_exr, on OpenEXR's
-// threads, as before.
+// bands than blocks) is stitched and written by write_exr, its blocks
+// compressed on the coordinator's cores.
 bool holds_exr_block(int y0, int y1, int height);
 
 // `rgb` (width * rows * 3 linear floats, as render_band gives them) in

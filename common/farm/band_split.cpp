@@ -5,8 +5,8 @@
 #include <utility>
 
 #include "common/base/exr.h"
+#include "common/base/parallel.h"
 #include "common/farm/types.h"
-#include "common/prepare/parallel.h"
 #include "common/prepare/visibility.h"
 
 namespace locus {

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <utility>
 
+#include "common/base/parallel.h"
 #include "common/prepare/hidden_faces.h"
-#include "common/prepare/parallel.h"
 #include "common/prepare/scan_scene.h"
 #include "common/prepare/shadow_volume.h"
 #include "common/prepare/tessellate.h"
@@ -84,7 +84,7 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
       return;
     }
     // Each stage on the render's threads, its pieces side by side
-    // (common/prepare/parallel.h); the result is the one of one thread.
+    // (common/base/parallel.h); the result is the one of one thread.
     const int threads = render_threads(params);
     scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0, threads));
     // The scanline pass finds the shadows of its spans with shadow volumes

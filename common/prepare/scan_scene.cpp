@@ -4,9 +4,9 @@
 #include <cmath>
 #include <iterator>
 
+#include "common/base/parallel.h"
 #include "common/prepare/bounding.h"
 #include "common/prepare/hidden_faces.h"
-#include "common/prepare/parallel.h"
 #include "common/prepare/prepared.h"
 
 namespace locus {

@@ -60,7 +60,7 @@ double scan_near_depth(const CameraFrame& cam, double eps);
 // were 2.1 GB and most of the frame's time.
 inline constexpr double kSilhouettePixels = 8.0;
 
-// On up to `threads` threads (parallel_for, common/prepare/parallel.h):
+// On up to `threads` threads (parallel_for, common/base/parallel.h):
 // the primitives' faces by chunks, joined in primitive order, so the scan
 // scene is the same, bit for bit, for any count. The faces closed solids
 // turn away from the eye are left out (PreparedScene::culls, and the

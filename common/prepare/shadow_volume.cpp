@@ -14,8 +14,8 @@
 #include <numbers>
 #include <optional>
 
+#include "common/base/parallel.h"
 #include "common/prepare/bounding.h"
-#include "common/prepare/parallel.h"
 #include "common/prepare/prepared.h"
 #include "common/prepare/shadow_candidates.h"
 #include "common/scene/polyhedron.h"

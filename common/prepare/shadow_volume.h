@@ -211,7 +211,7 @@ struct ShadowVolumes {
 // Built at prepare time for --method local: with `search` (configuration
 // IV, --boxes eye+shadow) the hierarchy's volumes and the candidate lists
 // too. Needs ps.prims, and ps.bvh if `search`. Runs on up to `threads`
-// threads (parallel_for, common/prepare/parallel.h): the occluders' shapes
+// threads (parallel_for, common/base/parallel.h): the occluders' shapes
 // and the receivers' hulls by chunks of primitives, then every light's
 // volumes by chunks of primitives and of boxes, joined in order; the
 // result is the same, bit for bit, for any count.

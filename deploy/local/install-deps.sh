@@ -8,8 +8,9 @@ PACKAGES=(
   protobuf-compiler libprotobuf-dev protobuf-compiler-grpc libgrpc++-dev
   libglm-dev libopenimageio-dev openimageio-tools libspdlog-dev libgtest-dev libcli11-dev
   libtinyobjloader-dev libsqlite3-dev libssl-dev libzstd-dev zlib1g-dev
-  # EXR files written and read without OpenImageIO (common/base/exr.cpp).
-  libopenexr-dev
+  # EXR files written and read without OpenImageIO (common/base/exr.cpp),
+  # their blocks compressed and checked with libdeflate.
+  libopenexr-dev libdeflate-dev
   # Metrics (prometheus-cpp: core and the pull endpoint); the dashboard's
   # HTTP server (cpp-httplib, header-only, on OpenSSL).
   prometheus-cpp-dev libcpp-httplib-dev

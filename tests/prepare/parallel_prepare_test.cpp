@@ -1,5 +1,5 @@
 // The frame's preparation on several threads (issue #27 item 4;
-// common/prepare/parallel.h): the scan scene (paper §3.1) and the shadow
+// common/base/parallel.h): the scan scene (paper §3.1) and the shadow
 // volumes with their boxes (§4.1) built with 2, 3 and 8 threads are the
 // ones one thread builds, field for field and bit for bit, and so are the
 // images of configurations II-IV rendered on them. parallel_for runs every
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "common/prepare/parallel.h"
+#include "common/base/parallel.h"
 #include "common/prepare/prepared.h"
 #include "common/prepare/scan_scene.h"
 #include "common/prepare/shadow_volume.h"

@@ -11,6 +11,7 @@
 #include <map>
 
 #include "common/base/cost_map.h"
+#include "common/base/exr.h"
 #include "common/base/image.h"
 #include "tests/server/scheduler_doubles.h"
 
@@ -215,7 +216,9 @@ TEST(BandFiles, APngFrameIsJoinedFromDeflatedBandsOrElseStitched) {
       return r.at(band);
     };
     const fs::path out = dir.path / (older_middle ? "stitched" : "joined");
-    ASSERT_TRUE(write_frame(out.string(), f, lookup, true).ok());
+    FrameWrite how = FrameWrite::kJoined;
+    ASSERT_TRUE(write_frame(out.string(), f, lookup, true, true, &how).ok());
+    EXPECT_EQ(how, older_middle ? FrameWrite::kEncoded : FrameWrite::kJoined);
     EXPECT_EQ(reads, (std::map<int, int>{{0, 1}, {1, 1}, {2, 1}}));
     auto read = read_image((out / f.file_name).string());
     ASSERT_TRUE(read.ok()) << read.status().message();
@@ -238,10 +241,10 @@ TEST(BandFiles, APngFrameIsJoinedFromDeflatedBandsOrElseStitched) {
 }
 
 // write_frame: an EXR frame whose bands all came as exr+zip is written from
-// their blocks (OpenEXR's core library, which names the part's type); a
-// frame with a band of another encoding, or one whose blocks are not where
-// its rows are, is stitched and written by write_exr. The floats are the
-// same every way. Rows 0-1, 2-20, 21-39: blocks 0 and 1 across bands.
+// their blocks; a frame with a band of another encoding, or one whose
+// blocks are not where its rows are, is stitched and written by write_exr.
+// The file is write_exr's, byte for byte, every way. Rows 0-1, 2-20,
+// 21-39: blocks 0 and 1 across bands.
 TEST(BandFiles, AnExrFrameIsWrittenFromZippedBandsOrElseStitched) {
   TempDir dir;
   const int width = 6, height = 40;
@@ -250,6 +253,8 @@ TEST(BandFiles, AnExrFrameIsWrittenFromZippedBandsOrElseStitched) {
   Image expected(width, height);
   for (size_t i = 0; i < expected.rgb.size(); ++i)
     expected.rgb[i] = static_cast<float>(i % 97) / 64.0f - 0.25f;
+  ASSERT_TRUE(write_exr((dir.path / "reference.exr").string(), expected).ok());
+  const std::string reference = file_of(dir.path / "reference.exr");
   enum class Case { kZipped, kOlderMiddle, kMisplacedMiddle };
   const auto records = [&](Case c) {
     std::map<int, std::string> r;
@@ -277,14 +282,15 @@ TEST(BandFiles, AnExrFrameIsWrittenFromZippedBandsOrElseStitched) {
       return r.at(band);
     };
     const fs::path out = dir.path / std::to_string(static_cast<int>(c));
-    ASSERT_TRUE(write_frame(out.string(), f, lookup, true).ok());
+    FrameWrite how = FrameWrite::kJoined;
+    ASSERT_TRUE(write_frame(out.string(), f, lookup, true, true, &how).ok());
     EXPECT_EQ(reads, (std::map<int, int>{{0, 1}, {1, 1}, {2, 1}}));
     auto read = read_image((out / f.file_name).string());
     ASSERT_TRUE(read.ok()) << read.status().message();
     EXPECT_EQ(read->rgb, expected.rgb);
     EXPECT_FALSE(fs::exists(out / (".partial-" + f.file_name)));
-    const bool joined = file_of(out / f.file_name).find("scanlineimage") != std::string::npos;
-    EXPECT_EQ(joined, c == Case::kZipped);
+    EXPECT_EQ(how, c == Case::kZipped ? FrameWrite::kJoined : FrameWrite::kEncoded);
+    EXPECT_TRUE(file_of(out / f.file_name) == reference);
   }
   // A damaged record is an error naming it, and nothing is written.
   std::map<int, std::string> r = records(Case::kZipped);

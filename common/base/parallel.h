@@ -2,7 +2,8 @@
 // iterations run side by side. The frame's preparation (paper §3 steps
 // ii-iii: the scan scene, the occluders' shapes, each light's shadow
 // volumes) runs its independent pieces through it; render_band shares
-// rows among the same number of threads (common/render.cpp).
+// rows among the same number of threads (common/render.cpp); write_exr
+// compresses a frame's blocks with it (common/base/exr.cpp).
 #pragma once
 
 #include "common/base/function_ref.h"

@@ -1,4 +1,4 @@
-#include "common/prepare/parallel.h"
+#include "common/base/parallel.h"
 
 #include <algorithm>
 #include <atomic>
