@@ -182,6 +182,11 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   // do for the rest.
   if (Status s = store->exec("PRAGMA journal_mode=WAL"); !s.ok()) return s;
   if (Status s = store->exec("PRAGMA synchronous=NORMAL"); !s.ok()) return s;
+  // Deleted records are not overwritten with zeros (Debian builds SQLite
+  // with SECURE_DELETE on): a written frame's band records, deleted with it,
+  // would otherwise be written to the WAL a second time as zeros
+  // (docs/farm.md "The store").
+  if (Status s = store->exec("PRAGMA secure_delete=OFF"); !s.ok()) return s;
   if (Status s = store->exec(kSchema); !s.ok())
     return FailedPrecondition(path + ": " + s.message());
   Statement check(*store, "SELECT value FROM meta WHERE key = 'schema'");

@@ -252,6 +252,27 @@ TEST(JobStore, RefusesAnotherSchemaAndReportsAnUnwritableDirectory) {
   EXPECT_FALSE(junk.ok());
 }
 
+// A band's record deleted (its frame written, or the band forgotten) is not
+// written again as zeros (secure_delete off; Debian's SQLite has it on):
+// the WAL grows by a few pages, not by the record's size
+// (docs/farm.md "The job store").
+TEST(JobStore, ADeletedBandRecordIsNotWrittenAgainAsZeros) {
+  TempDir dir;
+  auto store = open_store(dir.path);
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  std::string record(1 << 20, '\0');
+  std::mt19937 rng(7);
+  for (char& c : record) c = static_cast<char>(rng());
+  ASSERT_TRUE((*store)->put_band_record("j0001", 0, 0, record).ok());
+  const fs::path wal = dir.path / "locus.db-wal";
+  ASSERT_TRUE(fs::exists(wal));
+  const auto before = fs::file_size(wal);
+  ASSERT_TRUE((*store)->forget_band("j0001", 0, 0).ok());
+  EXPECT_EQ((*store)->band_record("j0001", 0, 0).status().code(), Code::kNotFound);
+  const auto grown = fs::file_size(wal) - before;
+  EXPECT_LT(grown, record.size() / 16) << grown << " bytes written to delete " << record.size();
+}
+
 TEST(JobStore, AStoreFromBeforeTheRenderColumnsGetsThemWithTheOldDefaults) {
   TempDir dir;
   FakeClock clock;
