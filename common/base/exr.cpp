@@ -6,7 +6,6 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
-#include <libdeflate.h>
 
 #include <algorithm>
 #include <cstddef>
@@ -17,6 +16,7 @@
 #include <mutex>
 #include <thread>
 
+#include "common/base/deflate.h"
 #include "common/base/parallel.h"
 
 namespace locus {
@@ -114,27 +114,6 @@ int zip_level() {
   return level;
 }
 
-// The blocks' zlib streams are made and checked with libdeflate (Debian's
-// libdeflate0): the same format as zlib's, about as small at the same
-// level, in under half the time (docs/farm.md "Frames"). A compressor and
-// a decompressor for each thread, made on its first block: libdeflate's
-// may not be shared between threads.
-struct Deflaters {
-  libdeflate_compressor* zip = nullptr;
-  libdeflate_decompressor* unzip = nullptr;
-  Deflaters() = default;
-  Deflaters(const Deflaters&) = delete;
-  Deflaters& operator=(const Deflaters&) = delete;
-  ~Deflaters() {
-    libdeflate_free_compressor(zip);
-    libdeflate_free_decompressor(unzip);
-  }
-};
-Deflaters& this_threads_deflaters() {
-  thread_local Deflaters d;
-  return d;
-}
-
 }  // namespace
 
 std::string exr_zip_block(const float* rgb, int width, int rows) {
@@ -155,15 +134,10 @@ std::string exr_zip_block(const float* rgb, int width, int rows) {
   for (size_t i = 0; i < n; ++i) split[(i % 2 == 0 ? 0 : half) + i / 2] = raw[i];
   auto* t = reinterpret_cast<unsigned char*>(split.data());
   for (size_t i = n; i-- > 1;) t[i] = static_cast<unsigned char>(t[i] - t[i - 1] + 128);
-  // A compressor that cannot be made (no memory) leaves the block as laid
-  // out, which is as valid.
-  Deflaters& d = this_threads_deflaters();
-  if (!d.zip) d.zip = libdeflate_alloc_compressor(zip_level());
-  if (!d.zip) return raw;
-  std::string z(libdeflate_zlib_compress_bound(d.zip, n), '\0');
-  const size_t size = libdeflate_zlib_compress(d.zip, t, n, z.data(), z.size());
-  if (size == 0 || size >= n) return raw;
-  z.resize(size);
+  // By libdeflate (common/base/deflate.h). A compressor that cannot be
+  // made (no memory) leaves the block as laid out, which is as valid.
+  std::string z = zlib_compress(split, zip_level());
+  if (z.empty() || z.size() >= n) return raw;
   return z;
 }
 
@@ -176,26 +150,28 @@ Status exr_unzip_block(std::string_view data, int width, int rows, float* rgb,
     raw.assign(data);
   } else {
     std::string split(n, '\0');
-    Deflaters& d = this_threads_deflaters();
-    if (!d.unzip) d.unzip = libdeflate_alloc_decompressor();
-    if (!d.unzip) return Internal(what + ": no memory to decompress a ZIP block");
     // Bounded by the block's size, whatever the stream says; every byte of
     // the data must be the stream's.
-    size_t used = 0, got = 0;
-    const libdeflate_result r = libdeflate_zlib_decompress_ex(d.unzip, data.data(), data.size(),
-                                                              split.data(), n, &used, &got);
-    if (r != LIBDEFLATE_SUCCESS || got != n || used != data.size()) {
+    const Inflated r = zlib_inflate(data, split.data(), n);
+    if (r.outcome == Inflated::kNoMemory)
+      return Internal(what + ": no memory to decompress a ZIP block");
+    if (r.outcome != Inflated::kOk) {
       std::string m = what;
       m.append(": not a ZIP block of ").append(std::to_string(rows)).append(" rows of ");
       m.append(std::to_string(width)).append(" pixels (");
-      if (r == LIBDEFLATE_INSUFFICIENT_SPACE) {
-        m.append("more bytes than the rows hold");
-      } else if (r != LIBDEFLATE_SUCCESS) {
-        m.append("corrupt zlib stream");
-      } else if (got != n) {
-        m.append(std::to_string(got) + " bytes, expected " + std::to_string(n));
-      } else {
-        m.append(std::to_string(data.size() - used) + " bytes after the zlib stream");
+      switch (r.outcome) {
+        case Inflated::kTooLong:
+          m.append("more bytes than the rows hold");
+          break;
+        case Inflated::kShort:
+          m.append(std::to_string(r.made) + " bytes, expected " + std::to_string(n));
+          break;
+        case Inflated::kTrailing:
+          m.append(std::to_string(r.trailing) + " bytes after the zlib stream");
+          break;
+        default:
+          m.append("corrupt zlib stream");
+          break;
       }
       return InvalidArgument(m.append(")"));
     }

@@ -49,7 +49,7 @@ std::string lower_extension(std::string_view path);
 // A PNG is tagged linear (gAMA 1.0), which is what its values are; with
 // `for_display` it is tagged sRGB instead, so that a browser shows the
 // stored values as they are (the dashboard's copies; same pixel values).
-// PNGs are deflated at zlib level kPngLevel (docs/farm.md "Frames": 3, not libpng's
+// PNGs are deflated at level kPngLevel (docs/farm.md "Frames": 3, not libpng's
 // 6: a third less time per frame for 6-23% more bytes; the farm's
 // coordinator encodes the frames it does not join from png8+deflate bands).
 inline constexpr int kPngLevel = 3;

@@ -2,6 +2,8 @@
 
 #include <zlib.h>
 
+#include "common/base/deflate.h"
+
 namespace locus {
 namespace {
 
@@ -71,14 +73,9 @@ std::string png_file(int width, int height, PngTag tag, const std::vector<std::s
 Result<std::string> encode_png(const Image& image, PngTag tag, int level) {
   if (image.width <= 0 || image.height <= 0) return InvalidArgument("a PNG of no pixels");
   const std::string rows = png_filter_rows(image.width, image.height, image.rgb);
-  uLongf size = compressBound(static_cast<uLong>(rows.size()));
-  std::string z(size, '\0');
-  if (compress2(reinterpret_cast<Bytef*>(z.data()), &size,
-                reinterpret_cast<const Bytef*>(rows.data()), static_cast<uLong>(rows.size()),
-                level) != Z_OK) {
-    return Internal("zlib: cannot deflate the image's rows");
-  }
-  z.resize(size);
+  // One zlib stream of the whole image, by libdeflate (common/base/deflate.h).
+  const std::string z = zlib_compress(rows, level);
+  if (z.empty()) return Internal("cannot deflate the image's rows (no memory)");
   return png_file(image.width, image.height, tag, {z});
 }
 

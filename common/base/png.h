@@ -1,4 +1,4 @@
-// PNG files of 8-bit RGB, made here with zlib (PNG specification, ISO/IEC
+// PNG files of 8-bit RGB, made here (PNG specification, ISO/IEC
 // 15948; zlib and deflate streams, RFC 1950 and 1951): every PNG Locus
 // writes, a single-process render's (write_image) and a frame the farm's
 // coordinator joins from its bands' deflate streams (common/farm/
@@ -50,7 +50,7 @@ enum class PngTag { kLinear, kDisplay };
 std::string png_file(int width, int height, PngTag tag, const std::vector<std::string_view>& idat);
 
 // `image` as a PNG file's bytes, its rows filtered by png_filter_rows and
-// deflated at zlib level `level` in one IDAT.
+// deflated at level `level` in one IDAT, by libdeflate (deflate.h).
 Result<std::string> encode_png(const Image& image, PngTag tag, int level = kPngLevel);
 
 }  // namespace locus
