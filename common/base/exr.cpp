@@ -114,31 +114,52 @@ int zip_level() {
   return level;
 }
 
-}  // namespace
-
-std::string exr_zip_block(const float* rgb, int width, int rows) {
-  // The block as EXR lays it out: line by line, each channel's samples.
-  const size_t n = block_bytes(width, rows);
-  std::string raw(n, '\0');
-  char* out = raw.data();
+// Each sample of a block in the order EXR lays it out (line by line, each
+// channel's samples: B, G, R), as its float's bits: visit(k, bits) for the
+// k-th. A sample's 4 bytes are stored least significant first.
+template <typename F>
+void for_each_stored_sample(const float* rgb, int width, int rows, F&& visit) {
+  size_t k = 0;
   for (int y = 0; y < rows; ++y) {
     const float* line = rgb + static_cast<size_t>(y) * width * 3;
     for (const int c : kStoredChannel) {
-      for (int x = 0; x < width; ++x, out += 4) std::memcpy(out, line + x * 3 + c, 4);
+      for (int x = 0; x < width; ++x, ++k) {
+        uint32_t bits;
+        std::memcpy(&bits, line + x * 3 + c, 4);
+        visit(k, bits);
+      }
     }
   }
-  // ZIP_COMPRESSION's preparation: the even bytes, then the odd ones; each
-  // byte then replaced by its difference from the one before, plus 128.
+}
+
+}  // namespace
+
+std::string exr_zip_block(const float* rgb, int width, int rows) {
+  // ZIP_COMPRESSION's preparation of the block as EXR lays it out: its
+  // even bytes, then its odd ones (a sample's bytes 0 and 2, then 1 and 3,
+  // made here in one pass); each byte then replaced by its difference from
+  // the one before, plus 128.
+  const size_t n = block_bytes(width, rows);
   std::string split(n, '\0');
-  const size_t half = (n + 1) / 2;
-  for (size_t i = 0; i < n; ++i) split[(i % 2 == 0 ? 0 : half) + i / 2] = raw[i];
-  auto* t = reinterpret_cast<unsigned char*>(split.data());
-  for (size_t i = n; i-- > 1;) t[i] = static_cast<unsigned char>(t[i] - t[i - 1] + 128);
+  auto* even = reinterpret_cast<unsigned char*>(split.data());
+  unsigned char* odd = even + n / 2;  // n: 12 bytes a pixel
+  for_each_stored_sample(rgb, width, rows, [&](size_t k, uint32_t bits) {
+    even[2 * k] = static_cast<unsigned char>(bits);
+    even[2 * k + 1] = static_cast<unsigned char>(bits >> 16);
+    odd[2 * k] = static_cast<unsigned char>(bits >> 8);
+    odd[2 * k + 1] = static_cast<unsigned char>(bits >> 24);
+  });
+  for (size_t i = n; i-- > 1;) even[i] = static_cast<unsigned char>(even[i] - even[i - 1] + 128);
   // By libdeflate (common/base/deflate.h). A compressor that cannot be
-  // made (no memory) leaves the block as laid out, which is as valid.
+  // made (no memory), or a block that does not shrink, leaves the block as
+  // laid out, which is as valid.
   std::string z = zlib_compress(split, zip_level());
-  if (z.empty() || z.size() >= n) return raw;
-  return z;
+  if (!z.empty() && z.size() < n) return z;
+  std::string raw(n, '\0');
+  for_each_stored_sample(rgb, width, rows, [&](size_t k, uint32_t bits) {
+    for (int b = 0; b < 4; ++b) raw[4 * k + b] = static_cast<char>(bits >> (8 * b));
+  });
+  return raw;
 }
 
 Status exr_unzip_block(std::string_view data, int width, int rows, float* rgb,
