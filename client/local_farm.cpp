@@ -76,6 +76,10 @@ Result<std::string> worker_binary() {
   return worker.string();
 }
 
+bool local_farm_zips_exr(int workers, int threads, int cores) {
+  return workers * (threads > 0 ? threads : cores) >= cores;
+}
+
 Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   auto binary = worker_binary();
   if (!binary.ok()) return binary.status();
@@ -92,11 +96,8 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   // Its data directory is a temporary one, deleted at exit: nothing there
   // needs to outlive a power loss.
   co.fsync = false;
-  // Workers that leave a core idle (one on two cores) render EXR frames
-  // sooner if the coordinator compresses each frame on every core (write_exr)
-  // than if each compresses its bands' blocks (docs/farm.md "Frames").
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  co.exr_zip = o.workers * (o.threads > 0 ? o.threads : cores) >= cores;
+  co.exr_zip = local_farm_zips_exr(o.workers, o.threads, cores);
   farm->coordinator_ = std::make_unique<farm::Coordinator>(co);
   if (Status s = farm->coordinator_->start(); !s.ok()) return s;
   // Loopback only, plaintext (nothing leaves the host), and a fresh random

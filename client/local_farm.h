@@ -28,6 +28,14 @@ struct LocalFarmOptions {
   bool dashboard = true;  // serve the dashboard on 127.0.0.1 (any free port)
 };
 
+// Whether the farm's EXR jobs lease exr+zip (workers compress their bands'
+// blocks): only when its `workers` of `threads` each (0: every core) fill
+// the machine's `cores`. A worker that leaves a core idle (one on two
+// cores) renders EXR frames sooner if the coordinator compresses each frame
+// on every core (write_exr) than if it compresses its bands' blocks alone
+// (docs/farm.md "Frames").
+bool local_farm_zips_exr(int workers, int threads, int cores);
+
 class LocalFarm {
  public:
   // Starts the coordinator and the workers. The workers load and register

@@ -185,7 +185,7 @@ Result<std::unique_ptr<JobStore>> JobStore::open(const std::string& path) {
   // Deleted records are not overwritten with zeros (Debian builds SQLite
   // with SECURE_DELETE on): a written frame's band records, deleted with it,
   // would otherwise be written to the WAL a second time as zeros
-  // (docs/farm.md "The store").
+  // (docs/farm.md "The job store").
   if (Status s = store->exec("PRAGMA secure_delete=OFF"); !s.ok()) return s;
   if (Status s = store->exec(kSchema); !s.ok())
     return FailedPrecondition(path + ": " + s.message());
