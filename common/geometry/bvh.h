@@ -67,8 +67,9 @@ struct Bvh {
 };
 
 // Builds the binary tree and its 8-wide form where the processor has
-// AVX2, its 4-wide form elsewhere.
-Bvh build_bvh(const std::vector<Aabb>& bounds);
+// AVX2, its 4-wide form elsewhere; a large tree's subtrees on up to
+// `threads` threads, the same tree for any count.
+Bvh build_bvh(const std::vector<Aabb>& bounds, int threads = 1);
 
 // Fills bvh.wide from bvh.nodes: each inner node takes the children of its
 // largest inner children until it has 4 (build_bvh calls it; tests that

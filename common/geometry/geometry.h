@@ -221,6 +221,8 @@ Vec3 newell_normal(const std::vector<Vec3>& pts);
 // polygon) is moved onto it along the third axis; planar input is returned
 // as it is, bit for bit.
 std::vector<Vec3> polygon_outline(const PolygonPrim& p);
+// Vertex v of the polygon as polygon_outline gives it.
+Vec3 outline_point(const PolygonPrim& p, Vec3 v);
 
 // The convex hull of 2D points by Andrew's monotone chain: indices into
 // `p`, counter-clockwise, without collinear points (fewer than 3 where the

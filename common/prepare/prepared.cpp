@@ -50,9 +50,13 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
     : scene(tessellated(std::move(s), params, &seconds_tessellate)),
       camera(scene.camera),
       prims(build_primitives(scene)) {
+  // Each stage on the render's threads where it is large enough, its
+  // pieces side by side (common/base/parallel.h); the result is the one of
+  // one thread.
+  const int threads = render_threads(params);
   bvh_for_rays = params.boxes != Boxes::kNone;
   bvh_for_shadows = params.boxes == Boxes::kEyeShadow;
-  if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds);
+  if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds, threads);
   for (int j = 0; j < static_cast<int>(scene.lights.size()); ++j)
     emission.push_back(light_emission(scene, j));
   stops_light.reserve(prims.prims.size());
@@ -83,9 +87,6 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
       scan = std::make_unique<ScanScene>(traced_scan_scene(camera.height, params.aa > 0));
       return;
     }
-    // Each stage on the render's threads, its pieces side by side
-    // (common/base/parallel.h); the result is the one of one thread.
-    const int threads = render_threads(params);
     scan = std::make_unique<ScanScene>(build_scan_scene(*this, params.aa > 0, threads));
     // The scanline pass finds the shadows of its spans with shadow volumes
     // (paper §3.2 step 2) in configurations II-IV; IV also searches the

@@ -504,5 +504,76 @@ TEST(BvhBuild, ALeafEachWhereTheirOwnBoxesAreSmallerThanTheirs) {
   }
 }
 
+// The wide nodes of two trees, slot for slot.
+template <int W>
+void expect_same_wide(const std::vector<BvhWideNodeN<W>>& a, const std::vector<BvhWideNodeN<W>>& b,
+                      int threads) {
+  ASSERT_EQ(a.size(), b.size()) << threads << " threads";
+  for (size_t i = 0; i < a.size(); ++i) {
+    for (int k = 0; k < W; ++k) {
+      ASSERT_EQ(a[i].ref[k], b[i].ref[k]) << "wide node " << i << ", " << threads << " threads";
+      ASSERT_EQ(a[i].count[k], b[i].count[k]) << "wide node " << i << ", " << threads << " threads";
+      for (int axis = 0; axis < 3; ++axis) {
+        for (int side = 0; side < 2; ++side) {
+          ASSERT_EQ(std::bit_cast<uint32_t>(a[i].planes[axis][side][k]),
+                    std::bit_cast<uint32_t>(b[i].planes[axis][side][k]))
+              << "wide node " << i << ", " << threads << " threads";
+        }
+      }
+    }
+  }
+}
+
+TEST(BvhBuild, TheSameTreeOnAnyNumberOfThreads) {
+  // Enough primitives for the subtrees to be built side by side: random
+  // boxes, and among them runs whose centres coincide (a leaf each, or a
+  // split in the middle of the list) and duplicates.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> pos(-1, 1), size(0.0001, 0.02);
+  std::vector<Aabb> boxes;
+  while (boxes.size() < 60000) {
+    const Vec3 c(pos(rng), pos(rng), pos(rng));
+    const Vec3 h(size(rng), size(rng), size(rng));
+    boxes.push_back(box_of(c - h, c + h));
+    if (boxes.size() % 997 == 0) {
+      // Rods crossing at c, and the same box twice.
+      boxes.push_back(box_of(c - Vec3(0.05, 0.001, 0.001), c + Vec3(0.05, 0.001, 0.001)));
+      boxes.push_back(box_of(c - Vec3(0.001, 0.05, 0.001), c + Vec3(0.001, 0.05, 0.001)));
+      boxes.push_back(boxes.back());
+    }
+  }
+  const Bvh one = build_bvh(boxes, 1);
+  for (const int threads : {2, 3, 8}) {
+    const Bvh many = build_bvh(boxes, threads);
+    ASSERT_EQ(one.order, many.order) << threads << " threads";
+    ASSERT_EQ(one.nodes.size(), many.nodes.size()) << threads << " threads";
+    for (size_t i = 0; i < one.nodes.size(); ++i) {
+      const BvhNode &a = one.nodes[i], &b = many.nodes[i];
+      ASSERT_EQ(a.first, b.first) << "node " << i << ", " << threads << " threads";
+      ASSERT_EQ(a.count, b.count) << "node " << i << ", " << threads << " threads";
+      ASSERT_TRUE(a.box.lo == b.box.lo && a.box.hi == b.box.hi)
+          << "node " << i << ", " << threads << " threads";
+    }
+    expect_same_wide(one.wide, many.wide, threads);
+    expect_same_wide(one.wide8, many.wide8, threads);
+  }
+  // The tree is a real one: every primitive in one leaf, reached from the
+  // root.
+  std::vector<int> seen(boxes.size(), 0);
+  std::vector<int> stack = {0};
+  while (!stack.empty()) {
+    const BvhNode& n = one.nodes[stack.back()];
+    const int id = stack.back();
+    stack.pop_back();
+    if (n.count > 0) {
+      for (int i = n.first; i < n.first + n.count; ++i) ++seen[one.order[i]];
+    } else {
+      stack.push_back(id + 1);
+      stack.push_back(n.first);
+    }
+  }
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<long>(boxes.size()));
+}
+
 }  // namespace
 }  // namespace locus
