@@ -5,6 +5,8 @@
 
 #include <spdlog/spdlog.h>
 #include <unistd.h>
+
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +15,7 @@
 #include <functional>
 #include <regex>
 #include <thread>
+
 #include "client/farm_client.h"
 #include "client/local_farm.h"
 #include "client/progress.h"
@@ -109,6 +112,7 @@ Status check_cost_map(const JobArgs& a, int frames) {
 struct PreparedJob {
   Scene scene;
   farm::SubmitRequest request;  // request.scene is filled only for the farm
+  double load_seconds = 0;      // load_scene's wall time (Stats::seconds_load)
 };
 
 Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
@@ -121,8 +125,11 @@ Result<PreparedJob> prepare_job(const JobArgs& a, bool for_farm) {
         "-o " + a.output + ": " + std::to_string(frames) +
         " frames need a frame number field in the file name, e.g. shot_####.png");
   }
+  const auto load_start = std::chrono::steady_clock::now();
   auto scene = load_scene(a.scene);
   if (!scene.ok()) return scene.status();
+  job.load_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
   job.scene = std::move(*scene);
   if (!a.size.empty()) {
     int w, h;
@@ -208,6 +215,7 @@ int render_in_process(const RenderArgs& a) {
   if (Status st = check_render_params(*params); !st.ok()) return fail(st);
   const farm::SubmitRequest& r = job->request;
   Stats total;
+  total.seconds_load = job->load_seconds;
   double seconds = 0;
   for (int f = r.frame_first; f <= r.frame_last; ++f) {
     // The last frame takes the job's scene itself: a one-frame render

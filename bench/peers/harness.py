@@ -67,7 +67,10 @@ class Locus(acc.Locus):
     def timed(self, scene, size, args, out, threads=1):
         st = self.stats(scene, size, args, out, threads)
         s = st["seconds"]
-        return {"cpu": s["render_cpu"], "wall": s["render"], "prepare": s.get("prepare", 0.0),
+        # Setup, to set beside POV-Ray's parse + bounding (which reads its
+        # scene file): the scene file's load and the frame's prepare.
+        return {"cpu": s["render_cpu"], "wall": s["render"],
+                "prepare": s.get("prepare", 0.0) + s.get("load", 0.0), "load": s.get("load", 0.0),
                 "peak_mib": self.peak_kib / 1024.0, "stats": st}
 
 

@@ -50,6 +50,7 @@ Stats& Stats::operator+=(const Stats& o) {
   seconds_render += o.seconds_render;
   seconds_render_cpu += o.seconds_render_cpu;
   seconds_tessellate += o.seconds_tessellate;
+  seconds_load += o.seconds_load;
   geometry_triangles = std::max(geometry_triangles, o.geometry_triangles);
   rays_eye += o.rays_eye;
   rays_reflected += o.rays_reflected;
@@ -71,6 +72,7 @@ std::string Stats::to_json() const {
   o.precision(9);
   o << "{\n  \"seconds\": {\"prepare\": " << seconds_prepare << ", \"render\": " << seconds_render
     << ", \"render_cpu\": " << seconds_render_cpu << ", \"tessellate\": " << seconds_tessellate
+    << ", \"load\": " << seconds_load
     << "},\n  \"geometry\": {\"triangles\": " << geometry_triangles
     << "},\n  \"rays\": {\"eye\": " << rays_eye << ", \"reflected\": " << rays_reflected
     << ", \"refracted\": " << rays_refracted << ", \"shadow\": " << rays_shadow

@@ -89,6 +89,11 @@ struct Stats {
   double seconds_render_cpu = 0;
   // Cutting Bezier surfaces into triangles, part of seconds_prepare.
   double seconds_tessellate = 0;
+  // Reading and checking the scene file, before any frame is prepared:
+  // `locus render --workers 0` only (a farm's coordinator loads the scene;
+  // not carried by the farm). A large file's load is part of what a frame
+  // costs to set up (bench/peers/scaling.py counts it with prepare).
+  double seconds_load = 0;
   // Triangles the frame is made of after tessellation (meshes, patch fans
   // and tessellated surfaces). Summing bands or frames keeps the largest.
   uint64_t geometry_triangles = 0;

@@ -324,7 +324,12 @@ class NffParser {
     Object o;
     o.shape = std::move(shape);
     o.material = material();
-    o.origin = fmt::format("{}:{}", name_, entity_line_);
+    // "file:line", made by hand: one a polygon of a 262,144-polygon file
+    // (SPD tetra level 9) cost its load 27 ms through fmt::format.
+    char line[16];
+    const auto [end, ec] = std::to_chars(line, line + sizeof line, entity_line_);
+    o.origin.reserve(name_.size() + 1 + (end - line));
+    o.origin.append(name_).append(1, ':').append(line, end);
     scene_.objects.push_back(std::move(o));
   }
 

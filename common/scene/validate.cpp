@@ -298,14 +298,19 @@ Problems check_polygon(const std::vector<Vec3>& vertices) {
 
   // Repeated vertices anywhere, not only along an edge: a polygon that
   // touches itself has no well-defined inside for the triangulator.
-  std::vector<int> order(vertices.size());
-  std::iota(order.begin(), order.end(), 0);
+  // (On the stack for the common few vertices: a polygon of a large file
+  // is checked as it loads.)
+  const size_t count = vertices.size();
+  int few[8];
+  std::vector<int> many(count > std::size(few) ? count : 0);
+  int* order = many.empty() ? few : many.data();
+  std::iota(order, order + count, 0);
   auto lex = [&](int a, int b) {
     const Vec3 &p = vertices[a], &q = vertices[b];
     return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
   };
-  std::sort(order.begin(), order.end(), lex);
-  for (size_t k = 1; k < order.size(); ++k) {
+  std::sort(order, order + count, lex);
+  for (size_t k = 1; k < count; ++k) {
     if (vertices[order[k - 1]] == vertices[order[k]]) {
       out.push_back(
           {"vertices",
