@@ -20,16 +20,20 @@ uint64_t mix64(uint64_t x) {
 
 size_t table_size(size_t n) { return std::bit_ceil(std::max<size_t>(16, 2 * n)); }
 
+// How far ahead of the polygon in hand the tables' slots for a later one
+// are fetched: their lookups miss the caches (random slots of tables of
+// many MB: SPD tetra level 9's 786,432 corners), and several misses in
+// flight cost about what one does.
+constexpr int kPrefetchAhead = 8;
+
 // Vertices matched by their exact coordinates (-0 is 0): open addressing.
 class VertexIds {
  public:
   explicit VertexIds(size_t n) : slot_(table_size(n), -1) {}
   int id(const Vec3& p) {
     const Vec3 q = p + Vec3(0.0);  // -0.0 + 0.0 is +0.0
-    const uint64_t bx = std::bit_cast<uint64_t>(q.x), by = std::bit_cast<uint64_t>(q.y),
-                   bz = std::bit_cast<uint64_t>(q.z);
     const size_t mask = slot_.size() - 1;
-    for (size_t h = mix64(bx ^ mix64(by ^ mix64(bz))) & mask;; h = (h + 1) & mask) {
+    for (size_t h = hash(q) & mask;; h = (h + 1) & mask) {
       const int s = slot_[h];
       if (s < 0) {
         slot_[h] = static_cast<int>(points.size());
@@ -39,26 +43,33 @@ class VertexIds {
       if (points[s] == q) return s;
     }
   }
+  // A hint: id(p) will be asked soon.
+  void prefetch(const Vec3& p) const {
+    __builtin_prefetch(&slot_[hash(p + Vec3(0.0)) & (slot_.size() - 1)]);
+  }
   std::vector<Vec3> points;
 
  private:
+  static uint64_t hash(const Vec3& q) {
+    return mix64(std::bit_cast<uint64_t>(q.x) ^
+                 mix64(std::bit_cast<uint64_t>(q.y) ^ mix64(std::bit_cast<uint64_t>(q.z))));
+  }
   std::vector<int> slot_;
 };
 
 // Undirected edges: the first face walking it, its direction, how many.
 class EdgeTable {
  public:
-  struct Entry {
+  struct Entry {  // 16 bytes: four to a cache line
     uint64_t key = ~0ULL;
     int face = -1;
     bool forward = false;
-    int count = 0;
+    uint8_t count = 0;  // 0-3
   };
   explicit EdgeTable(size_t n) : e_(table_size(n)) {}
   // The entry of edge {a, b}, made if new.
   Entry& at(int a, int b) {
-    const uint64_t key =
-        (static_cast<uint64_t>(std::min(a, b)) << 32) | static_cast<uint32_t>(std::max(a, b));
+    const uint64_t key = key_of(a, b);
     const size_t mask = e_.size() - 1;
     for (size_t h = mix64(key) & mask;; h = (h + 1) & mask) {
       if (e_[h].key == key) return e_[h];
@@ -68,9 +79,14 @@ class EdgeTable {
       }
     }
   }
+  // A hint: at(a, b) will be asked soon.
+  void prefetch(int a, int b) const { __builtin_prefetch(&e_[mix64(key_of(a, b)) & (e_.size() - 1)]); }
   const std::vector<Entry>& entries() const { return e_; }
 
  private:
+  static uint64_t key_of(int a, int b) {
+    return (static_cast<uint64_t>(std::min(a, b)) << 32) | static_cast<uint32_t>(std::max(a, b));
+  }
   std::vector<Entry> e_;
 };
 
@@ -108,6 +124,9 @@ ClosedSolids closed_convex_solids(const PrimitiveSet& set) {
   std::vector<uint8_t> bad(n, 0);
   for (int j = 0; j < n; ++j) {
     const PolygonPrim& p = poly(j);
+    if (j + kPrefetchAhead < n) {
+      for (const Vec3& v : poly(j + kPrefetchAhead).verts) ids.prefetch(v);
+    }
     first[j + 1] = first[j] + static_cast<int>(p.verts.size());
     for (size_t k = 0; k < p.verts.size(); ++k) {
       const Vec3& v = p.verts[k];
@@ -123,6 +142,10 @@ ClosedSolids closed_convex_solids(const PrimitiveSet& set) {
   for (int j = 0; j < n; ++j) parent[j] = j;
   EdgeTable edges(corners);
   for (int j = 0; j < n; ++j) {
+    if (j + kPrefetchAhead < n) {
+      const int f = first[j + kPrefetchAhead], l = first[j + kPrefetchAhead + 1];
+      for (int c = f; c < l; ++c) edges.prefetch(corner[c], corner[c + 1 < l ? c + 1 : f]);
+    }
     const int m = first[j + 1] - first[j];
     for (int k = 0; k < m; ++k) {
       const int a = corner[first[j] + k], b = corner[first[j] + (k + 1) % m];
