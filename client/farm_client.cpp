@@ -31,6 +31,21 @@ std::string new_request_id() {
 
 }  // namespace
 
+Status check_submission_size(const farm::SubmitRequest& request) {
+  // The job's other fields: far below this.
+  constexpr size_t kRoom = 1 << 20;
+  const size_t bytes = request.scene.ByteSizeLong();
+  if (bytes + kRoom <= static_cast<size_t>(farm::kMaxMessageBytes)) return Status::Ok();
+  char what[256];
+  std::snprintf(what, sizeof what,
+                "%s: the scene is %.1f MiB as a farm job (%d objects); a job is sent in one "
+                "message of at most %d MiB",
+                request.scene_name.empty() ? "the job" : request.scene_name.c_str(),
+                bytes / 1048576.0, request.scene.objects_size(),
+                (farm::kMaxMessageBytes - static_cast<int>(kRoom)) >> 20);
+  return Status(Code::kResourceExhausted, what);
+}
+
 class FarmClient::Impl {
  public:
   Impl(const std::string& address, const farm::Credentials& credentials)
@@ -86,6 +101,11 @@ FarmClient::~FarmClient() = default;
 
 Result<farm::JobInfo> FarmClient::submit(const farm::SubmitRequest& request) {
   if (!impl_->broken.ok()) return impl_->broken;
+  if (Status s = check_submission_size(request); !s.ok()) {
+    return Status(s.code(), s.message() +
+                                ": split the scene, or render it in process (locus "
+                                "render --workers 0)");
+  }
   v1::SubmitJobRequest req;
   *req.mutable_spec() = rpc::ToProto(request);
   // One id per submission, the same on every retry: the coordinator then

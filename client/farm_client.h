@@ -17,6 +17,13 @@ class ClientService;
 
 namespace locus::client {
 
+// A submission travels in one gRPC message of at most
+// farm::kMaxMessageBytes, nearly all of it the scene: a larger one is
+// refused here (kResourceExhausted, naming the scene and its size; the
+// caller adds what to do) rather than by gRPC. FarmClient::submit checks
+// it; `locus render` asks first, to render in process instead.
+Status check_submission_size(const farm::SubmitRequest& request);
+
 class FarmClient {
  public:
   // A bad credential (unreadable --tls-ca, plaintext to a remote address

@@ -320,6 +320,15 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     return fail(job.status());
   }
   farm::SubmitRequest& request = job->request;
+  if (Status fits = client::check_submission_size(request); !fits.ok()) {
+    local->reset();
+    spdlog::set_level(level);
+    // Without --workers, `locus render` chose the farm itself: the scene
+    // renders in process, as it would have with --workers 0.
+    if (a.workers_given) return fail(fits.message() + ": render it in process (--workers 0)");
+    spdlog::warn("{}: rendering in process", fits.message());
+    return render_in_process(a);
+  }
   if (request.bands == 0) {
     request.bands = farm::default_bands(request.width, request.height,
                                         request.frame_last - request.frame_first + 1, workers,

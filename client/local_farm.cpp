@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <thread>
 
 #include "client/farm_client.h"
@@ -98,6 +99,11 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   co.fsync = false;
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   co.exr_zip = local_farm_zips_exr(o.workers, o.threads, cores);
+  // Its one client is this process, with the scene `--workers 0` would
+  // render: a shared coordinator's cap on a submission's objects (against
+  // other users' jobs) does not apply. A scene too large for one gRPC
+  // message is still refused at submit (docs/farm.md "Limits").
+  co.limits.max_objects = std::numeric_limits<int>::max();
   farm->coordinator_ = std::make_unique<farm::Coordinator>(co);
   if (Status s = farm->coordinator_->start(); !s.ok()) return s;
   // Loopback only, plaintext (nothing leaves the host), and a fresh random

@@ -44,6 +44,25 @@ glass=$src/scenes/paper/a_glass.json
   same_frames "$tmp/e" a "$tmp/r" a 1 4 && ok "render --workers 2 == --workers 0 (scenes/anim, 4 frames, 5 bands)" ||
   { bad "embedded farm, scenes/anim"; cat "$tmp/e.log"; }
 
+# ---- the embedded farm takes a scene of more objects than a shared
+# coordinator's --max-objects (100,000): its one client is this process
+# (client/local_farm.cpp)
+/usr/bin/python3 - "$tmp/many.nff" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("v\nfrom 0 0 -8\nat 0 0 0\nup 0 1 0\nangle 40\nhither 1\nresolution 16 16\n")
+    f.write("l 2 4 -6\nf 0.8 0.6 0.4 0.8 0.2 10 0 1\n")
+    n = 317  # 317 x 317 = 100,489 spheres
+    for i in range(n * n):
+        x, y = i % n, i // n
+        f.write(f"s {4 * x / n - 2:.5f} {4 * y / n - 2:.5f} 0 0.006\n")
+PY
+"$bin/locus" render "$tmp/many.nff" --size 16x16 --workers 1 -o "$tmp/e/many.png" 2>"$tmp/e.log" &&
+  "$bin/locus" render "$tmp/many.nff" --size 16x16 --workers 0 -o "$tmp/r/many.png" 2>>"$tmp/e.log" &&
+  same_pixels "$tmp/e/many.png" "$tmp/r/many.png" &&
+  ok "render --workers 1 of 100,489 spheres (over a coordinator's default --max-objects) == --workers 0" ||
+  { bad "embedded farm, 100,489 spheres"; cat "$tmp/e.log"; }
+
 # ---- EXR frames of the embedded farm: written from the workers' blocks
 # when its workers fill the machine's cores, else compressed by its
 # coordinator; the single-process render's file, byte for byte, either way

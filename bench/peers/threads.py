@@ -17,6 +17,12 @@ loaded machine (the farm benchmarks share it) --wait-load waits first.
 Targets: render --threads 2 >= 1.9x --threads 1; whole frame (prepare +
 render) >= 1.7x; embedded farm 2 workers >= 1.85x 1 worker.
 
+--big adds SPD tetra level 9 (262,144 triangles, written by spdgen.py), for
+information: where the scene is large, prepare is as long as the render,
+and how much of it the second thread takes (the issue's "parallelise it
+where it dominates"); its scene file's load (`seconds.load`, one thread
+whatever --threads) is printed beside it.
+
 Usage: bench/peers/threads.py [--quick] [--repeat N] [--scenes d,balls,gears]
 Writes bench/results/threads.md and its raw measurements threads-raw.json
 (--quick: a temporary directory); --report-only RAW rewrites the report.
@@ -34,10 +40,13 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import harness as H  # noqa: E402
+import spdgen  # noqa: E402
 
 SCENES = [("d", os.path.join(H.ROOT, "scenes", "paper", "d_spheres_2lights.json")),
           ("balls", os.path.join(H.SPD, "def", "balls.nff")),
           ("gears", os.path.join(H.SPD, "def", "gears.nff"))]
+# Information only (--big): no target applies.
+BIG = [("tetra9", ("tetra", 9))]
 IV = ["--method", "local", "--boxes", "eye+shadow", "--aa", "4"]
 TARGETS = {"render": 1.9, "frame": 1.7, "farm": 1.85}
 
@@ -51,7 +60,7 @@ def in_process(locus, path, size, threads, out):
     """One render in process: prepare and render (wall) from --stats."""
     st = locus.stats(path, size, IV, out, threads=threads)["seconds"]
     return {"cpu": st["render_cpu"], "prepare": st["prepare"], "render": st["render"],
-            "frame": st["prepare"] + st["render"]}
+            "frame": st["prepare"] + st["render"], "load": st.get("load", float("nan"))}
 
 
 def on_farm(binary, path, size, workers, out):
@@ -113,7 +122,7 @@ def summary(scene):
     """Best-of figures and the three ratios of one scene."""
     r = scene["runs"]
     s = {f"{k}_{m}": best(r.get(k, []), m)
-         for k in ("t1", "t2") for m in ("prepare", "render", "frame")}
+         for k in ("t1", "t2") for m in ("prepare", "render", "frame", "load")}
     s.update({f"{k}_wall": best(r.get(k, []), "wall") for k in ("w1", "w2")})
     s["render_x"] = s["t1_render"] / s["t2_render"]
     s["prepare_x"] = s["t1_prepare"] / s["t2_prepare"]
@@ -138,6 +147,18 @@ def target_lines(scenes):
     lines = []
     for name, sc in scenes.items():
         s = summary(sc)
+        if sc.get("information"):
+            lines.append(f"{name} (information, no target): prepare --threads 2 "
+                         f"{s['prepare_x']:.2f}x ({s['t1_prepare']:.3f} -> {s['t2_prepare']:.3f} s), "
+                         f"render {s['render_x']:.2f}x ({s['t1_render']:.3f} -> "
+                         f"{s['t2_render']:.3f} s), whole frame {s['frame_x']:.2f}x "
+                         f"({s['t1_frame']:.3f} -> {s['t2_frame']:.3f} s); the scene file's load "
+                         f"{s['t1_load']:.3f} s before it; embedded farm 2 workers "
+                         f"{s['farm_x']:.2f}x 1 worker ({s['w1_wall']:.3f} -> {s['w2_wall']:.3f} s)")
+            for k, ok in sorted(sc["same"].items()):
+                lines.append(f"{name}: {k} image bit-identical to --threads 1: "
+                             f"{'PASS' if ok else 'FAIL'}")
+            continue
         lines.append(f"{name}: render --threads 2 {s['render_x']:.2f}x --threads 1 "
                      f"({s['t1_render']:.3f} -> {s['t2_render']:.3f} s; target >= "
                      f"{TARGETS['render']}; median of rounds {s['render_med']:.2f}x): "
@@ -221,6 +242,8 @@ def main():
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--repeat", type=int, default=5, help="rounds, best of N (default 5)")
     ap.add_argument("--no-farm", action="store_true", help="in process only")
+    ap.add_argument("--big", action="store_true",
+                    help="also SPD tetra level 9, for information (spdgen.py)")
     ap.add_argument("--wait-load", type=float, default=0.6,
                     help="first wait until the 1-minute load is below this (default 0.6)")
     ap.add_argument("--max-wait", type=float, default=600, help="seconds (default 600)")
@@ -257,9 +280,16 @@ def main():
             shutil.copy2(worker, os.path.join(os.path.dirname(locus.binary), "locus-worker"))
         info["locus"] = locus.sha[:12]
         H.log(f"locus {info['locus']} (HEAD {info['commit']}), load {info['load_start']}")
+        if args.big:
+            for name, (kind, level) in BIG:
+                path = os.path.join(tmp, f"{kind}{level}.nff")
+                with open(path, "w") as f:
+                    f.write(spdgen.generate(kind, level))
+                scenes = scenes + [(name, path)]
         results = {}
         for name, path in scenes:
             results[name] = measure(name, path, size, repeat, locus, locus.binary, tmp, farm)
+            results[name]["information"] = name in dict(BIG)
         info["load_end"] = H.loadavg()
         raw = {"info": info, "scenes": results}
         raw_path = H.raw_path(args.raw, args.cache, args.quick, out_dir, "threads-raw.json")
