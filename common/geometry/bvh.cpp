@@ -151,24 +151,6 @@ NodePlan plan_node(const BuildCtx& ctx, int begin, int end, int depth, bool sing
   return plan;
 }
 
-// Builds the subtree of primitives [begin, end) into `nodes` (depth first:
-// a node, its left subtree, its right subtree); returns its root's index.
-int build_node(const BuildCtx& ctx, std::vector<BvhNode>& nodes, int begin, int end, int depth,
-               bool singles) {
-  const int id = static_cast<int>(nodes.size());
-  nodes.emplace_back();
-  const NodePlan plan = plan_node(ctx, begin, end, depth, singles);
-  nodes[id].box = plan.box;
-  if (plan.leaf) {
-    nodes[id].first = begin;
-    nodes[id].count = end - begin;
-    return id;
-  }
-  build_node(ctx, nodes, begin, plan.mid, depth + 1, plan.singles);
-  nodes[id].first = build_node(ctx, nodes, plan.mid, end, depth + 1, plan.singles);
-  return id;
-}
-
 // A subtree left for a thread of its own (build_parallel).
 struct Subtree {
   int begin, end, depth;
@@ -176,16 +158,23 @@ struct Subtree {
   std::vector<BvhNode> nodes;  // its own indices, its root at 0
 };
 
-// The top of the tree as build_node makes it, but a node of at most `cut`
-// primitives is left as a placeholder (count -1 - its index in `subtrees`)
-// for a subtree built later.
-int build_top(const BuildCtx& ctx, std::vector<BvhNode>& nodes, std::vector<Subtree>& subtrees,
-              int begin, int end, int depth, bool singles, int cut) {
+// Where build_node leaves subtrees of at most `cut` primitives for later:
+// each a placeholder node (count -1 - its index in `subtrees`).
+struct Deferred {
+  int cut;
+  std::vector<Subtree>& subtrees;
+};
+
+// Builds the subtree of primitives [begin, end) into `nodes` (depth first:
+// a node, its left subtree, its right subtree); returns its root's index.
+// With `defer`, only the top of it (build_parallel).
+int build_node(const BuildCtx& ctx, std::vector<BvhNode>& nodes, int begin, int end, int depth,
+               bool singles, Deferred* defer = nullptr) {
   const int id = static_cast<int>(nodes.size());
   nodes.emplace_back();
-  if (end - begin <= cut) {
-    nodes[id].count = -1 - static_cast<int>(subtrees.size());
-    subtrees.push_back(Subtree{begin, end, depth, singles, {}});
+  if (defer && end - begin <= defer->cut) {
+    nodes[id].count = -1 - static_cast<int>(defer->subtrees.size());
+    defer->subtrees.push_back(Subtree{begin, end, depth, singles, {}});
     return id;
   }
   const NodePlan plan = plan_node(ctx, begin, end, depth, singles);
@@ -195,8 +184,8 @@ int build_top(const BuildCtx& ctx, std::vector<BvhNode>& nodes, std::vector<Subt
     nodes[id].count = end - begin;
     return id;
   }
-  build_top(ctx, nodes, subtrees, begin, plan.mid, depth + 1, plan.singles, cut);
-  nodes[id].first = build_top(ctx, nodes, subtrees, plan.mid, end, depth + 1, plan.singles, cut);
+  build_node(ctx, nodes, begin, plan.mid, depth + 1, plan.singles, defer);
+  nodes[id].first = build_node(ctx, nodes, plan.mid, end, depth + 1, plan.singles, defer);
   return id;
 }
 
@@ -228,10 +217,10 @@ constexpr int kParallelPrims = 16384;
 // thread, those side by side (each owns its range of Bvh::order), then
 // joined in place.
 void build_parallel(const BuildCtx& ctx, std::vector<BvhNode>& nodes, int n, int threads) {
-  const int cut = std::max(1, n / (8 * threads));
   std::vector<BvhNode> top;
   std::vector<Subtree> subtrees;
-  build_top(ctx, top, subtrees, 0, n, 0, false, cut);
+  Deferred defer{std::max(1, n / (8 * threads)), subtrees};
+  build_node(ctx, top, 0, n, 0, false, &defer);
   parallel_for(static_cast<int>(subtrees.size()), threads, [&](int i) {
     Subtree& t = subtrees[i];
     t.nodes.reserve(2 * (t.end - t.begin));
