@@ -203,10 +203,9 @@ Status make_movie_here(const JobArgs& a, const farm::SubmitRequest& r) {
   return Status::Ok();
 }
 
-// --workers 0: every frame rendered here, through the same frame_scene()
-// the workers use.
-int render_in_process(const RenderArgs& a) {
-  auto job = prepare_job(a.job, false);
+// --workers 0: every frame of `job` (prepare_job's) rendered here,
+// through the same frame_scene() the workers use.
+int render_in_process(const RenderArgs& a, Result<PreparedJob> job) {
   if (!job.ok()) return fail(job.status());
   auto params = farm::to_render_params(job->request.render, a.threads);
   if (!params.ok()) return fail(params.status());
@@ -327,7 +326,10 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     // renders in process, as it would have with --workers 0.
     if (a.workers_given) return fail(fits.message() + ": render it in process (--workers 0)");
     spdlog::warn("{}: rendering in process", fits.message());
-    return render_in_process(a);
+    // The scene already read (a large one's load is long); its wire form
+    // is not needed.
+    job->request.scene = v1::Scene();
+    return render_in_process(a, std::move(job));
   }
   if (request.bands == 0) {
     request.bands = farm::default_bands(request.width, request.height,
@@ -380,16 +382,16 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
 int run_render(const RenderArgs& a) {
   int workers = a.workers;
   if (workers < 0) workers = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  if (workers == 0) return render_in_process(a);
+  if (workers == 0) return render_in_process(a, prepare_job(a.job, false));
   if (a.visibility != RenderArgs{}.visibility || a.shadows != RenderArgs{}.shadows) {
     // A farm job chooses both per frame (auto); the job's settings do not
     // carry a forced choice.
     spdlog::info("--visibility {} --shadows {}: renders in process", a.visibility, a.shadows);
-    return render_in_process(a);
+    return render_in_process(a, prepare_job(a.job, false));
   }
   if (!a.workers_given && !client::worker_binary().ok()) {
     spdlog::warn("{}; rendering in process", client::worker_binary().status().message());
-    return render_in_process(a);
+    return render_in_process(a, prepare_job(a.job, false));
   }
   return render_on_local_farm(a, workers);
 }
