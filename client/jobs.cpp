@@ -216,13 +216,20 @@ int render_in_process(const RenderArgs& a, Result<PreparedJob> job) {
   Stats total;
   total.seconds_load = job->load_seconds;
   double seconds = 0;
+  // Frames that differ only in their camera share one geometry.
+  AnimationGeometry geometry(job->scene);
   for (int f = r.frame_first; f <= r.frame_last; ++f) {
+    const Camera view = farm::frame_camera(job->scene, r.width, r.height, f, r.frame_first,
+                                           r.frame_last, r.orbit_degrees);
     // The last frame takes the job's scene itself: a one-frame render
     // never copies its meshes.
-    Scene s = farm::frame_scene(f == r.frame_last ? std::move(job->scene) : job->scene, r.width,
-                                r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
+    auto frame = [&] {
+      return farm::frame_scene(f == r.frame_last ? std::move(job->scene) : job->scene, r.width,
+                               r.height, f, r.frame_first, r.frame_last, r.orbit_degrees);
+    };
     CostBuffer cost;
-    auto result = render_image(std::move(s), *params, a.job.cost_map.empty() ? nullptr : &cost);
+    auto result =
+        render_frame(geometry, view, frame, *params, a.job.cost_map.empty() ? nullptr : &cost);
     if (!result.ok()) return fail(result.status());
     const std::string path = frame_path(a.job.output, f);
     make_parent_dirs(path);

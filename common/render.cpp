@@ -113,17 +113,34 @@ BandResult render_band(const PreparedScene& ps, const Band& band, const RenderPa
   return result;
 }
 
-Result<BandResult> render_image(Scene scene, const RenderParams& params, CostBuffer* cost) {
-  const auto start = std::chrono::steady_clock::now();
-  const int height = scene.camera.height;
-  auto prepared = prepare_scene(std::move(scene), params);
+namespace {
+
+// The frame `prepared` (prepared since `start`) rendered whole.
+Result<BandResult> render_prepared(const Result<std::shared_ptr<const PreparedScene>>& prepared,
+                                   std::chrono::steady_clock::time_point start,
+                                   const RenderParams& params, CostBuffer* cost) {
   if (!prepared.ok()) return prepared.status();
   const double prep =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  BandResult r = render_band(**prepared, Band{0, height}, params, nullptr, cost);
+  BandResult r =
+      render_band(**prepared, Band{0, (*prepared)->camera.height}, params, nullptr, cost);
   r.stats.seconds_prepare = prep;
   r.stats.seconds_tessellate = (*prepared)->seconds_tessellate;
   return r;
+}
+
+}  // namespace
+
+Result<BandResult> render_image(Scene scene, const RenderParams& params, CostBuffer* cost) {
+  const auto start = std::chrono::steady_clock::now();
+  return render_prepared(prepare_scene(std::move(scene), params), start, params, cost);
+}
+
+Result<BandResult> render_frame(AnimationGeometry& geometry, const Camera& view,
+                                FunctionRef<Scene()> frame, const RenderParams& params,
+                                CostBuffer* cost) {
+  const auto start = std::chrono::steady_clock::now();
+  return render_prepared(geometry.prepare(view, frame, params), start, params, cost);
 }
 
 }  // namespace locus

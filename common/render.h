@@ -49,4 +49,11 @@ void set_row_hook_for_test(std::function<void(int row)> hook);
 Result<BandResult> render_image(Scene scene, const RenderParams& params,
                                 CostBuffer* cost = nullptr);
 
+// render_image for one frame of an animation, prepared by `geometry`
+// (AnimationGeometry::prepare: `view` the frame's camera, `frame` its whole
+// scene where it is prepared afresh).
+Result<BandResult> render_frame(AnimationGeometry& geometry, const Camera& view,
+                                FunctionRef<Scene()> frame, const RenderParams& params,
+                                CostBuffer* cost = nullptr);
+
 }  // namespace locus

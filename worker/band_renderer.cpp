@@ -1,5 +1,6 @@
 #include "worker/band_renderer.h"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "common/farm/paths.h"
@@ -29,7 +30,9 @@ Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto,
     scenes_.erase(scene_order_.front());
     scene_order_.pop_front();
   }
-  scenes_.emplace(hash, std::make_shared<const Scene>(std::move(*scene)));
+  auto held = std::make_shared<const Scene>(std::move(*scene));
+  auto geometry = std::make_unique<AnimationGeometry>(*held);
+  scenes_.emplace(hash, Held{std::move(held), std::move(geometry)});
   scene_order_.push_back(hash);
   return Status::Ok();
 }
@@ -63,16 +66,32 @@ Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bo
   }
   if (!prepared) {
     const auto start = SteadyClock::now();
-    auto r = prepare_scene(frame_scene(*it->second, t.width, t.height, t.frame, t.frame_first,
-                                       t.frame_last, t.orbit_degrees),
-                           *params);
+    const Scene& source = *it->second.scene;
+    const Camera view = frame_camera(source, t.width, t.height, t.frame, t.frame_first,
+                                     t.frame_last, t.orbit_degrees);
+    bool reused = false;
+    auto r = it->second.geometry->prepare(
+        view,
+        [&] {
+          return frame_scene(source, t.width, t.height, t.frame, t.frame_first, t.frame_last,
+                             t.orbit_degrees);
+        },
+        *params, &reused);
     if (!r.ok()) return r.status();
     prepared = *r;
     ++prepares_;
+    if (reused) ++geometry_reuses_;
     fresh = true;
     prepare_seconds = std::chrono::duration<double>(SteadyClock::now() - start).count();
-    prepared_.push_front(Prepared{key, prepared});
+    prepared_.push_front(Prepared{key, t.scene_hash, prepared});
     while (prepared_.size() > max_prepared_) prepared_.pop_back();
+    // A geometry is kept for the scenes of the frames kept, no more: a
+    // worker's memory stays that of its last frames.
+    for (auto& [hash, held] : scenes_) {
+      const bool in_use = std::any_of(prepared_.begin(), prepared_.end(),
+                                      [&](const Prepared& p) { return p.scene_hash == hash; });
+      if (!in_use) held.geometry->release();
+    }
   }
   // A job with cost maps: the band's work per pixel too (docs/cost-map.md).
   CostBuffer cost;

@@ -43,20 +43,29 @@ class BandRenderer {
 
   size_t scenes_held() const { return scenes_.size(); }
   int prepares() const { return prepares_; }
+  // Of those, the frames prepared on an earlier frame's geometry.
+  int geometry_reuses() const { return geometry_reuses_; }
 
  private:
   struct Prepared {
     std::string key;
+    std::string scene_hash;
     std::shared_ptr<const PreparedScene> scene;
   };
   int threads_;
   std::string mesh_root_;
   size_t max_scenes_;
   size_t max_prepared_;
-  std::map<std::string, std::shared_ptr<const Scene>> scenes_;
+  struct Held {
+    std::shared_ptr<const Scene> scene;
+    // Its frames' shared geometry, where they differ only in their camera.
+    std::unique_ptr<AnimationGeometry> geometry;
+  };
+  std::map<std::string, Held> scenes_;
   std::list<std::string> scene_order_;  // least recently added first
   std::list<Prepared> prepared_;        // most recently used first
   int prepares_ = 0;
+  int geometry_reuses_ = 0;
 };
 
 }  // namespace farm

@@ -71,6 +71,18 @@ Scene frame_scene(Scene base, int width, int height, int frame, int frame_first,
   return scene_at_frame(std::move(base), frame, Orbit{orbit_degrees, frame_first, frame_last});
 }
 
+Camera frame_camera(const Scene& base, int width, int height, int frame, int frame_first,
+                    int frame_last, double orbit_degrees) {
+  // The camera and its keys are all that scene_at_frame reads for it.
+  Scene view;
+  view.camera = base.camera;
+  view.has_camera = base.has_camera;
+  view.animation.interpolation = base.animation.interpolation;
+  view.animation.camera = base.animation.camera;
+  return frame_scene(std::move(view), width, height, frame, frame_first, frame_last, orbit_degrees)
+      .camera;
+}
+
 std::string band_edges_text(const std::vector<int>& edges) {
   std::string out;
   for (size_t i = 0; i < edges.size(); ++i) {

@@ -451,5 +451,9 @@ std::string content_hash(std::string_view bytes);
 // in-process `locus render --workers 0` calls it too.
 Scene frame_scene(Scene base, int width, int height, int frame, int frame_first,
                   int frame_last, double orbit_degrees);
+// frame_scene(base, ...).camera, without a copy of base's objects: where the
+// frames share their geometry (AnimationGeometry), a frame needs no more.
+Camera frame_camera(const Scene& base, int width, int height, int frame, int frame_first,
+                    int frame_last, double orbit_degrees);
 
 }  // namespace locus::farm

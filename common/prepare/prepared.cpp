@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <utility>
+#include <variant>
 
 #include "common/base/parallel.h"
 #include "common/prepare/hidden_faces.h"
@@ -46,9 +47,8 @@ double scale_of_world(const std::vector<Aabb>& bounds) {
 }
 }  // namespace
 
-PreparedScene::PreparedScene(Scene s, const RenderParams& params)
+SceneGeometry::SceneGeometry(Scene s, const RenderParams& params)
     : scene(tessellated(std::move(s), params, &seconds_tessellate)),
-      camera(scene.camera),
       prims(build_primitives(scene)) {
   // Each stage on the render's threads where it is large enough, its
   // pieces side by side (common/base/parallel.h); the result is the one of
@@ -68,8 +68,7 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
   // Secondary rays start this far off the surface: relative to the scene's
   // size, far above double rounding, far below any feature of SPD scenes.
   eps = 1e-9 * std::min(world_scale, 1e7) * 100.0;
-  const ClosedSolids solids = closed_convex_solids(prims);
-  culls = ray_culls(prims, solids, camera, scan_near_depth(camera, eps), scene.lights, stops_light);
+  solids = closed_convex_solids(prims);
   own_solid = own_solids(prims, solids, scene.lights, stops_light, eps);
   if (bvh_for_rays || bvh_for_shadows) leaf_prims = build_leaf_prims(prims, bvh, stops_light);
   if (!leaf_prims.empty()) {
@@ -78,6 +77,38 @@ PreparedScene::PreparedScene(Scene s, const RenderParams& params)
       leaf_slot[bvh.order[slot]] = static_cast<int>(slot);
   }
   ambient = ambient_intensity(scene);
+}
+
+PreparedScene::PreparedScene(Scene s, const RenderParams& params)
+    : PreparedScene(std::make_shared<const SceneGeometry>(std::move(s), params), params) {}
+
+PreparedScene::PreparedScene(std::shared_ptr<const SceneGeometry> fresh, const RenderParams& params)
+    : PreparedScene(fresh, fresh->scene.camera, params) {
+  seconds_tessellate = geometry_->seconds_tessellate;
+}
+
+PreparedScene::PreparedScene(std::shared_ptr<const SceneGeometry> geometry, const Camera& view,
+                             const RenderParams& params)
+    : geometry_(std::move(geometry)),
+      scene(geometry_->scene),
+      camera(view),
+      prims(geometry_->prims),
+      bvh(geometry_->bvh),
+      bvh_for_rays(geometry_->bvh_for_rays),
+      bvh_for_shadows(geometry_->bvh_for_shadows),
+      emission(geometry_->emission),
+      stops_light(geometry_->stops_light),
+      own_solid(geometry_->own_solid),
+      leaf_prims(geometry_->leaf_prims),
+      leaf_slot(geometry_->leaf_slot),
+      ambient(geometry_->ambient),
+      world_scale(geometry_->world_scale),
+      eps(geometry_->eps) {
+  // What the camera changes (paper §3 step iii): the faces turned away from
+  // the eye, the choice of passes, the scan scene and the shadow volumes.
+  const int threads = render_threads(params);
+  culls = ray_culls(prims, geometry_->solids, camera, scan_near_depth(camera, eps), scene.lights,
+                    stops_light);
   if (params.method == Method::kLocal) {
     const VisibilityMeasure measure = measure_visibility(scene, prims, camera);
     by_rays = visibility_by_rays(measure, camera, params);
@@ -104,13 +135,62 @@ bool PreparedScene::points_search_volumes() const {
   return volumes && volumes->search && !point_shadows_by_rays;
 }
 
-Result<std::shared_ptr<const PreparedScene>> prepare_scene(Scene scene,
-                                                           const RenderParams& params) {
+namespace {
+
+Status check_frame(const Camera& camera, const RenderParams& params) {
   if (Status s = check_render_params(params); !s.ok()) return s;
-  if (scene.camera.width < 1 || scene.camera.height < 1) {
+  if (camera.width < 1 || camera.height < 1) {
     return InvalidArgument("image size must be positive");
   }
+  return Status::Ok();
+}
+
+// Whether every frame of `source`'s animation has the geometry of the first:
+// only the camera moves (keys, --orbit, the image size), and no surface is
+// cut into triangles for the view.
+bool geometry_stands_still(const Scene& source) {
+  if (!source.animation.objects.empty() || !source.animation.lights.empty()) return false;
+  return std::none_of(source.objects.begin(), source.objects.end(), [](const Object& o) {
+    return std::holds_alternative<BezierSurface>(o.shape);
+  });
+}
+
+}  // namespace
+
+Result<std::shared_ptr<const PreparedScene>> prepare_scene(Scene scene,
+                                                           const RenderParams& params) {
+  if (Status s = check_frame(scene.camera, params); !s.ok()) return s;
   return std::shared_ptr<const PreparedScene>(std::make_shared<PreparedScene>(std::move(scene), params));
+}
+
+AnimationGeometry::AnimationGeometry(const Scene& source) : still_(geometry_stands_still(source)) {}
+
+Result<std::shared_ptr<const PreparedScene>> AnimationGeometry::prepare(const Camera& view,
+                                                                        FunctionRef<Scene()> frame,
+                                                                        const RenderParams& params,
+                                                                        bool* reused) {
+  if (reused) *reused = false;
+  if (!still_) return prepare_scene(frame(), params);
+  std::shared_ptr<const SceneGeometry> geometry;
+  {
+    std::lock_guard lk(mu_);
+    // The hierarchy is built or not by --boxes; no other setting changes
+    // the geometry (tess_tol cuts no surface here).
+    if (geometry_ && boxes_ == params.boxes) geometry = geometry_;
+  }
+  if (!geometry) {
+    Scene s = frame();
+    if (Status st = check_frame(s.camera, params); !st.ok()) return st;
+    auto prepared = std::make_shared<const PreparedScene>(std::move(s), params);
+    std::lock_guard lk(mu_);
+    geometry_ = prepared->geometry();
+    boxes_ = params.boxes;
+    return std::shared_ptr<const PreparedScene>(std::move(prepared));
+  }
+  if (Status st = check_frame(view, params); !st.ok()) return st;
+  if (reused) *reused = true;
+  return std::shared_ptr<const PreparedScene>(
+      std::make_shared<PreparedScene>(std::move(geometry), view, params));
 }
 
 }  // namespace locus

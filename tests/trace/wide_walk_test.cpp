@@ -36,9 +36,12 @@ TEST(WideWalk, EightWideWalkRendersTheFourWideWalksImages) {
         continue;
       }
       ASSERT_FALSE(eight->bvh.wide8.empty()) << path;
-      const auto four = std::make_unique<PreparedScene>(*scene, p);
-      four->bvh.wide8.clear();
-      build_wide(four->bvh);
+      // The same geometry walked by the 4-wide tree.
+      auto geometry = std::make_shared<SceneGeometry>(*scene, p);
+      geometry->bvh.wide8.clear();
+      build_wide(geometry->bvh);
+      const auto four = std::make_unique<PreparedScene>(std::move(geometry), scene->camera, p);
+      ASSERT_TRUE(four->bvh.wide8.empty() && !four->bvh.wide.empty()) << path;
       const BandResult x = render_band(*eight, Band{0, 64}, p);
       const BandResult y = render_band(*four, Band{0, 64}, p);
       EXPECT_EQ(testing_util::max_difference(x.pixels, y.pixels), 0.0) << path;
