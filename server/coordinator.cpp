@@ -350,12 +350,12 @@ void Coordinator::drop_unused_scenes() {
 Status Coordinator::load_scene(const std::string& hash, const std::string& job_id) {
   if (scenes_.count(hash)) return Status::Ok();
   auto bytes = store_->scene(hash);
-  auto scene = std::make_shared<v1::Scene>();
-  if (!bytes.ok() || !scene->ParseFromString(*bytes)) {
+  // Its content hash checks it; workers parse it.
+  if (!bytes.ok() || content_hash(*bytes) != hash) {
     return FailedPrecondition("the scene of job " + job_id +
                               " is missing or unreadable in the job store");
   }
-  scenes_.emplace(hash, std::move(scene));
+  scenes_.emplace(hash, std::make_shared<const std::string>(std::move(*bytes)));
   return Status::Ok();
 }
 
@@ -432,10 +432,9 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   if (!job.ok()) return job.status();
   job->spec.owner = owner;
   // The scene as the workers will get it, addressed by its content hash.
-  auto scene = std::make_shared<v1::Scene>(r.scene);
-  std::string bytes;
-  scene->SerializeToString(&bytes);
-  job->spec.scene_hash = content_hash(bytes);
+  auto bytes = std::make_shared<std::string>();
+  r.scene.SerializeToString(bytes.get());
+  job->spec.scene_hash = content_hash(*bytes);
   const std::string fingerprint = submission_fingerprint(r, job->spec);
   bool cost_split = false;
   {
@@ -460,7 +459,7 @@ Result<JobInfo> Coordinator::submit(const SubmitRequest& r, const std::string& o
   // Asked again: meanwhile a retry of this request may have been recorded,
   // a drain begun or the queue filled.
   if (auto answer = refused_or_retried(r, *job, fingerprint)) return *answer;
-  return record_job(job->spec, std::move(scene), bytes, r.request_id, fingerprint);
+  return record_job(job->spec, std::move(bytes), r.request_id, fingerprint);
 }
 
 std::optional<Result<JobInfo>> Coordinator::refused_or_retried(const SubmitRequest& r,
@@ -520,12 +519,13 @@ Status Coordinator::count_bands(int bands, CheckedSubmission& job) {
   return Status::Ok();
 }
 
-Result<JobInfo> Coordinator::record_job(const JobSpec& spec, std::shared_ptr<const v1::Scene> scene,
-                                        const std::string& bytes, const std::string& request_id,
+Result<JobInfo> Coordinator::record_job(const JobSpec& spec,
+                                        std::shared_ptr<const std::string> scene,
+                                        const std::string& request_id,
                                         const std::string& fingerprint) {
   // Recorded before the client hears of the job: an id the client was
   // given survives any restart.
-  if (Status st = store_->put_scene(spec.scene_hash, bytes); !st.ok()) {
+  if (Status st = store_->put_scene(spec.scene_hash, *scene); !st.ok()) {
     return Status(Code::kUnavailable, "cannot record the job: " + st.message());
   }
   // What is pending first, so that a failure below holds this job's events

@@ -261,8 +261,9 @@ class Coordinator {
   // poll_band() for a caller with a thread to spare (tests, tools):
   // returns its answer; `cancelled` is asked every 200 ms.
   PollAnswer lease_band(const std::string& worker_id, Millis wait, const CancelledFn& cancelled);
-  Result<std::shared_ptr<const v1::Scene>> get_scene(const std::string& worker_id,
-                                                     const std::string& hash);
+  // The scene of content hash `hash`, serialized (a v1::Scene message).
+  Result<std::shared_ptr<const std::string>> get_scene(const std::string& worker_id,
+                                                       const std::string& hash);
   // CompleteBand without holding a thread: `done` gets the outcome exactly
   // once, never under the lock. An accepted band's is given once the band
   // is durable (group commit, commit_loop()); a refusal's at once.
@@ -308,9 +309,8 @@ class Coordinator {
   Result<JobInfo> resubmitted(const JobRecord& earlier, const std::string& request_id,
                               const std::string& fingerprint);
   Status count_bands(int bands, CheckedSubmission& job);
-  Result<JobInfo> record_job(const JobSpec& spec, std::shared_ptr<const v1::Scene> scene,
-                             const std::string& bytes, const std::string& request_id,
-                             const std::string& fingerprint);
+  Result<JobInfo> record_job(const JobSpec& spec, std::shared_ptr<const std::string> scene,
+                             const std::string& request_id, const std::string& fingerprint);
   void tick_loop();
   // Group commit of accepted bands: persist(), sync_log(), acknowledge.
   void commit_loop();
@@ -375,7 +375,8 @@ class Coordinator {
   Scheduler scheduler_;
   int lock_fd_ = -1;  // flock on DATA/coordinator.lock
   std::unique_ptr<JobStore> store_;
-  std::map<std::string, std::shared_ptr<const v1::Scene>> scenes_;  // by content hash
+  // Serialized scenes (v1::Scene) by content hash, as GetScene sends them.
+  std::map<std::string, std::shared_ptr<const std::string>> scenes_;
   std::set<std::string> scenes_stored_;  // the store's scenes, as last trimmed
   std::deque<FrameReady> to_write_;
   LatencyHistogram dispatch_;

@@ -199,8 +199,8 @@ void Coordinator::dispatch_loop() {
   }
 }
 
-Result<std::shared_ptr<const v1::Scene>> Coordinator::get_scene(const std::string& worker_id,
-                                                                const std::string& hash) {
+Result<std::shared_ptr<const std::string>> Coordinator::get_scene(const std::string& worker_id,
+                                                                  const std::string& hash) {
   std::lock_guard lk(mu_);
   const Status alive = scheduler_.touch(worker_id);
   if (!alive.ok()) return alive;

@@ -304,7 +304,7 @@ Status Handlers::GetScene(const v1::GetSceneRequest& req, v1::GetSceneResponse* 
   if (Status s = check_id(req.scene_hash(), "scene_hash"); !s.ok()) return s;
   auto r = c_.get_scene(req.worker_id(), req.scene_hash());
   if (!r.ok()) return r.status();
-  *resp->mutable_scene() = **r;
+  resp->set_scene(**r);
   return Status::Ok();
 }
 

@@ -32,9 +32,10 @@ Result<Scene> check_scene(const SubmitRequest& r, const std::string& name, const
   }
   // OBJ files only from the mesh root (none by default: meshes inline);
   // the scene stored for the workers keeps the names as given.
-  v1::Scene confined = r.scene;
-  if (Status s = confine_mesh_paths(confined, mesh_root, name); !s.ok()) return s;
-  Result<Scene> scene = scene_from_proto(confined, name);
+  Result<Scene> scene = scene_from_wire(r.scene, mesh_root, name);
+  // The client's scene is bad; a mesh root the coordinator cannot use is
+  // its own (FailedPrecondition, as it comes).
+  if (!scene.ok() && scene.status().code() == Code::kFailedPrecondition) return scene.status();
   if (!scene.ok()) return Status(Code::kInvalidArgument, scene.status().message());
   if (!scene->has_camera && (r.width == 0 || r.height == 0)) {
     return InvalidArgument(name + ": the scene has no camera resolution; give the size");

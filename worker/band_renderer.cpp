@@ -22,9 +22,7 @@ Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto,
                                const std::string& name) {
   if (scenes_.count(hash)) return Status::Ok();
   // The scene came over the network: it reads no file outside the root.
-  v1::Scene confined = proto;
-  if (Status s = confine_mesh_paths(confined, mesh_root_, name); !s.ok()) return s;
-  Result<Scene> scene = scene_from_proto(confined, name);
+  Result<Scene> scene = scene_from_wire(proto, mesh_root_, name);
   if (!scene.ok()) return scene.status();
   while (scenes_.size() >= max_scenes_) {
     scenes_.erase(scene_order_.front());
@@ -35,6 +33,17 @@ Status BandRenderer::add_scene(const std::string& hash, const v1::Scene& proto,
   scenes_.emplace(hash, Held{std::move(held), std::move(geometry)});
   scene_order_.push_back(hash);
   return Status::Ok();
+}
+
+Status BandRenderer::add_scene_bytes(const std::string& hash, const std::string& bytes,
+                                     const std::string& name) {
+  if (scenes_.count(hash)) return Status::Ok();
+  v1::Scene scene;
+  if (!scene.ParseFromString(bytes)) {
+    return InvalidArgument(name + ": " + std::to_string(bytes.size()) +
+                           " bytes that do not parse as a scene");
+  }
+  return add_scene(hash, scene, name);
 }
 
 Result<BandOutput> BandRenderer::render(const BandLease& t, const std::atomic<bool>* abandon) {

@@ -32,6 +32,9 @@ class BandRenderer {
   // Converts and keeps a scene received from the coordinator; its mesh
   // paths confined under the mesh root (common/farm/paths.h).
   Status add_scene(const std::string& hash, const v1::Scene& scene, const std::string& name);
+  // The same for a serialized scene (GetSceneResponse.scene).
+  Status add_scene_bytes(const std::string& hash, const std::string& bytes,
+                         const std::string& name);
   // Renders the leased band; its scene must have been added. The returned
   // output carries pixels and stats (ids are the caller's): the pixels in
   // the lease's encoding (`encoded`), or as floats (`rgb`) when it asks for

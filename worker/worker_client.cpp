@@ -372,7 +372,7 @@ std::optional<WorkerClient::Impl::BandEnd> WorkerClient::Impl::fetch_scene(const
     return BandEnd::kDropped;
   }
   const Status added =
-      renderer_.add_scene(t.scene_hash, resp.scene(), "job " + t.job_id + " scene");
+      renderer_.add_scene_bytes(t.scene_hash, resp.scene(), "job " + t.job_id + " scene");
   if (!added.ok()) {
     BandOutput o;
     o.error = added.message();

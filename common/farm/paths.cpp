@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "common/scene/scene_io.h"
 #include "proto/scene.pb.h"
 
 namespace locus::farm {
@@ -54,6 +55,17 @@ Status confine_mesh_paths(v1::Scene& scene, const std::string& mesh_root,
     scene.mutable_objects(i)->mutable_mesh()->set_obj(p->string());
   }
   return Status::Ok();
+}
+
+Result<Scene> scene_from_wire(const v1::Scene& scene, const std::string& mesh_root,
+                              const std::string& name) {
+  const bool names_files =
+      std::any_of(scene.objects().begin(), scene.objects().end(),
+                  [](const v1::Object& o) { return o.has_mesh() && !o.mesh().obj().empty(); });
+  if (!names_files) return scene_from_proto(scene, name);
+  v1::Scene confined = scene;
+  if (Status s = confine_mesh_paths(confined, mesh_root, name); !s.ok()) return s;
+  return scene_from_proto(confined, name);
 }
 
 Status check_plain_file_name(const std::string& name, const std::string& what) {

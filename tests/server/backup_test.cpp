@@ -167,15 +167,17 @@ class V013DataDir : public ::testing::Test {
     ASSERT_TRUE(b.start().ok());
     TestWorker w(b, "w:9");
     const JobSpec spec = b.job(kJob)->spec;
-    auto scene = b.get_scene(w.id, spec.scene_hash);
-    ASSERT_TRUE(scene.ok()) << scene.status().message();
+    auto held = b.get_scene(w.id, spec.scene_hash);
+    ASSERT_TRUE(held.ok()) << held.status().message();
+    v1::Scene scene;
+    ASSERT_TRUE(scene.ParseFromString(**held));
     while (auto t = w.take()) ASSERT_TRUE(w.complete(*t));
     const JobInfo end = wait_for_end(b, kJob);
     ASSERT_EQ(end.state, JobState::kSucceeded) << end.error;
     for (int f : {1, 2}) {
       auto got = read_image((fs::path(b.job_dir(kJob)) / frame_path(spec.output, f)).string());
       ASSERT_TRUE(got.ok()) << got.status().message();
-      EXPECT_EQ(got->rgb, test_doubles::single_process_frame(**scene, spec, f).rgb) << f;
+      EXPECT_EQ(got->rgb, test_doubles::single_process_frame(scene, spec, f).rgb) << f;
     }
   }
 

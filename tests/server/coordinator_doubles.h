@@ -51,7 +51,7 @@ struct TestWorker {
     if (!renderer.has_scene(t.scene_hash)) {
       auto scene = c->get_scene(id, t.scene_hash);
       EXPECT_TRUE(scene.ok());
-      EXPECT_TRUE(renderer.add_scene(t.scene_hash, **scene, "test").ok());
+      EXPECT_TRUE(renderer.add_scene_bytes(t.scene_hash, **scene, "test").ok());
     }
     auto out = renderer.render(t);
     EXPECT_TRUE(out.ok()) << out.status().message();

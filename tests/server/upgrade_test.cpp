@@ -234,7 +234,7 @@ TEST_F(StoreV013, TheUnfinishedJobCompletesWithFramesIdenticalToOneProcess) {
   auto held = c_->get_scene(w.id, kGlassHash);
   ASSERT_TRUE(held.ok()) << held.status().message();
   const v1::Scene scene = stored_scene(kGlassHash);
-  EXPECT_EQ((*held)->SerializeAsString(), scene.SerializeAsString());
+  EXPECT_EQ(**held, scene.SerializeAsString());
 
   // Exactly the two bands the old release did not accept are leased, with
   // lease ids of this run.

@@ -21,6 +21,18 @@ class HandWorker {
     id_ = who.worker_id();
   }
 
+  // GetScene's answer for the scene of content hash `hash`.
+  v1::GetSceneResponse scene(const std::string& hash) {
+    grpc::ClientContext ctx;
+    prepare_(ctx);
+    v1::GetSceneRequest req;
+    req.set_worker_id(id_);
+    req.set_scene_hash(hash);
+    v1::GetSceneResponse resp;
+    EXPECT_TRUE(stub_->GetScene(&ctx, req, &resp).ok());
+    return resp;
+  }
+
   std::optional<v1::BandTask> lease() {
     std::vector<v1::BandTask> one = leases(1);
     if (one.empty()) return std::nullopt;
@@ -53,14 +65,8 @@ class HandWorker {
   v1::CompleteBandRequest render(const v1::BandTask& task, bool as_older) {
     BandLease lease = rpc::FromProto(task);
     if (!renderer_.has_scene(lease.scene_hash)) {
-      grpc::ClientContext ctx;
-      prepare_(ctx);
-      v1::GetSceneRequest req;
-      req.set_worker_id(id_);
-      req.set_scene_hash(lease.scene_hash);
-      v1::GetSceneResponse resp;
-      EXPECT_TRUE(stub_->GetScene(&ctx, req, &resp).ok());
-      EXPECT_TRUE(renderer_.add_scene(lease.scene_hash, resp.scene(), "scene").ok());
+      const v1::GetSceneResponse resp = scene(lease.scene_hash);
+      EXPECT_TRUE(renderer_.add_scene_bytes(lease.scene_hash, resp.scene(), "scene").ok());
     }
     if (as_older) lease.encoding = BandEncoding::kFloat32;
     auto out = renderer_.render(lease);
