@@ -104,8 +104,9 @@ PreparedScene::PreparedScene(std::shared_ptr<const SceneGeometry> geometry, cons
       ambient(geometry_->ambient),
       world_scale(geometry_->world_scale),
       eps(geometry_->eps) {
-  // What the camera changes (paper §3 step iii): the faces turned away from
-  // the eye, the choice of passes, the scan scene and the shadow volumes.
+  // What the camera changes: the faces turned away from the eye, the choice
+  // of passes, the scan scene with the curved bodies' bounding polyhedra
+  // (paper §3 step ii) and the shadow volumes (step iii).
   const int threads = render_threads(params);
   culls = ray_culls(prims, geometry_->solids, camera, scan_near_depth(camera, eps), scene.lights,
                     stops_light);

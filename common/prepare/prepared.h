@@ -41,10 +41,10 @@ struct CameraFrame {
   }
 };
 
-// The part of a frame's preparation that its camera does not change (paper
-// §3 step ii): the scene with its free-form surfaces cut into triangles, its
-// primitives and their hierarchy of boxes, and what is found on them once for
-// every view. The frames of an animation whose objects and lights stand still
+// The part of a frame's preparation that its camera does not change: the
+// scene with its free-form surfaces cut into triangles, its primitives and
+// their hierarchy of boxes (paper §3 step ii), and what is found on them once
+// for every view. The frames of an animation whose objects and lights stand still
 // share one (AnimationGeometry below; docs/renderer.md "Frames that share
 // their geometry").
 struct SceneGeometry {
