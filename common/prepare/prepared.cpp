@@ -180,13 +180,12 @@ Result<std::shared_ptr<const PreparedScene>> AnimationGeometry::prepare(const Ca
     if (geometry_ && boxes_ == params.boxes) geometry = geometry_;
   }
   if (!geometry) {
-    Scene s = frame();
-    if (Status st = check_frame(s.camera, params); !st.ok()) return st;
-    auto prepared = std::make_shared<const PreparedScene>(std::move(s), params);
+    auto prepared = prepare_scene(frame(), params);
+    if (!prepared.ok()) return prepared;
     std::lock_guard lk(mu_);
-    geometry_ = prepared->geometry();
+    geometry_ = (*prepared)->geometry();
     boxes_ = params.boxes;
-    return std::shared_ptr<const PreparedScene>(std::move(prepared));
+    return prepared;
   }
   if (Status st = check_frame(view, params); !st.ok()) return st;
   if (reused) *reused = true;
