@@ -59,10 +59,12 @@ SceneGeometry::SceneGeometry(Scene s, const RenderParams& params)
   if (bvh_for_rays || bvh_for_shadows) bvh = build_bvh(prims.bounds, threads);
   for (int j = 0; j < static_cast<int>(scene.lights.size()); ++j)
     emission.push_back(light_emission(scene, j));
+  object_material.reserve(scene.objects.size());
+  for (const Object& o : scene.objects) object_material.push_back(o.material);
   stops_light.reserve(prims.prims.size());
   for (const PrimRef& ref : prims.prims) {
     stops_light.push_back(ref.kind != PrimKind::kCsg &&
-                          scene.materials[scene.objects[ref.object].material].t <= 0.0);
+                          scene.materials[object_material[ref.object]].t <= 0.0);
   }
   world_scale = scale_of_world(prims.bounds);
   // Secondary rays start this far off the surface: relative to the scene's
@@ -97,6 +99,7 @@ PreparedScene::PreparedScene(std::shared_ptr<const SceneGeometry> geometry, cons
       bvh_for_rays(geometry_->bvh_for_rays),
       bvh_for_shadows(geometry_->bvh_for_shadows),
       emission(geometry_->emission),
+      object_material(geometry_->object_material),
       stops_light(geometry_->stops_light),
       own_solid(geometry_->own_solid),
       leaf_prims(geometry_->leaf_prims),

@@ -59,6 +59,10 @@ struct SceneGeometry {
   bool bvh_for_rays = true;     // eye, reflected and refracted rays
   bool bvh_for_shadows = true;  // shadow rays
   std::vector<Color> emission;  // per light, resolved
+  // Per scene.objects[i]: its material's index, side by side (an Object,
+  // with its transform and names, spans several cache lines; on SPD tetra
+  // level 9 each of 262,144 faces is an object of its own).
+  std::vector<int> object_material;
   // Per prims[i]: 1 where a shadow ray that crosses the primitive is
   // stopped by it whatever else it crosses (eq. (2)): not CSG, and its
   // object's material transmits nothing.
@@ -111,6 +115,9 @@ class PreparedScene {
   const bool& bvh_for_rays;
   const bool& bvh_for_shadows;
   const std::vector<Color>& emission;
+  const std::vector<int>& object_material;
+  // The material of scene object `object` (SceneGeometry::object_material).
+  const Material& material_of(int object) const { return scene.materials[object_material[object]]; }
   const std::vector<uint8_t>& stops_light;
   // Per prims[i]: which rays may skip it, a back face of a closed convex
   // solid (ray_culls, hidden_faces.h: kCullEye, cull_light(j)).

@@ -43,6 +43,7 @@ void clip_near(const std::vector<Vec3>& poly, const Projector& pr, bool* clipped
 // One face into the scan scene: clipped at the near plane, projected, its
 // rows' extent and whether it reaches into hither's sphere.
 struct FaceAdder {
+  const PreparedScene& ps;
   const CameraFrame& cam;
   const Projector& pr;
   ScanScene& scan;
@@ -67,6 +68,9 @@ struct FaceAdder {
     f.normal = normal;
     f.offset = offset;
     f.prim = prim;
+    const PrimRef& ref = ps.prims.prims[prim];
+    f.material = ps.object_material[ref.object];
+    f.smooth = has_vertex_normals(ps.prims, ref);
     f.curved = curved;
     if (!curved && cam.hither > 0) f.near_hither = reaches_hither(kept, normal, offset);
     f.ymin = 1e300;
@@ -194,7 +198,7 @@ ScanScene build_scan_scene(const PreparedScene& ps, bool multiscan, int threads,
   const int chunks = chunk_count(n, kGrain, 4 * std::max(1, threads));
   std::vector<ScanScene> parts(chunks);
   parallel_for(chunks, threads, [&](int c) {
-    FaceAdder faces{cam, pr, parts[c], silhouette_pixels, {}, {}, {}};
+    FaceAdder faces{ps, cam, pr, parts[c], silhouette_pixels, {}, {}, {}};
     const int end = chunk_edge(n, c + 1, chunks);
     // Bounding polyhedra are per object; a CSG or quadric object is one prim.
     for (int i = chunk_edge(n, c, chunks); i < end; ++i) {

@@ -20,6 +20,12 @@ struct ScanFace {
   Vec3 normal;  // plane: dot(normal, p) = offset
   double offset = 0;
   int prim = -1;        // index into PrimitiveSet::prims (the surface it belongs to)
+  // Its object's material, and whether its primitive has vertex normals
+  // (has_vertex_normals): read for every span, kept here so that the
+  // scanline does not reach for the primitive and its object, which lie far
+  // apart in memory where faces are many.
+  int material = 0;
+  bool smooth = false;
   bool curved = false;  // a face of a curved body's bounding polyhedron
   // Part of the face lies within hither's sphere, so it is cut by a curved
   // edge no scanline computation sees: its pixels are traced like a curved

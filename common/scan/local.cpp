@@ -57,8 +57,7 @@ void local_rows(const PreparedScene& ps, const RenderParams& params, const Band&
         c = tracer.trace(ray, cam.hither, 1, 1.0, nullptr);
         traced = true;
       } else {
-        const Material& m =
-            ps.scene.materials[ps.scene.objects[hit->leaf].material];
+        const Material& m = ps.material_of(hit->leaf);
         traced = span = m.ks > 0 || m.t > 0;
         if (shadows) shadows->set_pixel(x);
         c = tracer.shade(ray, SurfaceHit{hit->t, f.prim, *hit}, 1, 1.0, nullptr,

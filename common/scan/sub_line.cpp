@@ -101,8 +101,7 @@ inline void SubLineBuilder::add_pieces(SubLine& line) {
       continue;
     }
     const ScanFace& f = scan_.faces[s.face];
-    const Material& m =
-        ps_.scene.materials[ps_.scene.objects[ps_.prims.prims[f.prim].object].material];
+    const Material& m = ps_.scene.materials[f.material];
     if (shadows) shadows->begin_span(s.face, s.x0, s.x1);
     meter_.charge_run(s.x0, s.x1);
     if (m.ks > 0 || m.t > 0) {
@@ -448,10 +447,9 @@ inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
 inline uint64_t SubLineBuilder::unlit_lights(const ScanFace& f, double x) const {
   const int lights = static_cast<int>(std::min<size_t>(ps_.scene.lights.size(), 64));
   const uint64_t all = lights == 64 ? ~uint64_t{0} : (uint64_t{1} << lights) - 1;
-  const PrimRef& ref = ps_.prims.prims[f.prim];
-  const Material& m = ps_.scene.materials[ps_.scene.objects[ref.object].material];
+  const Material& m = ps_.scene.materials[f.material];
   if (m.kd == 0 && m.ks == 0) return all;
-  if (has_vertex_normals(ps_.prims, ref)) return 0;  // the shading normal varies
+  if (f.smooth) return 0;  // the shading normal varies
   const Ray eye = eye_ray(x);
   const Vec3 p = face_point(f, eye.origin, eye.dir);
   // The side the eye sees (Tracer::shade's n).

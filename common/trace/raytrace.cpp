@@ -219,7 +219,7 @@ bool Tracer::shadow_crossings(const Ray& seg, int light, std::vector<Crossing>& 
     const size_t before = crossings.size();
     intersect_all(ps_.prims, prim, seg, 0.0, 1.0, crossings);
     for (size_t i = before; i < crossings.size(); ++i) {
-      const Material& m = ps_.scene.materials[ps_.scene.objects[crossings[i].leaf].material];
+      const Material& m = ps_.material_of(crossings[i].leaf);
       if (m.t <= 0.0) {
         opaque = true;  // eq. (2): an opaque occluder stops everything
         last_occluder(light) = prim;
@@ -250,7 +250,7 @@ Color Tracer::shade(const Ray& ray, const SurfaceHit& hit, int depth, double wei
                     const Material* medium, KnownShadows* known) {
   const Scene& scene = ps_.scene;
   const Crossing& c = hit.crossing;
-  const Material& m = scene.materials[scene.objects[c.leaf].material];
+  const Material& m = ps_.material_of(c.leaf);
   // Lambert-Beer along the ray's own path inside a medium.
   Color atten(1.0);
   if (medium && medium->absorption != Color(0.0)) atten = beer(medium->absorption, hit.t);

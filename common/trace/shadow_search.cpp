@@ -32,7 +32,7 @@ bool exact_test(const PreparedScene& ps, int prim, const Ray& seg, std::vector<C
   const size_t before = crossings.size();
   intersect_all(ps.prims, prim, seg, 0.0, 1.0, crossings);
   for (size_t i = before; i < crossings.size(); ++i) {
-    const Material& m = ps.scene.materials[ps.scene.objects[crossings[i].leaf].material];
+    const Material& m = ps.material_of(crossings[i].leaf);
     if (m.t <= 0.0) return true;
   }
   return false;
