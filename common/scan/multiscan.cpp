@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/base/prefetch.h"
 #include "common/scan/sub_line.h"
 #include "common/trace/raytrace.h"
 
@@ -156,17 +157,17 @@ class PixelIntegrator {
   // 512², --aa 4 (docs/renderer.md, "Session 42"): level 9 0.96x, level
   // 7 unchanged.
   void fetch_early(int prim) const {
-    if (!ps_.leaf_slot.empty()) __builtin_prefetch(&ps_.leaf_slot[prim]);
-    __builtin_prefetch(&ps_.prims.prims[prim]);
+    if (!ps_.leaf_slot.empty()) prefetch(&ps_.leaf_slot[prim]);
+    prefetch(&ps_.prims.prims[prim]);
   }
   void fetch_before_shading(int prim) const {
     if (const int slot = ps_.leaf_slot_of(prim); slot >= 0) {
       const char* lp = reinterpret_cast<const char*>(&ps_.leaf_prims[slot]);
-      __builtin_prefetch(lp);
-      __builtin_prefetch(lp + 64);
-      __builtin_prefetch(lp + sizeof(LeafPrim) - 1);
+      prefetch(lp);
+      prefetch(lp + 64);
+      prefetch(lp + sizeof(LeafPrim) - 1);
     }
-    __builtin_prefetch(&ps_.object_material[ps_.prims.prims[prim].object]);
+    prefetch(&ps_.object_material[ps_.prims.prims[prim].object]);
   }
 
   const PreparedScene& ps_;
