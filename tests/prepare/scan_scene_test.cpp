@@ -153,5 +153,35 @@ TEST(ScanScene, ABodyTheNearPlaneCutsKeepsItsFaces) {
   EXPECT_TRUE(ps.scan->trace_everything);
 }
 
+TEST(ScanScene, EachFaceCarriesItsObjectsMaterialAndWhetherItsNormalVaries) {
+  // The scanline reads a span's material and whether its shading normal
+  // varies from the face (ScanFace::material, smooth), not from the
+  // primitive's object: they must be that object's.
+  Scene scene = bodies_scene();
+  Material third;
+  third.color = Color(0.2, 0.6, 0.3);
+  third.kd = 0.8;
+  scene.materials.push_back(third);  // 3
+  Object patch;
+  patch.shape = Patch{{Vec3(-3, -0.5, 2), Vec3(-1, -0.5, 2), Vec3(-1, 0.5, 1), Vec3(-3, 0.5, 1)},
+                      {Vec3(0, 0.3, 1), Vec3(0.2, 0.3, 1), Vec3(0, 0.4, 1), Vec3(-0.2, 0.3, 1)}};
+  patch.material = 3;
+  scene.objects.push_back(patch);
+  const PreparedScene ps(scene, local_params(4));
+  ASSERT_TRUE(ps.scan);
+  int smooth = 0, by_material[4] = {};
+  for (const ScanFace& f : ps.scan->faces) {
+    const PrimRef& ref = ps.prims.prims[f.prim];
+    EXPECT_EQ(f.material, scene.objects[ref.object].material) << "face of prim " << f.prim;
+    EXPECT_EQ(f.smooth, has_vertex_normals(ps.prims, ref)) << "face of prim " << f.prim;
+    smooth += f.smooth;
+    ++by_material[f.material];
+  }
+  EXPECT_EQ(smooth, 2);  // the patch's fan of two triangles
+  for (int m = 0; m < 4; ++m) EXPECT_GT(by_material[m], 0) << "material " << m;
+  for (int o = 0; o < static_cast<int>(scene.objects.size()); ++o)
+    EXPECT_EQ(&ps.material_of(o), &ps.scene.materials[scene.objects[o].material]) << "object " << o;
+}
+
 }  // namespace
 }  // namespace locus
