@@ -397,8 +397,12 @@ inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
   Piece p;
   p.kind = Piece::kFigure;
   p.face = s.face;
-  const uint64_t unlit = unlit_lights(f, 0.5 * (s.x0 + s.x1));
-  auto key_at = [&](double x) { return ray_states(f, x, unlit); };
+  // The span's middle point tells which lights light none of the face, and
+  // a narrow span's state is taken there too: found once for both.
+  const Ray mid_eye = eye_ray(0.5 * (s.x0 + s.x1));
+  const Vec3 mid = point_on(f, mid_eye);
+  const uint64_t unlit = unlit_lights(f, mid_eye, mid);
+  auto key_at = [&](double x) { return ray_states(f, point_on(f, eye_ray(x)), unlit); };
   // A span narrower than the sub-scanlines' spacing h = 1/N pixel is
   // sampled once, at its middle, as supersampling at that spacing would
   // sample it: one shadow ray per light, no end probes, no bisection. A
@@ -411,7 +415,7 @@ inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
   // where faces shadow their neighbours: +9% error on a grid of sub-pixel
   // faces.)
   if (s.x1 - s.x0 < sample_spacing_) {
-    p.lights = key_at(0.5 * (s.x0 + s.x1));
+    p.lights = ray_states(f, mid, unlit);
     for_pixels(s.x0, s.x1, [&](double a, double b) {
       p.x0 = a;
       p.x1 = b;
@@ -443,15 +447,14 @@ inline void SubLineBuilder::figures_by_rays(const VisibleSegment& s) {
 // of a flat face from the eye (Tracer::shade skips it before asking for its
 // shadow), or every light where the face's material has no diffuse or
 // specular term. Which side of the face's plane the eye and a light lie on
-// is the same at every point of the face, so one point (seen at x) tells.
-inline uint64_t SubLineBuilder::unlit_lights(const ScanFace& f, double x) const {
+// is the same at every point of the face, so one point p of it tells.
+inline uint64_t SubLineBuilder::unlit_lights(const ScanFace& f, const Ray& eye,
+                                             const Vec3& p) const {
   const int lights = static_cast<int>(std::min<size_t>(ps_.scene.lights.size(), 64));
   const uint64_t all = lights == 64 ? ~uint64_t{0} : (uint64_t{1} << lights) - 1;
   const Material& m = ps_.scene.materials[f.material];
   if (m.kd == 0 && m.ks == 0) return all;
   if (f.smooth) return 0;  // the shading normal varies
-  const Ray eye = eye_ray(x);
-  const Vec3 p = face_point(f, eye.origin, eye.dir);
   // The side the eye sees (Tracer::shade's n).
   const Vec3 seen = glm::dot(f.normal, eye.dir) > 0 ? -f.normal : f.normal;
   uint64_t unlit = 0;
@@ -461,15 +464,13 @@ inline uint64_t SubLineBuilder::unlit_lights(const ScanFace& f, double x) const 
   return unlit;
 }
 
-// The state of the first 64 lights at the point of face f seen at x on this
-// sub-scanline: a shadow ray to each, as Tracer::transmittance casts it, but
+// The state of the first 64 lights at point p of face f (seen on this
+// sub-scanline): a shadow ray to each, as Tracer::transmittance casts it, but
 // to the `unlit` ones (unlit_lights), which count as blocked, the same on
 // the whole face, so they cut no figure.
-inline LightStates SubLineBuilder::ray_states(const ScanFace& f, double x, uint64_t unlit) {
+inline LightStates SubLineBuilder::ray_states(const ScanFace& f, const Vec3& p, uint64_t unlit) {
   LightStates st;
   st.opaque = unlit;
-  const Ray eye = eye_ray(x);
-  const Vec3 p = face_point(f, eye.origin, eye.dir);
   const int lights = static_cast<int>(std::min<size_t>(ps_.scene.lights.size(), 64));
   for (int j = 0; j < lights; ++j) {
     if (unlit >> j & 1) continue;

@@ -102,9 +102,15 @@ class SubLineBuilder {
   // state of the lights from shadow rays at each pixel's piece, refined
   // where it changes; what states() gives at x on face f.
   void figures_by_rays(const VisibleSegment& s);
-  // The lights that cannot light any of face f (their bits), seen at x.
-  uint64_t unlit_lights(const ScanFace& f, double x) const;
-  LightStates ray_states(const ScanFace& f, double x, uint64_t unlit);
+  // The point of face f that the eye ray `eye` meets.
+  static Vec3 point_on(const ScanFace& f, const Ray& eye) {
+    return face_point(f, eye.origin, eye.dir);
+  }
+  // The lights that cannot light any of face f (their bits), seen along
+  // `eye` at its point p.
+  uint64_t unlit_lights(const ScanFace& f, const Ray& eye, const Vec3& p) const;
+  // The state of the lights at point p of face f.
+  LightStates ray_states(const ScanFace& f, const Vec3& p, uint64_t unlit);
   // A traced piece's radiance (PixelSamples::colours).
   void traced_colours(Piece& p, FunctionRef<Color(double)> direct);
 
