@@ -81,7 +81,7 @@ class PixelIntegrator {
             acc += w * ps_.scene.background;
             break;
           case Piece::kTraced:
-            acc += w * (k == n ? pc.colour_up : pc.colour);
+            acc += w * (k == n ? pc.traced.colour_up : pc.traced.colour);
             traced = true;
             break;
           case Piece::kFigure:

@@ -288,7 +288,7 @@ inline void SubLineBuilder::curved(double x0, double x1) {
   for (size_t k = begin; k < out_->size(); ++k) {
     Piece& p = (*out_)[k];
     if (p.hit < 0) {
-      p.colour = p.colour_up = ps_.scene.background;
+      p.traced.colour = p.traced.colour_up = ps_.scene.background;
     } else {
       traced_colours(p, direct);
       meter_.charge(p.x0);
@@ -298,8 +298,8 @@ inline void SubLineBuilder::curved(double x0, double x1) {
 
 inline void SubLineBuilder::traced_colours(Piece& p, FunctionRef<Color(double)> direct) {
   const PieceColours c = samples_.colours(p.x0, p.x1, p.hit, direct);
-  p.colour = c.colour;
-  p.colour_up = c.colour_up;
+  p.traced.colour = c.colour;
+  p.traced.colour_up = c.colour_up;
 }
 
 // A mirror's or glass's flat face: the visible face is known, so each
