@@ -285,6 +285,12 @@ done
 [ $up = 1 ] || { echo "coordinator: not serving"; exit 10; }
 worker1 >/tmp/worker1.log 2>&1 & w1=$!
 worker2 >/tmp/worker2.log 2>&1 & w2=$!
+# Both workers registered before the job: a 64x48 frame can be done by the
+# first before the second has said hello, and the listing below names both.
+for _ in $(seq 100); do
+  [ "$(locus workers --farm 127.0.0.1:7000 2>/dev/null | tail -n +2 | wc -l)" -ge 2 ] && break
+  sleep 0.1
+done
 timeout 120 locus submit /tmp/spheres.json --farm 127.0.0.1:7000 --size 64x48 -o /tmp/farm/spheres.png --wait \
   >/tmp/submit.log 2>&1 || { echo "submit: failed"; exit 11; }
 locus workers --farm 127.0.0.1:7000 >/tmp/workers.txt 2>&1
