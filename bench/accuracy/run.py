@@ -84,6 +84,18 @@ def loadavg():
         return "?"
 
 
+def cpu_model():
+    """The processor's name (/proc/cpuinfo's "model name"): the same build
+    measures differently on another host, so every report names its own."""
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "?"
+
+
 def snapshot_locus(src, dst_dir, wait_s=600):
     """Copy the locus binary once, so a rebuild under us cannot mix two
     versions in one run; wait while it is missing (being rebuilt). The copy
@@ -584,7 +596,7 @@ def main():
         "load_start": load_start, "load_end": loadavg(),
         "minutes": (time.time() - started) / 60.0,
         "quick": args.quick, "repeat": args.repeat, "plan": plan, "stale_pov": stale,
-        "ncpu": ncpu, "pov_sizes": pov_sizes if pov else [],
+        "ncpu": ncpu, "cpu": cpu_model(), "pov_sizes": pov_sizes if pov else [],
     }
     checks = acceptance(rows, conv, plan)
     write_csv(os.path.join(out_dir, "accuracy.csv"), rows, conv)
@@ -691,7 +703,7 @@ def write_md(path, rows, conv, cross, checks, info):
     plan = info["plan"]
     L = [f"# Speed against accuracy{' (quick smoke test)' if info['quick'] else ''}", "",
          f"`bench/accuracy/run.py{' --quick' if info['quick'] else ''}`, {info['date']}: "
-         f"locus `{info['locus']}`, {info['pov'] or 'no POV-Ray'}, {info['ncpu']} cores, "
+         f"locus `{info['locus']}`, {info['pov'] or 'no POV-Ray'}, {info['ncpu']} cores ({info.get('cpu', '?')}), "
          f"load average {info['load_start']} at the start and {info['load_end']} at the end, "
          f"{info['minutes']:.0f} min. Times are each renderer's own render time on one thread "
          f"(Locus `--workers 0 --threads 1`, `seconds.render_cpu` of `--stats`; POV-Ray `+WT1`, the "

@@ -41,6 +41,7 @@ acc = _load_accuracy()
 povscene = acc.povscene
 log = acc.log
 loadavg = acc.loadavg
+cpu_model = acc.cpu_model
 read_image = acc.read_image
 metrics = acc.metrics
 edge_mask = acc.edge_mask
@@ -339,10 +340,11 @@ def loglog_slope(xs, ys):
 
 def run_info(quick, repeat, size, **extra):
     """What every report's header gives: date, load average at the start, the
-    commit, the number of cores, and the run's settings."""
+    commit, the number of cores and the processor, and the run's settings."""
     return dict({"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
                  "load_start": loadavg(), "quick": quick, "repeat": repeat, "size": size,
-                 "commit": git_head(), "ncpu": os.cpu_count() or 1}, **extra)
+                 "commit": git_head(), "ncpu": os.cpu_count() or 1,
+                 "cpu": cpu_model()}, **extra)
 
 
 def renderers(binary, tmp, cache_dir, info):
