@@ -93,9 +93,7 @@ class PixelSamples {
   void grid_point(Corner& k, int i, int j, int g, int q);
   const Corner& corner(int i, int j);
 
-  int material_of(int prim) const {
-    return ps_.scene.objects[ps_.prims.prims[prim].object].material;
-  }
+  int material_of(int prim) const { return ps_.object_material[ps_.prims.prims[prim].object]; }
 
   const PreparedScene& ps_;
   const CameraFrame& cam_;
