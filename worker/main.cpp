@@ -12,6 +12,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <mutex>
 #include <thread>
 
 #include "common/base/log.h"
@@ -127,18 +128,31 @@ int main(int argc, char** argv) {
   }
   // The first signal: finish the band in hand (or hand it back if not yet
   // started), then exit. A second one: hand it back now and exit.
+  // `acting` keeps the signals' actions and main's return apart: the hand
+  // back makes run() return, and main returning then destroyed the worker
+  // under the waiter (a crash, exit 139, as a Slurm job's time limit came
+  // with its second SIGTERM). Main takes it after run() and never gives it
+  // back; a waiter that holds it ends the process itself (_Exit).
+  static std::mutex acting;
   std::thread waiter([&] {
     int sig = 0;
     sigwait(&signals, &sig);
-    spdlog::info("signal {}: finishing the band in hand, then exiting", sig);
-    health.set_ready(false);
-    worker.stop();
+    {
+      std::lock_guard lock(acting);
+      spdlog::info("signal {}: finishing the band in hand, then exiting", sig);
+      health.set_ready(false);
+      worker.stop();
+    }
     sigwait(&signals, &sig);
+    acting.lock();
     spdlog::info("signal {} again: handing the band back and exiting now", sig);
     worker.hand_back();
+    spdlog::default_logger()->flush();
     std::_Exit(0);
   });
-  // The waiter may still sit in sigwait when run() returns; exiting ends it.
+  // The waiter may still sit in sigwait when main returns; exiting ends it.
   waiter.detach();
-  return worker.run();
+  const int code = worker.run();
+  acting.lock();  // no signal acts on the worker from here: it is destroyed below
+  return code;
 }
