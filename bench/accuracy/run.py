@@ -96,6 +96,12 @@ def cpu_model():
     return "?"
 
 
+def host(info):
+    """A report's host, from its run's info: "2 cores (AMD EPYC)" (older raw
+    files, without the processor, give "?")."""
+    return f"{info.get('ncpu', '?')} cores ({info.get('cpu', '?')})"
+
+
 def snapshot_locus(src, dst_dir, wait_s=600):
     """Copy the locus binary once, so a rebuild under us cannot mix two
     versions in one run; wait while it is missing (being rebuilt). The copy
@@ -703,7 +709,7 @@ def write_md(path, rows, conv, cross, checks, info):
     plan = info["plan"]
     L = [f"# Speed against accuracy{' (quick smoke test)' if info['quick'] else ''}", "",
          f"`bench/accuracy/run.py{' --quick' if info['quick'] else ''}`, {info['date']}: "
-         f"locus `{info['locus']}`, {info['pov'] or 'no POV-Ray'}, {info['ncpu']} cores ({info.get('cpu', '?')}), "
+         f"locus `{info['locus']}`, {info['pov'] or 'no POV-Ray'}, {host(info)}, "
          f"load average {info['load_start']} at the start and {info['load_end']} at the end, "
          f"{info['minutes']:.0f} min. Times are each renderer's own render time on one thread "
          f"(Locus `--workers 0 --threads 1`, `seconds.render_cpu` of `--stats`; POV-Ray `+WT1`, the "

@@ -290,7 +290,7 @@ def write_md(path, rows, lines, edge_lines, info):
     L = [f"# POV-Ray's best curve against Locus{' (quick smoke test)' if info['quick'] else ''}",
          "",
          f"`bench/peers/curve.py{q}`, {info['date']}: locus `{info['locus']}` (HEAD "
-         f"`{info['commit']}`), {info['pov']}, {info['ncpu']} cores ({info.get('cpu', '?')}), load average "
+         f"`{info['commit']}`), {info['pov']}, {H.host(info)}, load average "
          f"{info['load_start']} at the start and {info.get('load_end', '?')} at the end"
          + (f", {info['minutes']:.0f} min" if "minutes" in info else "")
          + (" (a partial run: the scenes measured before it stopped)" if info.get("partial")

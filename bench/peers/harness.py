@@ -42,6 +42,7 @@ povscene = acc.povscene
 log = acc.log
 loadavg = acc.loadavg
 cpu_model = acc.cpu_model
+host = acc.host
 read_image = acc.read_image
 metrics = acc.metrics
 edge_mask = acc.edge_mask

@@ -253,8 +253,7 @@ def report(out_dir, rows, excluded, info):
         "CPU times in interleaved rounds. Locus `render --method raytrace --spp 1 --workers 0 "
         "--threads 1` (`seconds.render_cpu`) against `locus-embree-whitted` (the same rays on "
         f"Embree {info.get('embree', '?')}: getrusage over its pixel loop). Locus binary "
-        f"{info['locus']} (HEAD {info['commit']}), peer {info['peer']}; {info.get('ncpu', '?')} cores "
-        f"({info.get('cpu', '?')}); load average "
+        f"{info['locus']} (HEAD {info['commit']}), peer {info['peer']}; {H.host(info)}; load average "
         f"{info['load_start']} at the start, {info.get('load_end', '?')} at the end, "
         f"{info.get('minutes', 0):.0f} min.",
         "",
@@ -354,9 +353,7 @@ def main():
     out_dir = args.out or (os.path.join(H.ROOT, "bench", "results") if not args.quick
                            else tempfile.mkdtemp(prefix="locus-kernel-quick-"))
     started = time.time()
-    info = {"date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
-            "load_start": H.loadavg(), "repeat": repeat, "size": size, "commit": H.git_head(),
-            "ncpu": os.cpu_count() or 1, "cpu": H.cpu_model()}
+    info = H.run_info(args.quick, repeat, size)
     tmp = tempfile.mkdtemp(prefix="locus-kernel-")
     excluded = {}
     try:

@@ -384,7 +384,7 @@ def write_md(path, rows, cg_rows, excluded, checks, info):
     scenes = [s[0] for s in SCENES if any(r["scene"] == s[0] for r in rows)]
     L = [f"# Locus against POV-Ray{' (quick smoke test)' if info['quick'] else ''}", "",
          f"`bench/peers/run.py{' --quick' if info['quick'] else ''}`, {info['date']}: locus "
-         f"`{info['locus']}` (HEAD `{info['commit']}`), {info['pov']}, {info['ncpu']} cores ({info.get('cpu', '?')}), "
+         f"`{info['locus']}` (HEAD `{info['commit']}`), {info['pov']}, {H.host(info)}, "
          f"load average {info['load_start']} at the start and {info['load_end']} at the end, "
          f"{info['minutes']:.0f} min. {size}x{size}, ray depth 5 (both), one thread: Locus "
          "`--workers 0 --threads 1`, POV-Ray `+WT1`. Times are seconds, **CPU time of the "

@@ -281,7 +281,7 @@ def write_md(path, rows, fit, info):
     checks = target_lines(rows, fit)
     L = [f"# Scaling with scene size{' (quick smoke test)' if info['quick'] else ''}", "",
          f"`bench/peers/scaling.py{' --quick' if info['quick'] else ''}`, {info['date']}: locus "
-         f"`{info['locus']}` (HEAD `{info['commit']}`), {info['pov']}, {info.get('ncpu', '?')} cores ({info.get('cpu', '?')}), load average "
+         f"`{info['locus']}` (HEAD `{info['commit']}`), {info['pov']}, {H.host(info)}, load average "
          f"{info['load_start']} at the start and {info['load_end']} at the end, "
          f"{info['minutes']:.0f} min. SPD balls and tetra at {size}x{size}, one thread, ray "
          "depth 5; time per frame is the render's **CPU time** (Locus `seconds.render_cpu`, "

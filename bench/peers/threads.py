@@ -182,7 +182,7 @@ def report(out_dir, info, scenes):
     lines = target_lines(scenes)
     md = [f"# Threads (issue #27 item 4)", "",
           f"{info['date']}, commit {info['commit']}, locus {info.get('locus', '?')}, "
-          f"{info['ncpu']} cores ({info.get('cpu', '?')}); {info['size']}x{info['size']}, configuration IV --aa 4; "
+          f"{H.host(info)}; {info['size']}x{info['size']}, configuration IV --aa 4; "
           f"best of {info['repeat']} rounds (each job once per round, side by side).", "",
           f"Load average (1, 5, 15 min): {info['load_start']} at the start, "
           f"{info.get('load_end', '?')} at the end.", "",
