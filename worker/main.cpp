@@ -147,7 +147,6 @@ int main(int argc, char** argv) {
     acting.lock();
     spdlog::info("signal {} again: handing the band back and exiting now", sig);
     worker.hand_back();
-    spdlog::default_logger()->flush();
     std::_Exit(0);
   });
   // The waiter may still sit in sigwait when main returns; exiting ends it.
