@@ -367,21 +367,26 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
   int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info,
                             a.job.cost_map);
   if (rc == 0) rc = follow_movie(farm, info, a.job.movie);
-  if (rc != 0) (*local)->keep_logs();
-  const std::string logs = (*local)->dir();
-  local->reset();
-  spdlog::set_level(level);
   if (rc != 0) {
+    (*local)->keep_logs();
+    const std::string logs = (*local)->dir();
+    local->reset();
+    spdlog::set_level(level);
     std::fprintf(stderr, "locus: the local farm's logs are in %s\n", logs.c_str());
     return rc;
   }
-  if (Status st = write_stats(a.stats, info.stats); !st.ok()) return fail(st);
+  spdlog::set_level(level);
+  if (Status st = write_stats(a.stats, info.stats); !st.ok()) {
+    local->reset();
+    return fail(st);
+  }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   spdlog::info("rendered {} ({}x{}, {} frame{}, {} bands each, {} workers) in {:.3f} s -> {}",
                a.job.scene, info.spec.width, info.spec.height, info.spec.frames(),
                info.spec.frames() > 1 ? "s" : "", info.spec.bands, workers, seconds, a.job.output);
-  return 0;
+  // Every file of the command is written: the farm ends with the process.
+  (*local)->exit_process(0);
 }
 
 }  // namespace

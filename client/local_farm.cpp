@@ -4,11 +4,14 @@
 #include <signal.h>
 #include <spdlog/spdlog.h>
 #include <sys/prctl.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -33,13 +36,17 @@ std::vector<std::string> worker_environment(const std::string& token) {
   return env;
 }
 
-pid_t spawn_worker(const std::string& binary, const std::string& address, int threads,
-                   const std::string& log, const std::vector<std::string>& env) {
+// Starts a worker that reads the coordinator's address from `address_fd`
+// (its end of a socket pair, close-on-exec in this process), so that it
+// loads while the coordinator starts.
+pid_t spawn_worker(const std::string& binary, int address_fd, int threads, const std::string& log,
+                   const std::vector<std::string>& env) {
   // Built before fork: the child may only make async-signal-safe calls.
   std::vector<const char*> envp;
   for (const std::string& e : env) envp.push_back(e.c_str());
   envp.push_back(nullptr);
   const std::string threads_arg = std::to_string(threads);
+  const std::string fd_arg = std::to_string(address_fd);
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid != 0) return pid;
@@ -53,12 +60,14 @@ pid_t spawn_worker(const std::string& binary, const std::string& address, int th
     dup2(fd, 2);
     close(fd);
   }
+  // The address socket is the one descriptor the worker inherits.
+  fcntl(address_fd, F_SETFD, 0);
   // Signals blocked in `locus` stay blocked across exec; unblock them.
   sigset_t none;
   sigemptyset(&none);
   sigprocmask(SIG_SETMASK, &none, nullptr);
-  const char* argv[] = {binary.c_str(),      "--coordinator", address.c_str(), "--threads",
-                        threads_arg.c_str(), "--poll-ms",     "2000",          nullptr};
+  const char* argv[] = {binary.c_str(),      "--coordinator-fd", fd_arg.c_str(), "--threads",
+                        threads_arg.c_str(), "--poll-ms",        "2000",         nullptr};
   execve(binary.c_str(), const_cast<char* const*>(argv), const_cast<char* const*>(envp.data()));
   _exit(127);
 }
@@ -90,6 +99,42 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
     return Internal("cannot create a temporary directory for the local farm");
   farm->dir_ = templ;
 
+  // Loopback only, plaintext (nothing leaves the host), and a fresh random
+  // token for both roles: another user of this machine cannot use it.
+  auto token = farm::random_token();
+  if (!token.ok()) return token.status();
+  farm->token_ = *token;
+  // The workers start first and load (the dynamic linker is most of a
+  // worker's start) while the coordinator starts; each waits on a socket
+  // for its address. A farm that fails to start closes them unwritten, and
+  // its workers exit.
+  const std::vector<std::string> env = worker_environment(farm->token_);
+  std::vector<int> address_fds;
+  struct CloseFds {
+    std::vector<int>& fds;
+    ~CloseFds() {
+      for (int fd : fds) close(fd);
+    }
+  } close_fds{address_fds};
+  for (int i = 0; i < o.workers; ++i) {
+    // A socket pair rather than a pipe: send() with MSG_NOSIGNAL to a
+    // worker that is gone is EPIPE, not SIGPIPE.
+    int fds[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0)
+      return Internal(std::string("cannot make a socket pair for a local worker: ") +
+                      std::strerror(errno));
+    const std::string log =
+        (fs::path(farm->dir_) / ("worker-" + std::to_string(i) + ".log")).string();
+    const pid_t pid = spawn_worker(*binary, fds[0], o.threads, log, env);
+    close(fds[0]);
+    if (pid < 0) {
+      close(fds[1]);
+      return Internal("cannot start " + *binary);
+    }
+    address_fds.push_back(fds[1]);
+    farm->pids_.push_back(pid);
+  }
+
   farm::CoordinatorOptions co;
   co.data_dir = farm->dir_;
   co.lease = o.lease;
@@ -106,11 +151,6 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   co.limits.max_objects = std::numeric_limits<int>::max();
   farm->coordinator_ = std::make_unique<farm::Coordinator>(co);
   if (Status s = farm->coordinator_->start(); !s.ok()) return s;
-  // Loopback only, plaintext (nothing leaves the host), and a fresh random
-  // token for both roles: another user of this machine cannot use it.
-  auto token = farm::random_token();
-  if (!token.ok()) return token.status();
-  farm->token_ = *token;
   rpc::ServerSecurity security;
   security.insecure = true;
   security.auth = farm::Authenticator::from_tokens({"local " + farm->token_}, {farm->token_});
@@ -118,6 +158,16 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   auto port = farm->server_->start("127.0.0.1:0", std::move(security));
   if (!port.ok()) return port.status();
   farm->address_ = "127.0.0.1:" + std::to_string(*port);
+  // The coordinator listens: the workers may dial it.
+  const std::string line = farm->address_ + "\n";
+  for (int fd : address_fds) {
+    // Far below a socket's buffer: sent whole, without waiting. A worker
+    // that is gone already (EPIPE) is reaped by the monitor.
+    if (send(fd, line.data(), line.size(), MSG_NOSIGNAL) < 0) {
+      spdlog::warn("a local worker did not take the coordinator's address: {}",
+                   std::strerror(errno));
+    }
+  }
   if (o.dashboard) {
     rpc::HttpServerOptions http;
     http.address = "127.0.0.1:0";
@@ -125,15 +175,6 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
     if (!dashboard.ok()) return dashboard.status();
     farm->dashboard_url_ =
         "http://127.0.0.1:" + std::to_string(*dashboard) + "/#token=" + farm->token_;
-  }
-  const std::vector<std::string> env = worker_environment(farm->token_);
-
-  for (int i = 0; i < o.workers; ++i) {
-    const std::string log =
-        (fs::path(farm->dir_) / ("worker-" + std::to_string(i) + ".log")).string();
-    const pid_t pid = spawn_worker(*binary, farm->address_, o.threads, log, env);
-    if (pid < 0) return Internal("cannot start " + *binary);
-    farm->pids_.push_back(pid);
   }
   farm->workers_ = o.workers;
   farm->monitor_ = std::thread([f = farm.get()] { f->monitor(); });
@@ -180,6 +221,30 @@ void LocalFarm::monitor() {
       for (const farm::JobInfo& j : coordinator_->jobs()) coordinator_->cancel(j.job_id);
     }
   }
+}
+
+void LocalFarm::exit_process(int code) {
+  // The monitor first, so that it neither reaps nor reports the workers
+  // killed here.
+  {
+    std::lock_guard lk(mu_);
+    stopping_ = true;
+  }
+  stop_.notify_all();
+  if (monitor_.joinable()) monitor_.join();
+  for (pid_t pid : pids_) kill(pid, SIGKILL);
+  // Reaped, not left to whatever adopts them: a container's first process
+  // may never reap, and each `locus render` would leave zombies there.
+  for (pid_t pid : pids_) {
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+  }
+  std::error_code ec;
+  if (!keep_ && !dir_.empty()) fs::remove_all(dir_, ec);
+  spdlog::default_logger()->flush();
+  std::fflush(nullptr);
+  std::_Exit(code);
 }
 
 LocalFarm::~LocalFarm() {

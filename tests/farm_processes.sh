@@ -158,6 +158,18 @@ timeout 20 "$bin/locus-worker" --coordinator "$farm" "${wflags[@]:0:6}" --token-
 timeout 20 "$bin/locus-worker" --coordinator "$farm" --tls-ca "$tls/ca.pem" --token-file "$tmp/worker.tokens" 2>"$tmp/err"
 [ $? -eq 1 ] && grep -q "client certificate" "$tmp/err" && ok "a worker without a client certificate exits 1 (UNAUTHENTICATED)" ||
   { bad "worker without a certificate"; cat "$tmp/err"; }
+# ---- the address on a descriptor (how `locus render`'s embedded farm starts
+# its workers before its coordinator listens)
+timeout 20 "$bin/locus-worker" --coordinator-fd 3 "${wflags[@]}" 3</dev/null 2>"$tmp/err"
+[ $? -eq 2 ] && grep -q -- "--coordinator-fd 3: closed before an address came" "$tmp/err" &&
+  ok "--coordinator-fd closed unwritten: exit 2, $(cat "$tmp/err")" || { bad "--coordinator-fd closed"; cat "$tmp/err"; }
+timeout 20 "$bin/locus-worker" --coordinator-fd 3 --coordinator "$farm" "${wflags[@]}" 3</dev/null 2>"$tmp/err"
+[ $? -ne 0 ] && grep -q "excludes" "$tmp/err" && ok "--coordinator-fd with --coordinator: refused" ||
+  { bad "--coordinator-fd with --coordinator"; cat "$tmp/err"; }
+timeout 20 "$bin/locus-worker" --coordinator-fd 3 "${wflags[@]:0:6}" --token-file "$tmp/client.tokens" \
+  3< <(echo "$farm") 2>"$tmp/err"
+[ $? -eq 1 ] && grep -q PERMISSION_DENIED "$tmp/err" && ok "--coordinator-fd: the address read from it is dialled" ||
+  { bad "--coordinator-fd's address"; cat "$tmp/err"; }
 grep -q "refused WorkerService.Register" "$tmp/coord.log" && grep -q "refused ClientService.ListJobs" "$tmp/coord.log" &&
   ! grep -qF "$LOCUS_TOKEN" "$tmp/coord.log" && ok "refusals logged by the coordinator, tokens never" ||
   bad "refusal logs"

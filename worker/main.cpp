@@ -6,16 +6,20 @@
 // health ADDR` asks a health service, like `locus health`: the worker's
 // image (deploy/docker/Dockerfile) carries no other binary for its probe.
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/base/status.h"
 #include "common/farm/metrics.h"
 #include "proto/wire/health.h"
 #include "worker/worker_client.h"
@@ -36,6 +40,30 @@ int run_health(const std::string& address, const std::string& service) {
   return *serving ? 0 : 1;
 }
 
+// --coordinator-fd: the address, one line, from a pipe or socket that the
+// parent writes once its coordinator listens. The worker loads (most of its start:
+// the dynamic linker) while the coordinator starts, instead of after it.
+locus::Result<std::string> read_address(int fd) {
+  std::string line;
+  char c;
+  for (;;) {
+    const ssize_t n = read(fd, &c, 1);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0)
+      return locus::Internal("--coordinator-fd " + std::to_string(fd) + ": " +
+                             std::strerror(errno));
+    if (n == 0 || c == '\n') break;
+    if (line.size() >= 1024) break;
+    line.push_back(c);
+  }
+  close(fd);
+  if (line.empty()) {
+    return locus::InvalidArgument("--coordinator-fd " + std::to_string(fd) +
+                                  ": closed before an address came (the parent gave up)");
+  }
+  return line;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -44,6 +72,12 @@ int main(int argc, char** argv) {
   int poll_ms = 10000;
   // Required unless the `health` subcommand is given (checked below).
   app.add_option("--coordinator", options.coordinator, "Coordinator address, HOST:PORT");
+  int coordinator_fd = -1;
+  app.add_option("--coordinator-fd", coordinator_fd,
+                 "Read the coordinator's address (one line) from this file descriptor, written "
+                 "once it listens (`locus render`'s embedded farm starts its workers so)")
+      ->check(CLI::Range(0, 1 << 20))
+      ->excludes("--coordinator");
   app.add_option("--threads", options.threads,
                  "Threads per band (0 = all cores); run one worker per core by default")
       ->check(CLI::Range(0, 1024));
@@ -93,6 +127,11 @@ int main(int argc, char** argv) {
                          "\"\" (default): ready; \"liveness\": the process runs");
   CLI11_PARSE(app, argc, argv);
   if (health_cmd->parsed()) return run_health(probe_address, probe_service);
+  if (coordinator_fd >= 0) {
+    auto address = read_address(coordinator_fd);
+    if (!address.ok()) return fail(address.status().message());
+    options.coordinator = *address;
+  }
   if (options.coordinator.empty()) return fail("--coordinator is required");
   // Logs go to stderr: stdout carries what scripts read.
   if (auto st = locus::setup_logging(*locus::parse_log_format(log_format), log_level); !st.ok())
