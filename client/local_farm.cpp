@@ -232,16 +232,16 @@ void LocalFarm::exit_process(int code) {
   }
   stop_.notify_all();
   if (monitor_.joinable()) monitor_.join();
-  // Not left as zombies to whatever adopts them (a container's first
-  // process may never reap): one that has ended is reaped here, and with
-  // SIGCHLD ignored the kernel reaps the others as they die, without this
-  // process waiting for it (4-5 ms for 2 workers).
+  for (pid_t pid : pids_) kill(pid, SIGKILL);
+  // Reaped here, not left to whatever adopts them: a container's first
+  // process may never reap, and each `locus render` would leave zombies
+  // there. (Ignoring SIGCHLD instead would not wait, but a worker that dies
+  // after this process has exited is then its adopter's to reap.)
   for (pid_t pid : pids_) {
     int status = 0;
-    waitpid(pid, &status, WNOHANG);
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
   }
-  signal(SIGCHLD, SIG_IGN);
-  for (pid_t pid : pids_) kill(pid, SIGKILL);
   std::error_code ec;
   if (!keep_ && !dir_.empty()) fs::remove_all(dir_, ec);
   spdlog::default_logger()->flush();

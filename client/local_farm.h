@@ -59,8 +59,8 @@ class LocalFarm {
   void keep_logs() { keep_ = true; }
 
   // Ends this process once its job's files are written: SIGKILL to the
-  // workers (reaped by the kernel: SIGCHLD ignored), the temporary
-  // directory removed, stdio and the log flushed, then std::_Exit(code).
+  // workers (and reaped), the temporary directory removed, stdio and the
+  // log flushed, then std::_Exit(code).
   // The coordinator, its server and their threads are left to the exit:
   // none holds anything the command still needs (the job's frames are
   // fetched), and an orderly shutdown of each, with the workers reaped,
