@@ -80,12 +80,14 @@ done
 "$bin/locus" render "$glass" --frames 1-6 --size 160x120 --aa 8 --workers 2 -o "$tmp/e/t_####.png" 2>"$tmp/t.log" &
 render=$!
 seen=
+workers_seen=()
 # Until the render ends: each worker's command line, then its environment,
 # read once into variables, as a worker may exit between two reads of /proc
 # (a token in the environment means it was alive when its command line was
 # read).
 while [ -z "$seen" ] && kill -0 "$render" 2>/dev/null; do
   for w in $(pgrep -P "$render" 2>/dev/null); do
+    [[ " ${workers_seen[*]} " == *" $w "* ]] || workers_seen+=("$w")
     cmd_w=$(tr '\0' ' ' <"/proc/$w/cmdline" 2>/dev/null) || continue
     env_w=$(tr '\0' '\n' <"/proc/$w/environ" 2>/dev/null) || continue
     token=$(printf '%s\n' "$env_w" | sed -n 's/^LOCUS_TOKEN=//p')
@@ -105,6 +107,14 @@ wait "$render" && render_rc=0 || render_rc=$?
 [ "$render_rc" = 0 ] || { bad "embedded farm token: the render failed ($render_rc)"; cat "$tmp/t.log"; }
 [ "$seen" = env ] && ok "embedded farm: random 64-hex token in the workers' LOCUS_TOKEN, not on their command line" ||
   bad "embedded farm token: '$seen'"
+# ... and its workers are gone with it, reaped, not zombies left to PID 1
+# (which may never reap, in a container): `locus render` ends its farm with
+# a quick exit (docs/farm.md "Start and end of the embedded farm").
+left=
+for w in "${workers_seen[@]}"; do [ -e "/proc/$w" ] && left+=" $w($(awk '{print $3}' "/proc/$w/stat" 2>/dev/null))"; done
+[ "${#workers_seen[@]}" -gt 0 ] && [ -z "$left" ] &&
+  ok "embedded farm: its ${#workers_seen[@]} workers reaped when locus render returns" ||
+  bad "embedded farm: workers seen: ${workers_seen[*]}; left after the render:$left"
 
 # ---- a coordinator refuses to start without TLS or tokens unless --insecure
 bash "$src/tests/tls/make_certs.sh" "$tmp/tls"
