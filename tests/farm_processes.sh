@@ -173,6 +173,9 @@ timeout 20 "$bin/locus-worker" --coordinator "$farm" --tls-ca "$tls/ca.pem" --to
 timeout 20 "$bin/locus-worker" --coordinator-fd 3 "${wflags[@]}" 3</dev/null 2>"$tmp/err"
 [ $? -eq 2 ] && grep -q -- "--coordinator-fd 3: closed before an address came" "$tmp/err" &&
   ok "--coordinator-fd closed unwritten: exit 2, $(cat "$tmp/err")" || { bad "--coordinator-fd closed"; cat "$tmp/err"; }
+printf '%02000d' 0 | timeout 20 "$bin/locus-worker" --coordinator-fd 0 "${wflags[@]}" 2>"$tmp/err"
+[ $? -eq 2 ] && grep -q -- "--coordinator-fd 0: the address is longer than 1024 bytes" "$tmp/err" &&
+  ok "--coordinator-fd: an address of 2000 bytes refused (exit 2)" || { bad "--coordinator-fd long address"; cat "$tmp/err"; }
 timeout 20 "$bin/locus-worker" --coordinator-fd 3 --coordinator "$farm" "${wflags[@]}" 3</dev/null 2>"$tmp/err"
 [ $? -ne 0 ] && grep -q "excludes" "$tmp/err" && ok "--coordinator-fd with --coordinator: refused" ||
   { bad "--coordinator-fd with --coordinator"; cat "$tmp/err"; }

@@ -41,25 +41,33 @@ int run_health(const std::string& address, const std::string& service) {
 }
 
 // --coordinator-fd: the address, one line, from a pipe or socket that the
-// parent writes once its coordinator listens. The worker loads (most of its start:
-// the dynamic linker) while the coordinator starts, instead of after it.
+// parent writes once its coordinator listens. The worker loads (most of its
+// start: the dynamic linker) while the coordinator starts, instead of after.
 locus::Result<std::string> read_address(int fd) {
+  constexpr size_t kMaxAddress = 1024;
+  const std::string what = "--coordinator-fd " + std::to_string(fd);
   std::string line;
-  char c;
+  locus::Status problem = locus::Status::Ok();
   for (;;) {
+    char c;
     const ssize_t n = read(fd, &c, 1);
     if (n < 0 && errno == EINTR) continue;
-    if (n < 0)
-      return locus::Internal("--coordinator-fd " + std::to_string(fd) + ": " +
-                             std::strerror(errno));
+    if (n < 0) {
+      problem = locus::Internal(what + ": " + std::strerror(errno));
+      break;
+    }
     if (n == 0 || c == '\n') break;
-    if (line.size() >= 1024) break;
+    if (line.size() >= kMaxAddress) {
+      problem = locus::InvalidArgument(what + ": the address is longer than " +
+                                       std::to_string(kMaxAddress) + " bytes");
+      break;
+    }
     line.push_back(c);
   }
   close(fd);
+  if (!problem.ok()) return problem;
   if (line.empty()) {
-    return locus::InvalidArgument("--coordinator-fd " + std::to_string(fd) +
-                                  ": closed before an address came (the parent gave up)");
+    return locus::InvalidArgument(what + ": closed before an address came (the parent gave up)");
   }
   return line;
 }
