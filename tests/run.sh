@@ -51,8 +51,32 @@ cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DLOCUS_SANITIZE=ON \
   "-DLOCUS_TEST_FILES=$asan_files" >/dev/null
 cmake --build build-asan -j "$(nproc)" --target locus_tests
 phase asan-tests
-ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*:MovieJob*:MovieChecks*:NotifyUrls*:BandCodec*:BandCostCodec*:ExrBlocks*:BadResults*:StoreV013*:ClosedSolids*:BvhWalk.*:BvhBuild.*:WideWalk.*'
+# LeakSanitizer's leak check at exit stops every thread with a tracer
+# thread of its own, and that tracer now and then dies of SIGSEGV itself
+# ("Tracer caught signal 11 ... LeakSanitizer has encountered a fatal
+# error"): a crash of the sanitizer, not a leak or a failed test (seen once
+# in session 44's CI, after all 246 tests had passed; google/sanitizers
+# issue 1353 and others). Only that crash, after every test passed, runs
+# the suite once more, and the second run must pass whole, leak check
+# included; a leak report, a sanitizer finding or a failed test fails at
+# once.
+asan_tests() {
+  ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+    build-asan/bin/locus_tests --gtest_filter='Nff*:SceneJson*:SceneProto*:Polyhedron*:Validate*:LoaderFuzz*:Animation*:Geometry*:Optics*:Authenticator*:ServerSecurity*:Connect*:Paths*:FuzzRegression*:Scheduler*:JobStore*:BandFiles*:CoordinatorRestart*:Log*:CoordinatorMetrics*:WorkerMetrics*:CoordinatorDrain*:HealthServer*:Bezier.TeapotLoads*:Bezier.Json*:Bezier.Travels*:Bezier.Normals*:Bezier.Deviation*:Bezier.ASurface*:Bezier.Mirrors*:Bezier.TriangleCount*:RenderCancel*:RenderExtremeGeometry*:Operations*:HttpApi*:MovieJob*:MovieChecks*:NotifyUrls*:BandCodec*:BandCostCodec*:ExrBlocks*:BadResults*:StoreV013*:ClosedSolids*:BvhWalk.*:BvhBuild.*:WideWalk.*'
+}
+asan_log=$(mktemp)
+if ! asan_tests 2>&1 | tee "$asan_log"; then
+  if grep -q "^Tracer caught signal 11" "$asan_log" &&
+    grep -q "LeakSanitizer has encountered a fatal error" "$asan_log" &&
+    grep -q "^\[  PASSED  \]" "$asan_log" && ! grep -q "^\[  FAILED  \]" "$asan_log" &&
+    ! grep -q "ERROR: \(Address\|Leak\|UndefinedBehavior\)Sanitizer\|runtime error:" "$asan_log"; then
+    echo "tests/run.sh: LeakSanitizer's tracer crashed after every test passed; running the suite again"
+    asan_tests
+  else
+    exit 1
+  fi
+fi
+rm -f "$asan_log"
 # libFuzzer targets (clang, ASan+UBSan): the NFF loader, the JSON scene
 # loader and the coordinator's request handling, each FUZZ_SECONDS (30) on
 # its seed corpus; a crash, a hang or a sanitizer report fails the run and
