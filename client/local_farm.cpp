@@ -223,33 +223,9 @@ void LocalFarm::monitor() {
   }
 }
 
-void LocalFarm::exit_process(int code) {
+void LocalFarm::end_workers() {
   // The monitor first, so that it neither reaps nor reports the workers
-  // killed here.
-  {
-    std::lock_guard lk(mu_);
-    stopping_ = true;
-  }
-  stop_.notify_all();
-  if (monitor_.joinable()) monitor_.join();
-  for (pid_t pid : pids_) kill(pid, SIGKILL);
-  // Reaped here, not left to whatever adopts them: a container's first
-  // process may never reap, and each `locus render` would leave zombies
-  // there. (Ignoring SIGCHLD instead would not wait, but a worker that dies
-  // after this process has exited is then its adopter's to reap.)
-  for (pid_t pid : pids_) {
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-  }
-  std::error_code ec;
-  if (!keep_ && !dir_.empty()) fs::remove_all(dir_, ec);
-  spdlog::default_logger()->flush();
-  std::fflush(nullptr);
-  std::_Exit(code);
-}
-
-LocalFarm::~LocalFarm() {
+  // ended here.
   {
     std::lock_guard lk(mu_);
     stopping_ = true;
@@ -264,7 +240,11 @@ LocalFarm::~LocalFarm() {
   // gets SIGTERM, so that its log ends with its own last words.
   for (pid_t pid : pids_) kill(pid, keep_ ? SIGTERM : SIGKILL);
   // Workers end their long poll at once on SIGTERM; a worker stuck in a
-  // band past the grace period is killed.
+  // band past the grace period is killed. Each is reaped here, not left to
+  // whatever adopts it: a container's first process may never reap, and
+  // each `locus render` would leave zombies there. (Ignoring SIGCHLD
+  // instead would not wait, but a worker that dies after this process has
+  // exited is then its adopter's to reap.)
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
   for (pid_t pid : pids_) {
     for (;;) {
@@ -280,10 +260,27 @@ LocalFarm::~LocalFarm() {
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
   }
-  if (server_) server_->shutdown(farm::Millis(1000));
-  if (coordinator_) coordinator_->shutdown();
+  pids_.clear();
+}
+
+void LocalFarm::remove_dir() {
   std::error_code ec;
   if (!keep_ && !dir_.empty()) fs::remove_all(dir_, ec);
+}
+
+void LocalFarm::exit_process(int code) {
+  end_workers();
+  remove_dir();
+  spdlog::default_logger()->flush();
+  std::fflush(nullptr);
+  std::_Exit(code);
+}
+
+LocalFarm::~LocalFarm() {
+  end_workers();
+  if (server_) server_->shutdown(farm::Millis(1000));
+  if (coordinator_) coordinator_->shutdown();
+  remove_dir();
 }
 
 }  // namespace locus::client

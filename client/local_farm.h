@@ -58,9 +58,9 @@ class LocalFarm {
   const std::string& dir() const { return dir_; }
   void keep_logs() { keep_ = true; }
 
-  // Ends this process once its job's files are written: SIGKILL to the
-  // workers (and reaped), the temporary directory removed, stdio and the
-  // log flushed, then std::_Exit(code). The coordinator, its server and
+  // Ends this process once its job's files are written: the workers ended
+  // (end_workers), the temporary directory removed, stdio and the log
+  // flushed, then std::_Exit(code). The coordinator, its server and
   // their threads are left to the exit: none holds anything the command
   // still needs (the job's frames are fetched), and shutting each down in
   // order cost `locus render --workers N` some 10-17 ms.
@@ -71,6 +71,13 @@ class LocalFarm {
   // Reaps workers that exit on their own; when none is left, cancels every
   // job, so that a client waiting on one learns of it instead of hanging.
   void monitor();
+  // Stops the monitor, then ends the workers and reaps them: SIGKILL, or
+  // where the logs are kept SIGTERM and SIGKILL after 3 s. Both ways out
+  // use it.
+  void end_workers();
+  // The temporary directory, unless its logs are kept; last, once nothing
+  // writes there any more.
+  void remove_dir();
 
   std::string dir_;
   std::string address_;
