@@ -310,9 +310,55 @@ Result<farm::JobInfo> FarmClient::watch(
   }
 }
 
-Result<std::vector<std::string>> FarmClient::fetch(
-    const std::string& job_id, const std::vector<int>& frames,
-    const std::function<std::string(int, const std::string&)>& dest, bool cost_maps) {
+FetchedFiles::~FetchedFiles() {
+  if (tmp_.empty()) return;
+  out_.reset();
+  std::error_code ec;
+  fs::remove(tmp_, ec);
+}
+
+bool FetchedFiles::failed(Status s) {
+  status_ = std::move(s);
+  return false;
+}
+
+bool FetchedFiles::take(const farm::FileChunk& chunk) {
+  if (!status_.ok()) return false;
+  if (chunk.offset == 0) {
+    // The name comes from the coordinator: it must not lead elsewhere.
+    if (Status s = farm::check_plain_file_name(chunk.file_name, peer_ + " sent a file"); !s.ok())
+      return failed(s);
+    path_ = dest_(chunk.frame, chunk.file_name);
+    std::error_code ec;
+    const fs::path path(path_);
+    if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
+    tmp_ = path_ + ".partial";
+    out_ = std::make_unique<std::ofstream>(tmp_, std::ios::binary | std::ios::trunc);
+    if (!*out_) return failed(Status(Code::kFailedPrecondition, path_ + ": cannot write"));
+    expected_ = 0;
+  }
+  if (chunk.offset != expected_ || !out_ || !out_->is_open()) {
+    return failed(Internal("frame " + std::to_string(chunk.frame) + " arrived out of order"));
+  }
+  out_->write(chunk.data.data(), static_cast<std::streamsize>(chunk.data.size()));
+  expected_ += static_cast<int64_t>(chunk.data.size());
+  if (chunk.last) {
+    out_->close();
+    const bool ok = static_cast<bool>(*out_);
+    out_.reset();
+    if (!ok) return failed(Status(Code::kFailedPrecondition, path_ + ": cannot write"));
+    std::error_code ec;
+    fs::rename(tmp_, path_, ec);
+    if (ec) return failed(Status(Code::kFailedPrecondition, path_ + ": " + ec.message()));
+    tmp_.clear();
+    written_.push_back(path_);
+  }
+  return true;
+}
+
+Result<std::vector<std::string>> FarmClient::fetch(const std::string& job_id,
+                                                   const std::vector<int>& frames,
+                                                   const FileDest& dest, bool cost_maps) {
   if (!impl_->broken.ok()) return impl_->broken;
   v1::FetchResultsRequest req;
   req.set_job_id(job_id);
@@ -321,57 +367,17 @@ Result<std::vector<std::string>> FarmClient::fetch(
   grpc::ClientContext ctx;
   impl_->prepare(ctx, rpc::kDataCall);
   auto reader = impl_->stub->FetchResults(&ctx, req);
-  std::vector<std::string> written;
-  std::ofstream out;
-  fs::path path, tmp;
-  int64_t expected = 0;
+  FetchedFiles files(dest, impl_->peer);
   v1::FileChunk received;
-  auto abandon = [&](Status s) -> Status {
-    ctx.TryCancel();
-    reader->Finish();
-    std::error_code ec;
-    if (!tmp.empty()) fs::remove(tmp, ec);
-    return s;
-  };
   while (reader->Read(&received)) {
-    const farm::FileChunk chunk = rpc::FromProto(std::move(received));
-    if (chunk.offset == 0) {
-      // The name comes from the coordinator: it must not lead elsewhere.
-      if (Status s = farm::check_plain_file_name(chunk.file_name, impl_->peer + " sent a file");
-          !s.ok()) {
-        return abandon(s);
-      }
-      path = dest(chunk.frame, chunk.file_name);
-      std::error_code ec;
-      if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
-      tmp = path;
-      tmp += ".partial";
-      out = std::ofstream(tmp, std::ios::binary | std::ios::trunc);
-      if (!out) return abandon(Status(Code::kFailedPrecondition, path.string() + ": cannot write"));
-      expected = 0;
-    }
-    if (chunk.offset != expected || !out.is_open()) {
-      return abandon(Internal("frame " + std::to_string(chunk.frame) + " arrived out of order"));
-    }
-    out.write(chunk.data.data(), static_cast<std::streamsize>(chunk.data.size()));
-    expected += static_cast<int64_t>(chunk.data.size());
-    if (chunk.last) {
-      out.close();
-      std::error_code ec;
-      if (!out) return abandon(Status(Code::kFailedPrecondition, path.string() + ": cannot write"));
-      fs::rename(tmp, path, ec);
-      if (ec)
-        return abandon(Status(Code::kFailedPrecondition, path.string() + ": " + ec.message()));
-      tmp.clear();
-      written.push_back(path.string());
+    if (!files.take(rpc::FromProto(std::move(received)))) {
+      ctx.TryCancel();
+      reader->Finish();
+      return files.status();
     }
   }
-  if (Status s = impl_->check(reader->Finish()); !s.ok()) {
-    std::error_code ec;
-    if (!tmp.empty()) fs::remove(tmp, ec);
-    return s;
-  }
-  return written;
+  if (Status s = impl_->check(reader->Finish()); !s.ok()) return s;
+  return files.written();
 }
 
 }  // namespace locus::client

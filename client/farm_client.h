@@ -2,6 +2,7 @@
 // a locus::Status whose message names the farm and the fix.
 #pragma once
 
+#include <fstream>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -23,6 +24,35 @@ namespace locus::client {
 // caller adds what to do) rather than by gRPC. FarmClient::submit checks
 // it; `locus render` asks first, to render in process instead.
 Status check_submission_size(const farm::SubmitRequest& request);
+
+// Where fetched files go (FarmClient::fetch, LocalFarm::fetch): a frame's
+// file name from the coordinator to the client's path.
+using FileDest = std::function<std::string(int frame, const std::string& file_name)>;
+
+// Writes the chunks of fetched files, in the order a coordinator sends them
+// (Coordinator::fetch), each file to dest(frame, name) through a
+// ".partial" beside it, renamed once whole. `peer` names the sender in its
+// errors. The first failure stops it (take() returns false) and is
+// status(); a writer destroyed with a file half written removes it.
+class FetchedFiles {
+ public:
+  FetchedFiles(FileDest dest, std::string peer) : dest_(std::move(dest)), peer_(std::move(peer)) {}
+  ~FetchedFiles();
+  bool take(const farm::FileChunk& chunk);
+  const Status& status() const { return status_; }
+  // The files written whole, in order.
+  const std::vector<std::string>& written() const { return written_; }
+
+ private:
+  bool failed(Status s);
+  FileDest dest_;
+  std::string peer_;
+  Status status_ = Status::Ok();
+  std::vector<std::string> written_;
+  std::unique_ptr<std::ofstream> out_;
+  std::string path_, tmp_;
+  int64_t expected_ = 0;
+};
 
 class FarmClient {
  public:
@@ -65,9 +95,8 @@ class FarmClient {
   // A file name from the coordinator that is not a plain file name is
   // refused before `dest` sees it. `cost_maps`: the frames' cost maps
   // instead (a job submitted with one).
-  Result<std::vector<std::string>> fetch(
-      const std::string& job_id, const std::vector<int>& frames,
-      const std::function<std::string(int, const std::string&)>& dest, bool cost_maps = false);
+  Result<std::vector<std::string>> fetch(const std::string& job_id, const std::vector<int>& frames,
+                                         const FileDest& dest, bool cost_maps = false);
 
  private:
   class Impl;

@@ -255,10 +255,22 @@ int render_in_process(const RenderArgs& a, Result<PreparedJob> job) {
   return 0;
 }
 
+// How a job's files are fetched: every written frame (or cost map) of the
+// job, each to dest (FarmClient::fetch over gRPC; LocalFarm::fetch in the
+// embedded farm's process).
+using Fetch = std::function<Result<std::vector<std::string>>(
+    const std::string& job_id, const client::FileDest& dest, bool cost_maps)>;
+
+Fetch fetch_by(client::FarmClient& farm) {
+  return [&farm](const std::string& job_id, const client::FileDest& dest, bool cost_maps) {
+    return farm.fetch(job_id, {}, dest, cost_maps);
+  };
+}
+
 // Follows a job to its end with a progress display on stderr, then fetches
 // its frames to the output pattern, and their cost maps to `cost_map`'s
 // (empty: none). Returns the process exit code.
-int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted,
+int follow_and_fetch(client::FarmClient& farm, const Fetch& fetch, const farm::JobInfo& submitted,
                      const std::string& output, bool show_progress, farm::JobInfo* final_info,
                      const std::string& cost_map = {}) {
   client::Progress progress(stderr, isatty(STDERR_FILENO) != 0);
@@ -272,13 +284,13 @@ int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted,
     return fail("job " + done->job_id + " " + farm::job_state_name(done->state) +
                 (done->error.empty() ? "" : ": " + done->error));
   }
-  auto files = farm.fetch(done->job_id, {},
-                          [&](int frame, const std::string&) { return frame_path(output, frame); });
+  auto files = fetch(
+      done->job_id, [&](int frame, const std::string&) { return frame_path(output, frame); },
+      /*cost_maps=*/false);
   if (!files.ok()) return fail(files.status());
   if (!cost_map.empty()) {
-    auto maps = farm.fetch(
-        done->job_id, {},
-        [&](int frame, const std::string&) { return frame_path(cost_map, frame); },
+    auto maps = fetch(
+        done->job_id, [&](int frame, const std::string&) { return frame_path(cost_map, frame); },
         /*cost_maps=*/true);
     if (!maps.ok()) return fail(maps.status());
   }
@@ -287,14 +299,15 @@ int follow_and_fetch(client::FarmClient& farm, const farm::JobInfo& submitted,
 
 // The movie job of a render job that follow_and_fetch() saw succeed:
 // followed too, and its file fetched to `movie` (the client's path).
-int follow_movie(client::FarmClient& farm, const farm::JobInfo& render, const std::string& movie) {
+int follow_movie(client::FarmClient& farm, const Fetch& fetch, const farm::JobInfo& render,
+                 const std::string& movie) {
   if (movie.empty()) return 0;
   if (render.movie_job.empty()) return fail("job " + render.job_id + " has no movie job");
   auto job = farm.job(render.movie_job);
   if (!job.ok()) return fail(job.status());
   std::fprintf(stderr, "locus: job %s makes the movie %s\n", job->job_id.c_str(), movie.c_str());
   make_parent_dirs(movie);
-  return follow_and_fetch(farm, *job, movie, false, nullptr);
+  return follow_and_fetch(farm, fetch, *job, movie, false, nullptr);
 }
 
 int render_on_local_farm(const RenderArgs& a, int workers) {
@@ -356,7 +369,7 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
   farm::Credentials local_creds;
   local_creds.token = (*local)->token();
   client::FarmClient farm((*local)->address(), local_creds);
-  auto submitted = farm.submit(request);
+  auto submitted = (*local)->submit(request);
   Status ready = submitted.ok() ? (*local)->wait_for_workers() : submitted.status();
   if (!ready.ok()) {
     local->reset();
@@ -364,9 +377,13 @@ int render_on_local_farm(const RenderArgs& a, int workers) {
     return fail(ready);
   }
   farm::JobInfo info;
-  int rc = follow_and_fetch(farm, *submitted, a.job.output, isatty(STDERR_FILENO) != 0, &info,
-                            a.job.cost_map);
-  if (rc == 0) rc = follow_movie(farm, info, a.job.movie);
+  // Followed over gRPC (the progress display's stream); the files taken
+  // from the coordinator by a call.
+  const Fetch fetch = [&local](const std::string& job_id, const client::FileDest& dest,
+                               bool cost_maps) { return (*local)->fetch(job_id, dest, cost_maps); };
+  int rc = follow_and_fetch(farm, fetch, *submitted, a.job.output, isatty(STDERR_FILENO) != 0,
+                            &info, a.job.cost_map);
+  if (rc == 0) rc = follow_movie(farm, fetch, info, a.job.movie);
   if (rc != 0) {
     (*local)->keep_logs();
     const std::string logs = (*local)->dir();
@@ -442,8 +459,10 @@ int run_submit(const std::string& address, const farm::Credentials& creds, const
   }
   if (!a.wait) return 0;
   farm::JobInfo info;
-  const int rc = follow_and_fetch(farm, *submitted, a.job.output, true, &info, a.job.cost_map);
-  return rc != 0 ? rc : follow_movie(farm, info, a.job.movie);
+  const Fetch fetch = fetch_by(farm);
+  const int rc =
+      follow_and_fetch(farm, fetch, *submitted, a.job.output, true, &info, a.job.cost_map);
+  return rc != 0 ? rc : follow_movie(farm, fetch, info, a.job.movie);
 }
 
 }  // namespace locus::cli

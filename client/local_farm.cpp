@@ -153,7 +153,8 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   if (Status s = farm->coordinator_->start(); !s.ok()) return s;
   rpc::ServerSecurity security;
   security.insecure = true;
-  security.auth = farm::Authenticator::from_tokens({"local " + farm->token_}, {farm->token_});
+  security.auth =
+      farm::Authenticator::from_tokens({std::string(kUser) + " " + farm->token_}, {farm->token_});
   farm->server_ = std::make_unique<rpc::CoordinatorServer>(*farm->coordinator_);
   auto port = farm->server_->start("127.0.0.1:0", std::move(security));
   if (!port.ok()) return port.status();
@@ -179,6 +180,21 @@ Result<std::unique_ptr<LocalFarm>> LocalFarm::start(const LocalFarmOptions& o) {
   farm->workers_ = o.workers;
   farm->monitor_ = std::thread([f = farm.get()] { f->monitor(); });
   return farm;
+}
+
+Result<farm::JobInfo> LocalFarm::submit(const farm::SubmitRequest& request) {
+  return coordinator_->submit(request, kUser);
+}
+
+Result<std::vector<std::string>> LocalFarm::fetch(const std::string& job_id, const FileDest& dest,
+                                                  bool cost_maps) {
+  FetchedFiles files(dest, "the local farm");
+  const Status s = coordinator_->fetch(
+      job_id, farm::Caller{kUser, false}, {},
+      [&files](const farm::FileChunk& c) { return files.take(c); }, cost_maps);
+  if (!files.status().ok()) return files.status();
+  if (!s.ok()) return s;
+  return files.written();
 }
 
 Status LocalFarm::wait_for_workers() {
