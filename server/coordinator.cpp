@@ -81,7 +81,7 @@ Status Coordinator::recover() {
                               " is in use by another coordinator; give each its own directory");
   }
   const std::string db = (fs::path(options_.data_dir) / "locus.db").string();
-  auto store = JobStore::open(db);
+  auto store = JobStore::open(db, options_.fsync);
   if (!store.ok()) return store.status();
   store_ = std::move(*store);
   auto state = store_->recover();

@@ -25,7 +25,10 @@ namespace locus::farm {
 class JobStore {
  public:
   // Opens (creating when new) the database at `path`.
-  static Result<std::unique_ptr<JobStore>> open(const std::string& path);
+  // `sync` false (a coordinator without --fsync, such as the embedded
+  // farm's): SQLite syncs nothing either (synchronous=OFF), its
+  // checkpoints included; a kill -9 is still survived, a power loss not.
+  static Result<std::unique_ptr<JobStore>> open(const std::string& path, bool sync = true);
   // A second connection to the same database that only reads (the frame
   // writer's, so that reading a frame's pixels does not hold the
   // coordinator's lock). WAL: it sees every committed transaction.

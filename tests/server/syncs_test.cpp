@@ -10,6 +10,7 @@
 #include <string>
 
 #include "server/coordinator.h"
+#include "server/store.h"
 #include "tests/farm_fixture.h"
 #include "tests/server/coordinator_doubles.h"
 #include "tests/server/scheduler_doubles.h"
@@ -84,6 +85,47 @@ TEST(Syncs, ADurableBandAndItsFrameCostThreeSyncs) {
   EXPECT_EQ(testing_farm::sample(text, "locus_syncs_total{by=\"store\"}"),
             static_cast<double>(after.store))
       << text;
+  c.shutdown();
+}
+
+// A scene bigger than SQLite's checkpoint threshold (1000 pages of 4 KB):
+// storing it checkpoints the log. A store opened to sync (a coordinator
+// with --fsync, the default) syncs the log and the database then; one
+// opened without (--no-fsync, the embedded farm's) syncs nothing at all.
+TEST(Syncs, AStoreOpenedWithoutSyncsSyncsNothingEvenAtACheckpoint) {
+  const std::string scene(6 << 20, 's');
+  for (const bool sync : {true, false}) {
+    SCOPED_TRACE(sync ? "sync" : "no sync");
+    TempDir dir;
+    auto store = JobStore::open((dir.path / "locus.db").string(), sync);
+    ASSERT_TRUE(store.ok()) << store.status().message();
+    const SyncCounts before = sync_counts();
+    ASSERT_TRUE((*store)->put_scene("h", scene).ok());
+    const uint64_t syncs = sync_counts().store - before.store;
+    if (sync) {
+      EXPECT_GE(syncs, 2u);
+    } else {
+      EXPECT_EQ(syncs, 0u);
+    }
+    auto back = (*store)->scene("h");
+    ASSERT_TRUE(back.ok()) << back.status().message();
+    EXPECT_EQ(back->size(), scene.size());
+  }
+  // The coordinator opens its store as its --fsync says: a job whose
+  // scene is past the threshold (its first object 60,000 times over).
+  TempDir dir;
+  CoordinatorOptions o = test_doubles::test_options(dir.path);
+  o.fsync = false;
+  Coordinator c(o);
+  ASSERT_TRUE(c.start().ok());
+  SubmitRequest r = request(kSpheres, 16, 8, 1, 1, 1, "s_####.png");
+  const v1::Object first = r.scene.objects(0);
+  for (int i = 0; i < 60000; ++i) *r.scene.add_objects() = first;
+  ASSERT_GT(r.scene.ByteSizeLong(), size_t{5} << 20);
+  const SyncCounts before = sync_counts();
+  auto job = c.submit(r);  // the scene stored before the job is
+  ASSERT_TRUE(job.ok()) << job.status().message();
+  EXPECT_EQ(sync_counts().total(), before.total());
   c.shutdown();
 }
 
