@@ -312,7 +312,7 @@ Result<farm::JobInfo> FarmClient::watch(
 
 FetchedFiles::~FetchedFiles() {
   if (tmp_.empty()) return;
-  out_.reset();
+  out_.close();
   std::error_code ec;
   fs::remove(tmp_, ec);
 }
@@ -333,20 +333,18 @@ bool FetchedFiles::take(const farm::FileChunk& chunk) {
     const fs::path path(path_);
     if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
     tmp_ = path_ + ".partial";
-    out_ = std::make_unique<std::ofstream>(tmp_, std::ios::binary | std::ios::trunc);
-    if (!*out_) return failed(Status(Code::kFailedPrecondition, path_ + ": cannot write"));
+    out_ = std::ofstream(tmp_, std::ios::binary | std::ios::trunc);
+    if (!out_) return failed(Status(Code::kFailedPrecondition, path_ + ": cannot write"));
     expected_ = 0;
   }
-  if (chunk.offset != expected_ || !out_ || !out_->is_open()) {
+  if (chunk.offset != expected_ || !out_.is_open()) {
     return failed(Internal("frame " + std::to_string(chunk.frame) + " arrived out of order"));
   }
-  out_->write(chunk.data.data(), static_cast<std::streamsize>(chunk.data.size()));
+  out_.write(chunk.data.data(), static_cast<std::streamsize>(chunk.data.size()));
   expected_ += static_cast<int64_t>(chunk.data.size());
   if (chunk.last) {
-    out_->close();
-    const bool ok = static_cast<bool>(*out_);
-    out_.reset();
-    if (!ok) return failed(Status(Code::kFailedPrecondition, path_ + ": cannot write"));
+    out_.close();
+    if (!out_) return failed(Status(Code::kFailedPrecondition, path_ + ": cannot write"));
     std::error_code ec;
     fs::rename(tmp_, path_, ec);
     if (ec) return failed(Status(Code::kFailedPrecondition, path_ + ": " + ec.message()));

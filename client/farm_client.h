@@ -49,7 +49,7 @@ class FetchedFiles {
   std::string peer_;
   Status status_ = Status::Ok();
   std::vector<std::string> written_;
-  std::unique_ptr<std::ofstream> out_;
+  std::ofstream out_;
   std::string path_, tmp_;
   int64_t expected_ = 0;
 };
