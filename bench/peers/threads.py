@@ -14,14 +14,15 @@ each farm image is compared with the --threads 1 image: they must be
 bit-identical. The load average is recorded at the start and the end; on a
 loaded machine (the farm benchmarks share it) --wait-load waits first.
 
-Before and after each round a probe measures how many cores the machine
-gives two CPU-bound processes at that moment (`capacity`: one alone, then
-two side by side; 2.0 on two free cores). A virtual machine's second core
-can be taken by its host for seconds at a time (this bench's host gave 1.05
-to 1.4 cores' worth in minutes when nothing else ran in it); a 2-against-1
-ratio measured then says nothing about Locus. The targets are judged on
-the rounds whose probes both read at least CAPACITY_MIN; the report gives
-every round with its probe, and the best-of over all rounds beside.
+Between every two jobs a probe measures how many cores the machine gives
+two CPU-bound processes at that moment (`capacity`: one alone, two side by
+side, one alone again; 2.0 on two free cores). A virtual machine's second
+core can be taken by its host for seconds at a time (this bench's host gave
+1.03 to 1.95 cores' worth from one probe to the next, with nothing else
+running in it); a 2-against-1 ratio measured then says nothing about
+Locus. The targets are judged on the runs whose probes (before and after)
+both read at least CAPACITY_MIN; the report gives every run with its
+probe, and the figures over every run beside.
 
 Targets: render --threads 2 >= 1.9x --threads 1; whole frame (prepare +
 render) >= 1.7x; embedded farm 2 workers >= 1.85x 1 worker.
@@ -59,9 +60,9 @@ SCENES = [("d", os.path.join(H.ROOT, "scenes", "paper", "d_spheres_2lights.json"
 BIG = [("tetra9", ("tetra", 9))]
 IV = ["--method", "local", "--boxes", "eye+shadow", "--aa", "4"]
 TARGETS = {"render": 1.9, "frame": 1.7, "farm": 1.85}
-# A round counts for the targets when the machine gave at least this many
-# cores' worth before and after it (the probe reads 1.93-2.0 on two idle
-# cores of this bench's host).
+# A run counts for the targets when the machine gave at least this many
+# cores' worth just before and just after it (the probe reads 1.93-2.0 on
+# two idle cores of this bench's host).
 CAPACITY_MIN = 1.85
 # The probe's work: about 0.15 s of one core in CPython on this host.
 SPIN = 3_000_000
@@ -172,7 +173,7 @@ def best(runs, key):
     return min(vals) if vals else float("nan")
 
 
-def two_core_rounds(runs):
+def two_core_runs(runs):
     """The runs whose probes (before and after each) both read CAPACITY_MIN
     or more (raw files from before the probe: every run)."""
     return {k: [x for x in v if x.get("capacity", CAPACITY_MIN) >= CAPACITY_MIN]
@@ -180,9 +181,9 @@ def two_core_rounds(runs):
 
 
 def summary(scene, every_round=False):
-    """Best-of figures and the three ratios of one scene, over its rounds
-    on two cores (two_core_rounds), or over all of them."""
-    r = scene["runs"] if every_round else two_core_rounds(scene["runs"])
+    """Best-of figures and the three ratios of one scene, over its runs on
+    two cores (two_core_runs), or over all of them."""
+    r = scene["runs"] if every_round else two_core_runs(scene["runs"])
     s = {f"{k}_{m}": best(r.get(k, []), m)
          for k in ("t1", "t2") for m in ("prepare", "render", "frame", "load")}
     s.update({f"{k}_wall": best(r.get(k, []), "wall") for k in ("w1", "w2")})
@@ -201,8 +202,8 @@ def summary(scene, every_round=False):
     return s
 
 
-def rounds_line(scene):
-    """How many of a scene's rounds count for the targets, and what the
+def probe_line(scene):
+    """How many of a scene's runs count for the targets, and what the
     probes read."""
     caps = [x["capacity"] for runs in scene["runs"].values() for x in runs if "capacity" in x]
     if not caps:
@@ -236,7 +237,7 @@ def target_lines(scenes):
                              f"{'PASS' if ok else 'FAIL'}")
             continue
         every = summary(sc, every_round=True)
-        lines.append(f"{name}: {rounds_line(sc)}")
+        lines.append(f"{name}: {probe_line(sc)}")
         lines.append(f"{name}: render --threads 2 {s['render_x']:.2f}x --threads 1 "
                      f"({s['t1_render']:.3f} -> {s['t2_render']:.3f} s; target >= "
                      f"{TARGETS['render']}; median of rounds {s['render_med']:.2f}x; every "

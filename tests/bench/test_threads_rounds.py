@@ -1,4 +1,4 @@
-"""bench/peers/threads.py judges its 2-against-1 targets on the rounds in
+"""bench/peers/threads.py judges its 2-against-1 targets on the runs during
 which the machine gave two cores (its `capacity` probe): these tests hold
 that selection, the report's line about it, and the probe's reading."""
 import math
@@ -43,7 +43,7 @@ class RoundsOnTwoCores(unittest.TestCase):
         self.assertAlmostEqual(s["render_med"], (1.00 / 0.52 + 1.02 / 0.53) / 2)
         every = threads.summary(sc, every_round=True)
         self.assertAlmostEqual(every["render_x"], 0.90 / 0.52)
-        self.assertIn("8 of 12 runs on two cores", threads.rounds_line(sc))
+        self.assertIn("8 of 12 runs on two cores", threads.probe_line(sc))
 
     def test_no_round_on_two_cores_is_not_measured(self):
         sc = scene([1.2, 1.4], t1=[1.0, 1.0], t2=[0.9, 0.8], w1=[1.1, 1.1], w2=[1.0, 0.9])
@@ -51,7 +51,7 @@ class RoundsOnTwoCores(unittest.TestCase):
         self.assertTrue(math.isnan(s["render_x"]))
         self.assertEqual(threads.verdict(s["render_x"], threads.TARGETS["render"]),
                          "not measured")
-        self.assertIn("none, so not measured", threads.rounds_line(sc))
+        self.assertIn("none, so not measured", threads.probe_line(sc))
         lines = threads.target_lines({"d": sc})
         self.assertTrue(any("render --threads 2" in l and l.endswith("not measured")
                             for l in lines), lines)
@@ -63,7 +63,7 @@ class RoundsOnTwoCores(unittest.TestCase):
                 del r["capacity"]
         s = threads.summary(sc)
         self.assertAlmostEqual(s["t1_render"], 0.8)
-        self.assertIn("no core probe", threads.rounds_line(sc))
+        self.assertIn("no core probe", threads.probe_line(sc))
 
     def test_the_probe_reads_a_number_of_cores(self):
         # Whatever this machine gives now: between one core's worth (both
