@@ -21,8 +21,10 @@ core can be taken by its host for seconds at a time (this bench's host gave
 1.03 to 1.95 cores' worth from one probe to the next, with nothing else
 running in it); a 2-against-1 ratio measured then says nothing about
 Locus. The targets are judged on the runs whose probes (before and after)
-both read at least CAPACITY_MIN; the report gives every run with its
-probe, and the figures over every run beside.
+both read at least CAPACITY_MIN, a job's best of at least
+MIN_TWO_CORE_RUNS such runs (else its lines are "not measured"); the
+report gives every run with its probe, and the figures over every run
+beside.
 
 Targets: render --threads 2 >= 1.9x --threads 1; whole frame (prepare +
 render) >= 1.7x; embedded farm 2 workers >= 1.85x 1 worker.
@@ -64,6 +66,9 @@ TARGETS = {"render": 1.9, "frame": 1.7, "farm": 1.85}
 # cores' worth just before and just after it (the probe reads 1.93-2.0 on
 # two idle cores of this bench's host).
 CAPACITY_MIN = 1.85
+# A job's figure on two cores is its best of at least this many such runs
+# (best-of-1 is one sample of the host's drift); fewer: not measured.
+MIN_TWO_CORE_RUNS = 3
 # The probe's work: about 0.15 s of one core in CPython on this host.
 SPIN = 3_000_000
 
@@ -131,7 +136,9 @@ def identical(a, b):
     return r.returncode == 0
 
 
-def measure(name, path, size, repeat, locus, binary, tmp, farm):
+def measure(name, path, size, repeat, locus, binary, tmp, farm, max_rounds=0):
+    """`repeat` rounds of the scene's jobs, then more (up to `max_rounds` in
+    all) while a job has fewer than MIN_TWO_CORE_RUNS runs on two cores."""
     jobs = [("t1", "--threads 1", "locus",
              lambda out: in_process(locus, path, size, 1, out)),
             ("t2", "--threads 2", "locus",
@@ -145,15 +152,21 @@ def measure(name, path, size, repeat, locus, binary, tmp, farm):
     # host's speed drifts over seconds (other machines' work), and a job
     # always run first or last would meet that drift alike every time.
     runs, images, notes = {key: [] for key, *_ in jobs}, {}, {}
-    for rnd in range(repeat):
+
+    def short():
+        return any(not two_core_runs({k: v})[k] for k, v in runs.items() if k not in notes)
+
+    rnd = 0
+    while rnd < repeat or (rnd < max_rounds and short()):
         order = jobs if rnd % 2 == 0 else jobs[::-1]
+        of = f"{rnd + 1}/{repeat}" if rnd < repeat else f"{rnd + 1} (more: too few on two cores)"
         # A probe between every two jobs: the host takes and gives back its
         # second core within seconds, so a round's two ends do not tell.
         before = capacity()
         for job in [j for j in order if j[0] not in notes]:
-            r, im, nt = H.rounds([job], 1, f"{name} round {rnd + 1}/{repeat}", tmp, name)
+            r, im, nt = H.rounds([job], 1, f"{name} round {of}", tmp, name)
             after = capacity()
-            H.log(f"{name} round {rnd + 1}/{repeat} {job[0]}: the machine gave {before:.2f} "
+            H.log(f"{name} round {of} {job[0]}: the machine gave {before:.2f} "
                   f"cores before, {after:.2f} after")
             for key, rec in r.items():
                 for x in rec:
@@ -164,6 +177,7 @@ def measure(name, path, size, repeat, locus, binary, tmp, farm):
                 images.setdefault(key, image)
             notes.update(nt)
             before = after
+        rnd += 1
     same = {k: identical(images["t1"], images[k]) for k in images if k != "t1"}
     return {"runs": runs, "same": same, "notes": notes}
 
@@ -175,9 +189,12 @@ def best(runs, key):
 
 def two_core_runs(runs):
     """The runs whose probes (before and after each) both read CAPACITY_MIN
-    or more (raw files from before the probe: every run)."""
-    return {k: [x for x in v if x.get("capacity", CAPACITY_MIN) >= CAPACITY_MIN]
-            for k, v in runs.items()}
+    or more (raw files from before the probe: every run); a job with fewer
+    than MIN_TWO_CORE_RUNS of them keeps none."""
+    if not any("capacity" in x for v in runs.values() for x in v):
+        return runs
+    kept = {k: [x for x in v if x.get("capacity", 0.0) >= CAPACITY_MIN] for k, v in runs.items()}
+    return {k: v if len(v) >= MIN_TWO_CORE_RUNS else [] for k, v in kept.items()}
 
 
 def summary(scene, every_round=False):
@@ -209,9 +226,11 @@ def probe_line(scene):
     if not caps:
         return "runs: every one counts (no core probe in this raw file)"
     good = sum(1 for c in caps if c >= CAPACITY_MIN)
+    short = sorted(k for k, v in scene["runs"].items() if v and not two_core_runs({k: v})[k])
     return (f"{good} of {len(caps)} runs on two cores (probes >= {CAPACITY_MIN}; read "
-            f"{min(caps):.2f}-{max(caps):.2f}); the targets are judged on those" +
-            ("" if good else ": none, so not measured"))
+            f"{min(caps):.2f}-{max(caps):.2f}); the targets are judged on those, at least "
+            f"{MIN_TWO_CORE_RUNS} a job" +
+            (f": too few for {', '.join(short)}, whose lines are not measured" if short else ""))
 
 
 def verdict(x, target):
@@ -337,6 +356,10 @@ def main():
     ap.add_argument("--wait-load", type=float, default=0.6,
                     help="first wait until the 1-minute load is below this (default 0.6)")
     ap.add_argument("--max-wait", type=float, default=600, help="seconds (default 600)")
+    ap.add_argument("--max-rounds", type=int, default=30,
+                    help="after --repeat rounds, more rounds of a scene (up to this many in "
+                         f"all) while a job has fewer than {MIN_TWO_CORE_RUNS} runs on two cores "
+                         "(default 30)")
     ap.add_argument("--out", help="output directory (default bench/results; quick: a temp dir)")
     ap.add_argument("--cache", default="/var/tmp/locus-bench-accuracy",
                     help="where a full run's raw measurements go (threads-raw.json)")
@@ -378,7 +401,8 @@ def main():
                 scenes = scenes + [(name, path)]
         results = {}
         for name, path in scenes:
-            results[name] = measure(name, path, size, repeat, locus, locus.binary, tmp, farm)
+            results[name] = measure(name, path, size, repeat, locus, locus.binary, tmp, farm,
+                                    0 if args.quick else args.max_rounds)
             results[name]["information"] = name in dict(BIG)
         info["load_end"] = H.loadavg()
         raw = {"info": info, "scenes": results}

@@ -32,18 +32,29 @@ class RoundsOnTwoCores(unittest.TestCase):
     def test_a_round_on_one_core_does_not_count(self):
         # Round 1 ran while the host took the second core: its --threads 2
         # render was as slow as --threads 1 but its --threads 1 the fastest.
-        sc = scene([1.95, 1.05, 1.90], t1=[1.00, 0.90, 1.02], t2=[0.52, 0.90, 0.53],
-                   w1=[1.10, 1.00, 1.12], w2=[0.60, 0.98, 0.61])
+        sc = scene([1.95, 1.05, 1.90, 1.97], t1=[1.00, 0.90, 1.02, 1.08],
+                   t2=[0.52, 0.90, 0.53, 0.54], w1=[1.10, 1.00, 1.12, 1.11],
+                   w2=[0.60, 0.98, 0.61, 0.62])
         s = threads.summary(sc)
         self.assertAlmostEqual(s["t1_render"], 1.00)
         self.assertAlmostEqual(s["t2_render"], 0.52)
         self.assertAlmostEqual(s["render_x"], 1.00 / 0.52)
         self.assertAlmostEqual(s["farm_x"], 1.10 / 0.60)
-        # The median of the rounds' own ratios pairs runs by their round.
-        self.assertAlmostEqual(s["render_med"], (1.00 / 0.52 + 1.02 / 0.53) / 2)
+        # The median of the rounds' own ratios pairs runs by their round
+        # (1.92, 1.92, 2.0 from rounds 0, 2 and 3).
+        self.assertAlmostEqual(s["render_med"], 1.02 / 0.53)
         every = threads.summary(sc, every_round=True)
         self.assertAlmostEqual(every["render_x"], 0.90 / 0.52)
-        self.assertIn("8 of 12 runs on two cores", threads.probe_line(sc))
+        self.assertIn("12 of 16 runs on two cores", threads.probe_line(sc))
+
+    def test_fewer_than_three_runs_on_two_cores_are_not_measured(self):
+        # Two good runs of each job: a best of two is not a best of several.
+        sc = scene([1.95, 1.05, 1.90], t1=[1.00, 0.90, 1.02], t2=[0.52, 0.90, 0.53],
+                   w1=[1.10, 1.00, 1.12], w2=[0.60, 0.98, 0.61])
+        s = threads.summary(sc)
+        self.assertTrue(math.isnan(s["render_x"]))
+        self.assertTrue(math.isnan(s["farm_x"]))
+        self.assertIn("too few for t1, t2, w1, w2", threads.probe_line(sc))
 
     def test_no_round_on_two_cores_is_not_measured(self):
         sc = scene([1.2, 1.4], t1=[1.0, 1.0], t2=[0.9, 0.8], w1=[1.1, 1.1], w2=[1.0, 0.9])
@@ -51,7 +62,7 @@ class RoundsOnTwoCores(unittest.TestCase):
         self.assertTrue(math.isnan(s["render_x"]))
         self.assertEqual(threads.verdict(s["render_x"], threads.TARGETS["render"]),
                          "not measured")
-        self.assertIn("none, so not measured", threads.probe_line(sc))
+        self.assertIn("too few for t1, t2, w1, w2", threads.probe_line(sc))
         lines = threads.target_lines({"d": sc})
         self.assertTrue(any("render --threads 2" in l and l.endswith("not measured")
                             for l in lines), lines)
@@ -64,6 +75,45 @@ class RoundsOnTwoCores(unittest.TestCase):
         s = threads.summary(sc)
         self.assertAlmostEqual(s["t1_render"], 0.8)
         self.assertIn("no core probe", threads.probe_line(sc))
+
+    def test_more_rounds_while_a_job_has_too_few_runs_on_two_cores(self):
+        # The probe reads one core's worth for the first 9 probes, then two:
+        # after the 2 rounds asked for, rounds go on until each job has 3
+        # runs between two good probes, and no further.
+        readings = iter([1.0] * 9 + [2.0] * 1000)
+        calls = []
+
+        def rounds(jobs, repeat, tag, tmp, prefix):
+            key = jobs[0][0]
+            calls.append(key)
+            return {key: [{"cpu": 0.0, "render": 1.0, "prepare": 0.0, "frame": 1.0,
+                           "load": 0.0, "wall": 1.0}]}, {key: f"{key}.exr"}, {}
+
+        saved = (threads.capacity, threads.H.rounds, threads.identical)
+        threads.capacity = lambda n=0: next(readings)
+        threads.H.rounds = rounds
+        threads.identical = lambda a, b: True
+        try:
+            got = threads.measure("d", "d.json", 64, 2, None, "locus", "/tmp", True,
+                                  max_rounds=30)
+        finally:
+            threads.capacity, threads.H.rounds, threads.identical = saved
+        # Probes 1-9 low: rounds 1-2 (4 jobs each, 9 probes) count for
+        # nothing; rounds 3-5 give each job its 3 runs; then it stops.
+        self.assertEqual(len(calls), 5 * 4)
+        for key in ("t1", "t2", "w1", "w2"):
+            self.assertEqual(len(got["runs"][key]), 5)
+            self.assertEqual(len(threads.two_core_runs(got["runs"])[key]), 3)
+        # And it stops at max_rounds when the machine never gives two cores.
+        calls.clear()
+        threads.capacity = lambda n=0: 1.0
+        threads.H.rounds = rounds
+        threads.identical = lambda a, b: True
+        try:
+            threads.measure("d", "d.json", 64, 2, None, "locus", "/tmp", True, max_rounds=6)
+        finally:
+            threads.capacity, threads.H.rounds, threads.identical = saved
+        self.assertEqual(len(calls), 6 * 4)
 
     def test_the_probe_reads_a_number_of_cores(self):
         # Whatever this machine gives now: between one core's worth (both
