@@ -219,6 +219,15 @@ def summary(scene, every_round=False):
     return s
 
 
+def rounds_taken(scenes):
+    """The rounds each scene took, "d 7, balls 30, ..." ("?" in raw files
+    without round numbers)."""
+    def taken(sc):
+        rnds = [x["round"] for runs in sc["runs"].values() for x in runs if "round" in x]
+        return str(max(rnds) + 1) if rnds else "?"
+    return ", ".join(f"{name} {taken(sc)}" for name, sc in scenes.items())
+
+
 def probe_line(scene):
     """How many of a scene's runs count for the targets, and what the
     probes read."""
@@ -282,8 +291,9 @@ def report(out_dir, info, scenes):
     md = [f"# Threads (issue #27 item 4)", "",
           f"{info['date']}, commit {info['commit']}, locus {info.get('locus', '?')}, "
           f"{H.host(info)}; {info['size']}x{info['size']}, configuration IV --aa 4; "
-          f"best of {info['repeat']} rounds (each job once per round, side by side), over "
-          f"the rounds on which the machine gave two cores (below).", "",
+          f"{info['repeat']} rounds asked (each job once per round, side by side), "
+          f"{rounds_taken(scenes)} taken (more while a job had too few runs on two cores); "
+          f"best of the runs on which the machine gave two cores (below).", "",
           f"Load average (1, 5, 15 min): {info['load_start']} at the start, "
           f"{info.get('load_end', '?')} at the end.", "",
           "In process (`--workers 0`): `seconds.prepare` and `seconds.render` of `--stats` "

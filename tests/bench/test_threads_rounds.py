@@ -46,6 +46,7 @@ class RoundsOnTwoCores(unittest.TestCase):
         every = threads.summary(sc, every_round=True)
         self.assertAlmostEqual(every["render_x"], 0.90 / 0.52)
         self.assertIn("12 of 16 runs on two cores", threads.probe_line(sc))
+        self.assertEqual(threads.rounds_taken({"d": sc, "balls": sc}), "d 4, balls 4")
 
     def test_fewer_than_three_runs_on_two_cores_are_not_measured(self):
         # Two good runs of each job: a best of two is not a best of several.
