@@ -153,16 +153,14 @@ def measure(name, path, size, repeat, locus, binary, tmp, farm, max_rounds=0):
     # always run first or last would meet that drift alike every time.
     runs, images, notes = {key: [] for key, *_ in jobs}, {}, {}
 
-    def short():
-        return any(not two_core_runs({k: v})[k] for k, v in runs.items() if k not in notes)
-
+    # A probe between every two jobs (across rounds too): the host takes
+    # and gives back its second core within seconds, so a round's two ends
+    # do not tell.
+    before = capacity()
     rnd = 0
-    while rnd < repeat or (rnd < max_rounds and short()):
+    while rnd < repeat or (rnd < max_rounds and set(short_jobs(runs)) - set(notes)):
         order = jobs if rnd % 2 == 0 else jobs[::-1]
         of = f"{rnd + 1}/{repeat}" if rnd < repeat else f"{rnd + 1} (more: too few on two cores)"
-        # A probe between every two jobs: the host takes and gives back its
-        # second core within seconds, so a round's two ends do not tell.
-        before = capacity()
         for job in [j for j in order if j[0] not in notes]:
             r, im, nt = H.rounds([job], 1, f"{name} round {of}", tmp, name)
             after = capacity()
@@ -195,6 +193,12 @@ def two_core_runs(runs):
         return runs
     kept = {k: [x for x in v if x.get("capacity", 0.0) >= CAPACITY_MIN] for k, v in runs.items()}
     return {k: v if len(v) >= MIN_TWO_CORE_RUNS else [] for k, v in kept.items()}
+
+
+def short_jobs(runs):
+    """The jobs that ran but have too few runs on two cores to be judged."""
+    kept = two_core_runs(runs)
+    return sorted(k for k, v in runs.items() if v and not kept[k])
 
 
 def summary(scene, every_round=False):
@@ -235,7 +239,7 @@ def probe_line(scene):
     if not caps:
         return "runs: every one counts (no core probe in this raw file)"
     good = sum(1 for c in caps if c >= CAPACITY_MIN)
-    short = sorted(k for k, v in scene["runs"].items() if v and not two_core_runs({k: v})[k])
+    short = short_jobs(scene["runs"])
     return (f"{good} of {len(caps)} runs on two cores (probes >= {CAPACITY_MIN}; read "
             f"{min(caps):.2f}-{max(caps):.2f}); the targets are judged on those, at least "
             f"{MIN_TWO_CORE_RUNS} a job" +

@@ -78,10 +78,10 @@ class RoundsOnTwoCores(unittest.TestCase):
         self.assertIn("no core probe", threads.probe_line(sc))
 
     def test_more_rounds_while_a_job_has_too_few_runs_on_two_cores(self):
-        # The probe reads one core's worth for the first 9 probes, then two:
+        # The probe reads one core's worth for the first 8 probes, then two:
         # after the 2 rounds asked for, rounds go on until each job has 3
         # runs between two good probes, and no further.
-        readings = iter([1.0] * 9 + [2.0] * 1000)
+        readings = iter([1.0] * 8 + [2.0] * 1000)
         calls = []
 
         def rounds(jobs, repeat, tag, tmp, prefix):
@@ -99,8 +99,9 @@ class RoundsOnTwoCores(unittest.TestCase):
                                   max_rounds=30)
         finally:
             threads.capacity, threads.H.rounds, threads.identical = saved
-        # Probes 1-9 low: rounds 1-2 (4 jobs each, 9 probes) count for
-        # nothing; rounds 3-5 give each job its 3 runs; then it stops.
+        # One probe, then one after each job: probes 1-8 are low, so rounds
+        # 1-2 (9 probes) count for nothing; rounds 3-5 give each job its 3
+        # runs; then it stops.
         self.assertEqual(len(calls), 5 * 4)
         for key in ("t1", "t2", "w1", "w2"):
             self.assertEqual(len(got["runs"][key]), 5)
