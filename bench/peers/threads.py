@@ -308,16 +308,16 @@ def report(out_dir, info, scenes):
           "| scene | prepare 1 | prepare 2 | x | render 1 | render 2 | x | frame 1 | frame 2 "
           "| x | farm 1 worker | farm 2 workers | x |",
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for (name, sc), every in [(item, False) for item in scenes.items()] + \
-            [(item, True) for item in scenes.items()]:
-        s = summary(sc, every_round=every)
-        if every:
-            name += " (every round)"
-        md.append(f"| {name} | {s['t1_prepare']:.3f} | {s['t2_prepare']:.3f} | "
-                  f"{s['prepare_x']:.2f} | {s['t1_render']:.3f} | {s['t2_render']:.3f} | "
-                  f"{s['render_x']:.2f} | {s['t1_frame']:.3f} | {s['t2_frame']:.3f} | "
-                  f"{s['frame_x']:.2f} | {s['w1_wall']:.3f} | {s['w2_wall']:.3f} | "
-                  f"{s['farm_x']:.2f} |")
+    for every in (False, True):
+        for name, sc in scenes.items():
+            s = summary(sc, every_round=every)
+            if every:
+                name += " (every round)"
+            md.append(f"| {name} | {s['t1_prepare']:.3f} | {s['t2_prepare']:.3f} | "
+                      f"{s['prepare_x']:.2f} | {s['t1_render']:.3f} | {s['t2_render']:.3f} | "
+                      f"{s['render_x']:.2f} | {s['t1_frame']:.3f} | {s['t2_frame']:.3f} | "
+                      f"{s['frame_x']:.2f} | {s['w1_wall']:.3f} | {s['w2_wall']:.3f} | "
+                      f"{s['farm_x']:.2f} |")
     md += ["", "Seconds; x: the speed-up (1 over 2), from the best of the rounds on two cores "
         "(nan: no run on two cores), and below them the same over every round. The lines below also "
         "give the median of the rounds' own ratios (1 and 2 side by side in one round): the "
